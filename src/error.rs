@@ -1,0 +1,162 @@
+//! The one error type of lancet.
+//!
+//! Every message is lowercase, says what went wrong and what to do about it, and names the file,
+//! line (or byte offset) and element when the input was a file.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Result alias used throughout the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Where in an input file something was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line number in a text file.
+    Line(usize),
+    /// 0-based byte offset in a binary file or binary section.
+    Byte(u64),
+    /// The position is not known (for example the end of the file).
+    Unknown,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(l) => write!(f, "line {l}"),
+            Location::Byte(b) => write!(f, "byte {b}"),
+            Location::Unknown => write!(f, "end of file"),
+        }
+    }
+}
+
+/// A problem in an input file: where, which element, what, and how to fix it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParseError {
+    /// The file that was being read.
+    pub path: PathBuf,
+    /// Where in the file.
+    pub location: Location,
+    /// The element (tet, node, cell) concerned, by the id written in the file, if any.
+    pub element: Option<i64>,
+    /// What is wrong, lowercase.
+    pub message: String,
+    /// What the user can do about it, lowercase; may be empty.
+    pub hint: String,
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}: ", self.path.display(), self.location)?;
+        if let Some(e) = self.element {
+            write!(f, "element {e}: ")?;
+        }
+        write!(f, "{}", self.message)?;
+        if !self.hint.is_empty() {
+            write!(f, " ({})", self.hint)?;
+        }
+        Ok(())
+    }
+}
+
+/// Everything that can go wrong in lancet.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A file could not be opened, read or written.
+    #[error("{}: {source} (check that the path exists and is readable/writable)", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// A mesh, scene or other input file is malformed.
+    #[error("{0}")]
+    Parse(Box<ParseError>),
+
+    /// A mesh built in code (not read from a file) is invalid.
+    #[error("invalid mesh: {0}")]
+    Mesh(String),
+
+    /// Model parameters are invalid (non-positive mass, negative stiffness, ...).
+    #[error("invalid model: {0}")]
+    Model(String),
+
+    /// The time step is above the stable bound of explicit integration.
+    #[error(
+        "time step {dt:e} s exceeds the stable bound {bound:e} s (limited by node {node}); \
+         lower dt below the bound, or set `allow_unstable: true` to run anyway"
+    )]
+    UnstableTimeStep {
+        /// The requested step, seconds.
+        dt: f64,
+        /// The stable bound, seconds.
+        bound: f64,
+        /// The node (index in the mesh's node order) with the smallest per-node bound.
+        node: usize,
+    },
+
+    /// The simulation blew up: NaN, infinity or exploding energy.
+    #[error(
+        "simulation diverged at step {step}, node {node}: {reason} (lower dt or raise damping)"
+    )]
+    Diverged {
+        /// The step at which divergence was detected (1-based count of steps taken).
+        step: u64,
+        /// The node (index in the mesh's node order) that showed it first or worst.
+        node: usize,
+        /// What was seen.
+        reason: String,
+    },
+
+    /// A scene file is inconsistent (unknown region, missing mesh, ...).
+    #[error("{}: {message}", path.display())]
+    Scene {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        message: String,
+    },
+
+    /// A feature or format that this build or this file needs is not available.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
+}
+
+impl Error {
+    /// Build a parse error.
+    pub fn parse(
+        path: impl Into<PathBuf>,
+        location: Location,
+        element: Option<i64>,
+        message: impl Into<String>,
+        hint: impl Into<String>,
+    ) -> Self {
+        Error::Parse(Box::new(ParseError {
+            path: path.into(),
+            location,
+            element,
+            message: message.into(),
+            hint: hint.into(),
+        }))
+    }
+
+    /// Build an I/O error for `path`.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// The parse details, if this is a parse error.
+    pub fn as_parse(&self) -> Option<&ParseError> {
+        match self {
+            Error::Parse(p) => Some(p),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,19 @@
+//! # lancet
+//!
+//! Soft-tissue simulation with cutting, for surgical simulators: unstructured tetrahedral
+//! meshes, a mass-spring engine (float64 reference and fast float32 CPU engines; GPU layouts
+//! to come), scenes with checked expectations.
+//!
+//! ```
+//! use lancet::mesh::generate::BoxGrid;
+//! let mesh = BoxGrid::cube_cells([2, 2, 2], 0.01).build().unwrap();
+//! assert_eq!(mesh.tet_count(), 2 * 2 * 2 * 6);
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod mesh;
+
+pub use error::{Error, Location, ParseError, Result};
+pub use mesh::{NodeKey, TetKey, TetMesh};
