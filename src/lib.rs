@@ -17,3 +17,8 @@ pub mod mesh;
 
 pub use error::{Error, Location, ParseError, Result};
 pub use mesh::{NodeKey, TetKey, TetMesh};
+pub mod engine;
+pub mod model;
+
+pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
+pub use model::{Material, ModelConfig, PackedModel, SpringModel};

@@ -1,0 +1,500 @@
+//! The mass-spring model: springs on the unique tet edges, lumped node masses, damping, gravity
+//! and fixed nodes.
+//!
+//! [`SpringModel`] is keyed by the mesh's stable node and tet keys and keeps, for every tet, the
+//! exact share of stiffness, damping and mass it contributed, so that a cut can subtract
+//! precisely what a removed or split tet gave ([`SpringModel::remove_tet`]). Engines run on the
+//! dense [`PackedModel`] made by [`SpringModel::pack`].
+
+pub mod constraints;
+pub mod material;
+pub mod stability;
+
+use std::collections::{BTreeMap, HashMap};
+
+use serde::{Deserialize, Serialize};
+use slotmap::{new_key_type, SecondaryMap, SlotMap};
+
+use crate::error::{Error, Result};
+use crate::mesh::{NodeKey, TetKey, TetMesh, TET_EDGES};
+
+pub use constraints::FixedSelector;
+pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
+pub use stability::{stable_time_step, StabilityBound};
+
+new_key_type! {
+    /// Stable identity of a spring.
+    pub struct SpringKey;
+}
+
+/// Everything needed to turn a mesh into a spring model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelConfig {
+    /// Material of tets whose region has no entry in `regions`.
+    pub material: Material,
+    /// Materials by region tag.
+    #[serde(default)]
+    pub regions: BTreeMap<i32, Material>,
+    /// Gravity, m/s^2.
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    /// Global mass-proportional damping `alpha`, 1/s: force `-alpha m v` on every node.
+    #[serde(default)]
+    pub mass_damping: f64,
+    /// Nodes held at their rest positions (union of the selectors).
+    #[serde(default)]
+    pub fixed: Vec<FixedSelector>,
+}
+
+impl ModelConfig {
+    /// One material everywhere, no gravity, no damping, nothing fixed.
+    pub fn new(material: Material) -> Self {
+        ModelConfig {
+            material,
+            regions: BTreeMap::new(),
+            gravity: [0.0; 3],
+            mass_damping: 0.0,
+            fixed: Vec::new(),
+        }
+    }
+
+    /// The material of a region.
+    pub fn material_of(&self, region: i32) -> &Material {
+        self.regions.get(&region).unwrap_or(&self.material)
+    }
+}
+
+/// A spring between two nodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spring {
+    /// The two nodes, in key order.
+    pub nodes: [NodeKey; 2],
+    /// Rest length, m.
+    pub rest_length: f64,
+    /// Stiffness, N/m: the sum of the shares of the tets holding the edge.
+    pub stiffness: f64,
+    /// Damping along the spring, N s/m.
+    pub damping: f64,
+    /// How many tets hold this edge; the spring is deleted when the last one goes.
+    pub tets: u32,
+}
+
+/// What one tet contributed to the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetShare {
+    /// The springs of its six edges, in [`TET_EDGES`] order.
+    pub springs: [SpringKey; 6],
+    /// Its stiffness share of each.
+    pub stiffness: [f64; 6],
+    /// Its damping share of each.
+    pub damping: [f64; 6],
+    /// Its mass share of each of its four nodes.
+    pub mass: [f64; 4],
+}
+
+/// The mass-spring model of a mesh, keyed by stable identities.
+#[derive(Debug, Clone)]
+pub struct SpringModel {
+    springs: SlotMap<SpringKey, Spring>,
+    by_edge: HashMap<[NodeKey; 2], SpringKey>,
+    mass: SecondaryMap<NodeKey, f64>,
+    tets_at_node: SecondaryMap<NodeKey, u32>,
+    fixed: SecondaryMap<NodeKey, ()>,
+    shares: SecondaryMap<TetKey, TetShare>,
+    config: ModelConfig,
+}
+
+fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
+    if a < b {
+        [a, b]
+    } else {
+        [b, a]
+    }
+}
+
+impl SpringModel {
+    /// Build the model of `mesh` under `config`.
+    pub fn build(mesh: &TetMesh, config: &ModelConfig) -> Result<Self> {
+        config.material.validate()?;
+        for (r, m) in &config.regions {
+            m.validate()
+                .map_err(|e| Error::Model(format!("region {r}: {e}")))?;
+        }
+        if !config.gravity.iter().all(|g| g.is_finite()) {
+            return Err(Error::Model(format!(
+                "gravity {:?} is not finite",
+                config.gravity
+            )));
+        }
+        if !(config.mass_damping.is_finite() && config.mass_damping >= 0.0) {
+            return Err(Error::Model(format!(
+                "mass damping {} must be finite and not negative",
+                config.mass_damping
+            )));
+        }
+        let mut model = SpringModel {
+            springs: SlotMap::with_key(),
+            by_edge: HashMap::new(),
+            mass: SecondaryMap::new(),
+            tets_at_node: SecondaryMap::new(),
+            fixed: SecondaryMap::new(),
+            shares: SecondaryMap::new(),
+            config: config.clone(),
+        };
+        // Per-node and per-edge incidence counts, needed only by the "per node" and "per
+        // spring" parameterisations, which split a given value equally among tets.
+        let mut tets_at_node: SecondaryMap<NodeKey, u32> = SecondaryMap::new();
+        let mut tets_at_edge: HashMap<[NodeKey; 2], u32> = HashMap::new();
+        for (_, t) in mesh.tets() {
+            for &n in &t.nodes {
+                if let Some(e) = tets_at_node.entry(n) {
+                    *e.or_insert(0) += 1;
+                }
+            }
+            for [a, b] in TET_EDGES {
+                *tets_at_edge
+                    .entry(edge_key(t.nodes[a], t.nodes[b]))
+                    .or_insert(0) += 1;
+            }
+        }
+        for (tk, _) in mesh.tets() {
+            let share = model.tet_share(mesh, tk, &tets_at_node, &tets_at_edge)?;
+            model.apply_share(mesh, tk, share, 1.0);
+        }
+        for sel in &config.fixed {
+            sel.select(mesh, &mut model.fixed)?;
+        }
+        Ok(model)
+    }
+
+    /// Compute what tet `tk` contributes (springs are created if missing).
+    fn tet_share(
+        &mut self,
+        mesh: &TetMesh,
+        tk: TetKey,
+        tets_at_node: &SecondaryMap<NodeKey, u32>,
+        tets_at_edge: &HashMap<[NodeKey; 2], u32>,
+    ) -> Result<TetShare> {
+        let t = *mesh
+            .tet(tk)
+            .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
+        let mat = *self.config.material_of(t.region);
+        let p = mesh.tet_points(&t);
+        let volume = mesh.tet_volume(tk);
+        let mut share = TetShare {
+            springs: [SpringKey::default(); 6],
+            stiffness: [0.0; 6],
+            damping: [0.0; 6],
+            mass: [0.0; 4],
+        };
+        for (e, [a, b]) in TET_EDGES.iter().enumerate() {
+            let key = edge_key(t.nodes[*a], t.nodes[*b]);
+            let l = (p[*a] - p[*b]).norm();
+            let n_e = tets_at_edge.get(&key).copied().unwrap_or(1) as f64;
+            let k = match (mat.stiffness, mat.stiffness_constant()) {
+                (Stiffness::Spring(k), _) => k / n_e,
+                (_, Some(c)) => c * volume / (l * l),
+                _ => 0.0,
+            };
+            let c = match mat.damping {
+                SpringDamping::None => 0.0,
+                SpringDamping::Absolute(c) => c / n_e,
+                SpringDamping::StiffnessProportional(beta) => beta * k,
+            };
+            let sk = match self.by_edge.get(&key) {
+                Some(&s) => s,
+                None => {
+                    let s = self.springs.insert(Spring {
+                        nodes: key,
+                        rest_length: l,
+                        stiffness: 0.0,
+                        damping: 0.0,
+                        tets: 0,
+                    });
+                    self.by_edge.insert(key, s);
+                    s
+                }
+            };
+            share.springs[e] = sk;
+            share.stiffness[e] = k;
+            share.damping[e] = c;
+        }
+        for (i, n) in t.nodes.iter().enumerate() {
+            share.mass[i] = match mat.mass {
+                Mass::Density(rho) => rho * volume / 4.0,
+                Mass::PerNode(m) => m / tets_at_node.get(*n).copied().unwrap_or(1) as f64,
+            };
+        }
+        Ok(share)
+    }
+
+    /// Add (`sign = 1`) or subtract (`sign = -1`) a tet's share.
+    fn apply_share(&mut self, mesh: &TetMesh, tk: TetKey, share: TetShare, sign: f64) {
+        let count = |c: u32| {
+            if sign > 0.0 {
+                c + 1
+            } else {
+                c.saturating_sub(1)
+            }
+        };
+        for e in 0..6 {
+            if let Some(s) = self.springs.get_mut(share.springs[e]) {
+                s.stiffness += sign * share.stiffness[e];
+                s.damping += sign * share.damping[e];
+                s.tets = count(s.tets);
+            }
+        }
+        if let Some(t) = mesh.tet(tk) {
+            for (i, n) in t.nodes.iter().enumerate() {
+                if let Some(m) = self.mass.entry(*n) {
+                    *m.or_insert(0.0) += sign * share.mass[i];
+                }
+                if let Some(c) = self.tets_at_node.entry(*n) {
+                    let c = c.or_insert(0);
+                    *c = count(*c);
+                }
+            }
+        }
+        if sign > 0.0 {
+            self.shares.insert(tk, share);
+        }
+    }
+
+    /// Remove what tet `tk` contributed, before the tet is removed from `mesh`. Springs left
+    /// with no tet are deleted; nodes left with no tet lose their mass entry. Returns the
+    /// springs that were deleted.
+    pub fn remove_tet(&mut self, mesh: &TetMesh, tk: TetKey) -> Result<Vec<SpringKey>> {
+        let share = self
+            .shares
+            .remove(tk)
+            .ok_or_else(|| Error::Model("tet has no share in the model".into()))?;
+        self.apply_share(mesh, tk, share, -1.0);
+        let t = *mesh
+            .tet(tk)
+            .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
+        // A spring survives while another tet still holds its edge; likewise a node's mass.
+        let mut removed = Vec::new();
+        for &s in &share.springs {
+            if self.springs.get(s).is_some_and(|sp| sp.tets == 0) {
+                if let Some(spring) = self.springs.remove(s) {
+                    self.by_edge.remove(&spring.nodes);
+                    removed.push(s);
+                }
+            }
+        }
+        for n in t.nodes {
+            if self.tets_at_node.get(n).is_some_and(|&c| c == 0) {
+                self.mass.remove(n);
+                self.tets_at_node.remove(n);
+            }
+        }
+        Ok(removed)
+    }
+
+    /// The configuration the model was built with.
+    pub fn config(&self) -> &ModelConfig {
+        &self.config
+    }
+
+    /// All springs.
+    pub fn springs(&self) -> impl Iterator<Item = (SpringKey, &Spring)> + '_ {
+        self.springs.iter()
+    }
+
+    /// Number of springs.
+    pub fn spring_count(&self) -> usize {
+        self.springs.len()
+    }
+
+    /// The spring on edge `a b`, if any.
+    pub fn spring_between(&self, a: NodeKey, b: NodeKey) -> Option<&Spring> {
+        self.by_edge.get(&edge_key(a, b)).map(|s| &self.springs[*s])
+    }
+
+    /// Lumped mass of a node, kg.
+    pub fn mass(&self, n: NodeKey) -> Option<f64> {
+        self.mass.get(n).copied()
+    }
+
+    /// Total mass, kg.
+    pub fn total_mass(&self) -> f64 {
+        self.mass.values().sum()
+    }
+
+    /// Whether a node is fixed.
+    pub fn is_fixed(&self, n: NodeKey) -> bool {
+        self.fixed.contains_key(n)
+    }
+
+    /// Number of fixed nodes.
+    pub fn fixed_count(&self) -> usize {
+        self.fixed.len()
+    }
+
+    /// The share a tet contributed.
+    pub fn share(&self, tk: TetKey) -> Option<&TetShare> {
+        self.shares.get(tk)
+    }
+
+    /// Dense arrays for the engines, nodes in the mesh's storage order, springs sorted by their
+    /// dense node pair.
+    pub fn pack(&self, mesh: &TetMesh) -> Result<PackedModel> {
+        let dense = mesh.dense_nodes();
+        let n = dense.keys.len();
+        let mut rest = Vec::with_capacity(n);
+        let mut mass = Vec::with_capacity(n);
+        let mut fixed = Vec::with_capacity(n);
+        for &k in &dense.keys {
+            let p = mesh.rest(k);
+            rest.push([p.x, p.y, p.z]);
+            let m = self.mass.get(k).copied().unwrap_or(0.0);
+            if !(m > 0.0 && m.is_finite()) {
+                return Err(Error::Model(format!(
+                    "node {} has mass {m}; every node needs a positive mass (remove nodes \
+                     that no tet uses)",
+                    dense.index[k]
+                )));
+            }
+            mass.push(m);
+            fixed.push(self.fixed.contains_key(k));
+        }
+        let mut springs: Vec<PackedSpring> = self
+            .springs
+            .values()
+            .map(|s| {
+                let (a, b) = (dense.index[s.nodes[0]], dense.index[s.nodes[1]]);
+                PackedSpring {
+                    nodes: [a.min(b), a.max(b)],
+                    rest_length: s.rest_length,
+                    stiffness: s.stiffness,
+                    damping: s.damping,
+                }
+            })
+            .collect();
+        springs.sort_by_key(|s| s.nodes);
+        Ok(PackedModel {
+            node_keys: dense.keys,
+            rest,
+            mass,
+            fixed,
+            springs,
+            gravity: self.config.gravity,
+            mass_damping: self.config.mass_damping,
+        })
+    }
+}
+
+/// A spring in dense form.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PackedSpring {
+    /// Dense node indices, `nodes[0] < nodes[1]`.
+    pub nodes: [u32; 2],
+    /// Rest length, m.
+    pub rest_length: f64,
+    /// Stiffness, N/m.
+    pub stiffness: f64,
+    /// Damping along the spring, N s/m.
+    pub damping: f64,
+}
+
+/// The model as dense arrays, what engines consume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackedModel {
+    /// The mesh node behind each dense index.
+    pub node_keys: Vec<NodeKey>,
+    /// Rest positions, m.
+    pub rest: Vec<[f64; 3]>,
+    /// Lumped masses, kg.
+    pub mass: Vec<f64>,
+    /// Whether each node is held at its rest position.
+    pub fixed: Vec<bool>,
+    /// The springs.
+    pub springs: Vec<PackedSpring>,
+    /// Gravity, m/s^2.
+    pub gravity: [f64; 3],
+    /// Mass-proportional damping, 1/s.
+    pub mass_damping: f64,
+}
+
+impl PackedModel {
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Build a model directly from arrays (for tests and programs without a mesh): springs get
+    /// rest lengths from `rest`.
+    pub fn from_springs(
+        rest: Vec<[f64; 3]>,
+        mass: Vec<f64>,
+        springs: &[([u32; 2], f64, f64)],
+    ) -> Result<Self> {
+        let n = rest.len();
+        if mass.len() != n {
+            return Err(Error::Model(format!(
+                "{} masses for {n} nodes; give one per node",
+                mass.len()
+            )));
+        }
+        let mut packed = Vec::with_capacity(springs.len());
+        for &([a, b], k, c) in springs {
+            if a as usize >= n || b as usize >= n || a == b {
+                return Err(Error::Model(format!(
+                    "spring {a}-{b} needs two distinct nodes below {n}"
+                )));
+            }
+            let d: f64 = (0..3)
+                .map(|i| (rest[a as usize][i] - rest[b as usize][i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            packed.push(PackedSpring {
+                nodes: [a.min(b), a.max(b)],
+                rest_length: d,
+                stiffness: k,
+                damping: c,
+            });
+        }
+        Ok(PackedModel {
+            node_keys: vec![NodeKey::default(); n],
+            fixed: vec![false; n],
+            rest,
+            mass,
+            springs: packed,
+            gravity: [0.0; 3],
+            mass_damping: 0.0,
+        })
+    }
+
+    /// Elastic energy stored in the springs at positions `x`, J.
+    pub fn elastic_energy(&self, x: &[[f64; 3]]) -> f64 {
+        self.springs
+            .iter()
+            .map(|s| {
+                let (a, b) = (x[s.nodes[0] as usize], x[s.nodes[1] as usize]);
+                let l =
+                    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+                0.5 * s.stiffness * (l - s.rest_length).powi(2)
+            })
+            .sum()
+    }
+
+    /// Gravitational potential energy at positions `x`, J (zero at the rest positions).
+    pub fn gravity_energy(&self, x: &[[f64; 3]]) -> f64 {
+        let g = self.gravity;
+        x.iter()
+            .zip(&self.rest)
+            .zip(&self.mass)
+            .map(|((p, r), m)| {
+                -m * ((p[0] - r[0]) * g[0] + (p[1] - r[1]) * g[1] + (p[2] - r[2]) * g[2])
+            })
+            .sum()
+    }
+
+    /// Kinetic energy of velocities `v`, J.
+    pub fn kinetic_energy(&self, v: &[[f64; 3]]) -> f64 {
+        v.iter()
+            .zip(&self.mass)
+            .map(|(v, m)| 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
+            .sum()
+    }
+}
