@@ -22,3 +22,5 @@ pub mod model;
 
 pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};
+#[cfg(feature = "scene")]
+pub mod scene;

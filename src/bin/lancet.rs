@@ -1,1 +1,339 @@
-fn main() {}
+//! The `lancet` command-line tool: run scenes, inspect meshes.
+//!
+//! Exit codes: 0 success, 1 an expectation failed or the run diverged, 2 bad input or another
+//! error.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+
+use lancet::engine::EngineKind;
+use lancet::scene::{run_scene, RunOptions, RunSummary, Scene};
+
+#[derive(Parser)]
+#[command(
+    name = "lancet",
+    version,
+    about = "Soft-tissue simulation with cutting"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene file, every scene in a folder, or (with no argument) the embedded default
+    /// scene; check its expectations.
+    Run {
+        /// A `.ron` scene file or a folder of them.
+        scene: Option<PathBuf>,
+        /// Print a machine-readable JSON summary on stdout.
+        #[arg(long)]
+        json: bool,
+        /// Engine to use instead of the scene's.
+        #[arg(long, value_enum)]
+        engine: Option<EngineArg>,
+        /// Number of steps instead of the scene's.
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Folder for VTU frames instead of the scene's.
+        #[arg(long)]
+        output: Option<PathBuf>,
+        /// Write no VTU frames.
+        #[arg(long)]
+        no_output: bool,
+    },
+    /// Describe a mesh file: counts, volume, quality, components, regions.
+    Info {
+        /// The mesh (for TetGen, either file of the `.node`/`.ele` pair).
+        mesh: PathBuf,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum EngineArg {
+    /// Float64 serial reference engine.
+    Reference,
+    /// Float32 multi-threaded CPU engine.
+    Fast,
+    /// The default CPU engine (same as `fast`).
+    Cpu,
+}
+
+impl From<EngineArg> for EngineKind {
+    fn from(e: EngineArg) -> Self {
+        match e {
+            EngineArg::Reference => EngineKind::Reference,
+            EngineArg::Fast | EngineArg::Cpu => EngineKind::Fast,
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run {
+            scene,
+            json,
+            engine,
+            steps,
+            output,
+            no_output,
+        } => {
+            let opts = RunOptions {
+                engine: engine.map(Into::into),
+                steps,
+                output_dir: output,
+                no_output,
+            };
+            run(scene.as_deref(), json, &opts)
+        }
+        Command::Info { mesh, json } => info(&mesh, json),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Run one scene, a folder of scenes, or the default scene.
+fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<ExitCode> {
+    let scenes: Vec<(Scene, PathBuf)> = match scene {
+        None => vec![(
+            Scene::default_scene(),
+            PathBuf::from("<embedded default scene>"),
+        )],
+        Some(p) if p.is_dir() => {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|e| lancet::Error::io(p, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| f.extension().is_some_and(|x| x == "ron"))
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(lancet::Error::Scene {
+                    path: p.to_path_buf(),
+                    message: "folder holds no .ron scene files".into(),
+                });
+            }
+            files
+                .into_iter()
+                .map(|f| Scene::read(&f).map(|s| (s, f)))
+                .collect::<lancet::Result<_>>()?
+        }
+        Some(p) => vec![(Scene::read(p)?, p.to_path_buf())],
+    };
+    let mut summaries = Vec::with_capacity(scenes.len());
+    for (scene, path) in &scenes {
+        let bar = progress_bar(scene, opts, json);
+        let summary = run_scene(scene, path, opts, |done, _| bar.set_position(done));
+        bar.finish_and_clear();
+        let summary = summary?;
+        if !json {
+            print_summary(&summary);
+        }
+        summaries.push(summary);
+    }
+    let all_passed = summaries.iter().all(|s| s.expectations_passed);
+    if json {
+        let value = if summaries.len() == 1 {
+            serde_json::to_value(&summaries[0])
+        } else {
+            serde_json::to_value(&summaries)
+        };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &value.unwrap_or_else(|e| json!({"error": e.to_string()}))
+            )
+            .unwrap_or_default()
+        );
+    } else if summaries.len() > 1 {
+        print_table(&summaries);
+    }
+    Ok(if all_passed {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// A progress bar on stderr for long runs; hidden for short runs, JSON output, or when stderr
+/// is not a terminal (indicatif checks that).
+fn progress_bar(scene: &Scene, opts: &RunOptions, json: bool) -> ProgressBar {
+    let steps = opts.steps.unwrap_or(scene.steps);
+    if json || steps < 2000 {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(steps);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(scene.name.clone());
+    bar
+}
+
+fn print_summary(s: &RunSummary) {
+    println!("scene: {}", s.scene);
+    println!(
+        "model: {} nodes, {} tets, {} springs",
+        s.nodes, s.tets, s.springs
+    );
+    println!(
+        "engine: {} ({}), dt {:.3e} s, stable bound {:.3e} s (node {})",
+        s.engine, s.integrator, s.dt, s.dt_bound, s.dt_bound_node
+    );
+    if let Some(m) = &s.message {
+        println!("{}: {m}", if s.refused { "refused" } else { "diverged" });
+    }
+    println!(
+        "ran {} steps ({:.4} s simulated) in {:.3} s wall, {:.0} steps/s",
+        s.steps,
+        s.steps as f64 * s.dt,
+        s.wall_s,
+        s.steps_per_s
+    );
+    println!(
+        "max displacement {:.4e} m, volume ratio {:.5}, energy: kinetic {:.3e} J, elastic {:.3e} J",
+        s.max_displacement, s.volume_ratio, s.energy.kinetic, s.energy.elastic
+    );
+    if let Some(p) = &s.pvd {
+        println!("wrote {} frames, series {}", s.frames_written, p.display());
+    }
+    if !s.expectations.is_empty() {
+        println!("expectations:");
+        for e in &s.expectations {
+            let measured = e
+                .measured
+                .map_or(String::new(), |v| format!(" (measured {v:.4e})"));
+            println!(
+                "  {}  {}{measured}",
+                if e.passed { "pass" } else { "FAIL" },
+                e.expectation
+            );
+        }
+    }
+    println!(
+        "result: {}\n",
+        if s.expectations_passed {
+            "pass"
+        } else {
+            "FAIL"
+        }
+    );
+}
+
+fn print_table(summaries: &[RunSummary]) {
+    let w = summaries
+        .iter()
+        .map(|s| s.scene.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    println!(
+        "{:<w$}  {:>8}  {:>8}  {:>10}  {:>9}  {:>8}  result",
+        "scene", "nodes", "steps", "dt (s)", "wall (s)", "checks"
+    );
+    for s in summaries {
+        let passed = s.expectations.iter().filter(|e| e.passed).count();
+        println!(
+            "{:<w$}  {:>8}  {:>8}  {:>10.3e}  {:>9.3}  {:>8}  {}",
+            s.scene,
+            s.nodes,
+            s.steps,
+            s.dt,
+            s.wall_s,
+            format!("{passed}/{}", s.expectations.len()),
+            if s.expectations_passed {
+                "pass"
+            } else {
+                "FAIL"
+            }
+        );
+    }
+    let failed = summaries.iter().filter(|s| !s.expectations_passed).count();
+    println!("{} scenes, {} failed", summaries.len(), failed);
+}
+
+/// Print what a mesh file holds.
+fn info(path: &Path, json: bool) -> lancet::Result<ExitCode> {
+    let loaded = lancet::mesh::io::read(path)?;
+    let mesh = &loaded.mesh;
+    let topo = mesh.topology();
+    let quality = mesh.quality();
+    let components = mesh.component_count();
+    let regions: serde_json::Map<String, serde_json::Value> = mesh
+        .regions()
+        .into_iter()
+        .map(|(r, n)| (r.to_string(), json!(n)))
+        .collect();
+    let edges = mesh.edges().len();
+    if json {
+        let v = json!({
+            "path": path.display().to_string(),
+            "format": loaded.report.format.to_string(),
+            "nodes": mesh.node_count(),
+            "tets": mesh.tet_count(),
+            "edges": edges,
+            "boundary_faces": topo.boundary.len(),
+            "surface_triangles": loaded.surface.len(),
+            "volume": mesh.volume(),
+            "inverted": loaded.report.reoriented,
+            "dropped_nodes": loaded.report.dropped_nodes,
+            "min_quality": quality.map(|q| q.min_volume_length_ratio),
+            "mean_quality": quality.map(|q| q.mean_volume_length_ratio),
+            "min_dihedral_deg": quality.map(|q| q.min_dihedral_deg),
+            "max_dihedral_deg": quality.map(|q| q.max_dihedral_deg),
+            "components": components,
+            "regions": regions,
+            "notes": loaded.report.notes,
+        });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("{} ({})", path.display(), loaded.report.format);
+    println!(
+        "{} nodes, {} tets, {} edges (springs), {} boundary faces",
+        mesh.node_count(),
+        mesh.tet_count(),
+        edges,
+        topo.boundary.len()
+    );
+    println!(
+        "volume {:.6e}, {} component(s), {} inverted tet(s) reoriented",
+        mesh.volume(),
+        components,
+        loaded.report.reoriented
+    );
+    if let Some(q) = quality {
+        println!(
+            "quality: volume-length ratio min {:.4} mean {:.4}; dihedral angles {:.2}..{:.2} deg",
+            q.min_volume_length_ratio,
+            q.mean_volume_length_ratio,
+            q.min_dihedral_deg,
+            q.max_dihedral_deg
+        );
+    }
+    let regions: Vec<String> = mesh
+        .regions()
+        .iter()
+        .map(|(r, n)| format!("{r}: {n} tets"))
+        .collect();
+    println!("regions: {}", regions.join(", "));
+    for note in &loaded.report.notes {
+        println!("note: {note}");
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,146 @@
+//! Checking a finished run against a scene's expectations.
+
+use serde::Serialize;
+
+use super::schema::{EnergyPart, Expectation};
+use crate::engine::Energy;
+use crate::mesh::{signed_volume6, TetMesh};
+use crate::model::PackedModel;
+
+/// The outcome of one expectation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExpectationResult {
+    /// What was expected, in words.
+    pub expectation: String,
+    /// The value measured, if the expectation measures one.
+    pub measured: Option<f64>,
+    /// Whether it held.
+    pub passed: bool,
+}
+
+/// The state at the end of a run, as expectations see it.
+pub struct FinalState<'a> {
+    /// The mesh (rest geometry).
+    pub mesh: &'a TetMesh,
+    /// The packed model (node order of `positions`).
+    pub model: &'a PackedModel,
+    /// Final positions.
+    pub positions: &'a [[f64; 3]],
+    /// Final energies.
+    pub energy: Energy,
+    /// Whether the run diverged.
+    pub diverged: bool,
+    /// Whether the time step was refused.
+    pub refused: bool,
+}
+
+/// Largest nodal displacement from rest.
+pub fn max_displacement(model: &PackedModel, x: &[[f64; 3]]) -> f64 {
+    x.iter()
+        .zip(&model.rest)
+        .map(|(p, r)| dist(p, r))
+        .fold(0.0, f64::max)
+}
+
+/// Total signed volume of the tets at positions `x` (node order of `mesh.dense_nodes()`).
+pub fn deformed_volume(mesh: &TetMesh, x: &[[f64; 3]]) -> f64 {
+    let dense = mesh.dense_nodes();
+    mesh.tets()
+        .map(|(_, t)| {
+            let p = t
+                .nodes
+                .map(|k| nalgebra::Point3::from(x[dense.index[k] as usize]));
+            signed_volume6(&p[0], &p[1], &p[2], &p[3]) / 6.0
+        })
+        .sum()
+}
+
+fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+fn in_range(v: f64, min: Option<f64>, max: Option<f64>) -> bool {
+    v.is_finite() && min.is_none_or(|m| v >= m) && max.is_none_or(|m| v <= m)
+}
+
+fn range_text(min: Option<f64>, max: Option<f64>) -> String {
+    match (min, max) {
+        (Some(a), Some(b)) => format!("in [{a:e}, {b:e}]"),
+        (Some(a), None) => format!(">= {a:e}"),
+        (None, Some(b)) => format!("<= {b:e}"),
+        (None, None) => "finite".into(),
+    }
+}
+
+/// Check one expectation.
+pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
+    let ran = !s.diverged && !s.refused;
+    let ranged = |what: String, v: f64, min, max| ExpectationResult {
+        expectation: format!("{what} {}", range_text(min, max)),
+        measured: Some(v),
+        passed: ran && in_range(v, min, max),
+    };
+    match e {
+        Expectation::MaxDisplacement { min, max } => ranged(
+            "max displacement (m)".into(),
+            max_displacement(s.model, s.positions),
+            *min,
+            *max,
+        ),
+        Expectation::DisplacementAt {
+            point,
+            component,
+            min,
+            max,
+        } => {
+            let node = s
+                .model
+                .rest
+                .iter()
+                .enumerate()
+                .min_by(|(_, a), (_, b)| dist(a, point).total_cmp(&dist(b, point)))
+                .map_or(0, |(i, _)| i);
+            let (p, r) = (s.positions[node], s.model.rest[node]);
+            let (what, v) = match component {
+                Some(c) if *c < 3 => (
+                    format!("displacement[{c}] at node {node} near {point:?} (m)"),
+                    p[*c] - r[*c],
+                ),
+                Some(c) => (
+                    format!("displacement component {c} (must be 0, 1 or 2)"),
+                    f64::NAN,
+                ),
+                None => (
+                    format!("displacement at node {node} near {point:?} (m)"),
+                    dist(&p, &r),
+                ),
+            };
+            ranged(what, v, *min, *max)
+        }
+        Expectation::VolumeRatio { min, max } => ranged(
+            "volume ratio".into(),
+            deformed_volume(s.mesh, s.positions) / s.mesh.volume(),
+            *min,
+            *max,
+        ),
+        Expectation::Energy { part, min, max } => {
+            let v = match part {
+                EnergyPart::Kinetic => s.energy.kinetic,
+                EnergyPart::Elastic => s.energy.elastic,
+                EnergyPart::Gravity => s.energy.gravity,
+                EnergyPart::Total => s.energy.total(),
+            };
+            ranged(format!("{part:?} energy (J)").to_lowercase(), v, *min, *max)
+        }
+        Expectation::RefusesTimeStep => ExpectationResult {
+            expectation: "time step refused as unstable".into(),
+            measured: None,
+            passed: s.refused,
+        },
+        Expectation::Diverges => ExpectationResult {
+            expectation: "divergence detected and reported".into(),
+            measured: None,
+            passed: s.diverged,
+        },
+    }
+}

@@ -1,0 +1,9 @@
+//! Scene files: what to simulate, how, what to write and what to check.
+
+pub mod expect;
+pub mod runner;
+pub mod schema;
+
+pub use expect::ExpectationResult;
+pub use runner::{run_scene, RunOptions, RunSummary};
+pub use schema::{Expectation, MeshSource, Scene, TimeStep};

@@ -1,0 +1,304 @@
+//! Running a scene: build the mesh and model, step, write frames, check expectations.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::expect::{self, ExpectationResult, FinalState};
+use super::schema::{resolve_mesh_path, MeshSource, Scene, TimeStep};
+use crate::engine::{Energy, EngineKind, SimConfig, Simulation};
+use crate::error::{Error, Result};
+use crate::mesh::generate::{beam, BoxGrid};
+use crate::mesh::io::pvd::PvdWriter;
+use crate::mesh::TetMesh;
+use crate::model::{stable_time_step, ModelConfig, SpringModel};
+
+/// Overrides from the command line or the embedding program.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Run on this engine instead of the scene's.
+    pub engine: Option<EngineKind>,
+    /// Run this many steps instead of the scene's.
+    pub steps: Option<u64>,
+    /// Write frames here instead of the scene's output folder.
+    pub output_dir: Option<PathBuf>,
+    /// Do not write any output.
+    pub no_output: bool,
+}
+
+/// What a run did, for humans and for `--json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// The scene's name.
+    pub scene: String,
+    /// Nodes, tets and springs of the model.
+    pub nodes: usize,
+    /// Tets.
+    pub tets: usize,
+    /// Springs.
+    pub springs: usize,
+    /// Steps taken.
+    pub steps: u64,
+    /// Time step, s.
+    pub dt: f64,
+    /// Stable bound, s.
+    pub dt_bound: f64,
+    /// Node that limits the bound.
+    pub dt_bound_node: usize,
+    /// Engine that ran.
+    pub engine: String,
+    /// Integration scheme.
+    pub integrator: String,
+    /// Wall time of the stepping, s.
+    pub wall_s: f64,
+    /// Steps per second of wall time.
+    pub steps_per_s: f64,
+    /// Largest nodal displacement at the end, m.
+    pub max_displacement: f64,
+    /// Deformed over rest volume at the end.
+    pub volume_ratio: f64,
+    /// Energies at the end.
+    pub energy: Energy,
+    /// Whether the run diverged.
+    pub diverged: bool,
+    /// Whether the time step was refused.
+    pub refused: bool,
+    /// The divergence or refusal message.
+    pub message: Option<String>,
+    /// Frames written (VTU files).
+    pub frames_written: usize,
+    /// The `.pvd` series written, if any.
+    pub pvd: Option<PathBuf>,
+    /// Each expectation's outcome.
+    pub expectations: Vec<ExpectationResult>,
+    /// Whether all expectations held (and the run neither diverged nor was refused, unless
+    /// expected).
+    pub expectations_passed: bool,
+}
+
+/// Build the scene's mesh, with region boxes applied.
+pub fn build_mesh(scene: &Scene, scene_path: &Path) -> Result<TetMesh> {
+    let dir = scene_path.parent().unwrap_or(Path::new("."));
+    let mut mesh = match &scene.mesh {
+        MeshSource::File(f) => {
+            let p = resolve_mesh_path(f, dir, scene_path)?;
+            crate::mesh::io::read(&p)?.mesh
+        }
+        MeshSource::Box(b) => b.build()?,
+        MeshSource::Beam {
+            length,
+            width,
+            height,
+            cells_along,
+            cells_across,
+            split,
+        } => {
+            if *split == crate::mesh::generate::TetSplit::Six {
+                beam(*length, *width, *height, *cells_along, *cells_across)?
+            } else {
+                BoxGrid {
+                    cells: [*cells_along, *cells_across, *cells_across],
+                    size: [*length, *width, *height],
+                    origin: [0.0; 3],
+                    split: *split,
+                }
+                .build()?
+            }
+        }
+    };
+    for rb in &scene.region_boxes {
+        mesh.set_region_where(rb.tag, |c| {
+            (0..3).all(|i| c[i] >= rb.min[i] && c[i] <= rb.max[i])
+        });
+    }
+    Ok(mesh)
+}
+
+/// The model configuration a scene describes.
+pub fn model_config(scene: &Scene) -> ModelConfig {
+    ModelConfig {
+        material: scene.material,
+        regions: scene.regions.clone(),
+        gravity: scene.gravity,
+        mass_damping: scene.mass_damping,
+        fixed: scene.fixed.clone(),
+    }
+}
+
+/// Run a scene. `scene_path` locates relative paths (its folder) and names the scene in
+/// messages. `progress(done, total)` is called as steps complete.
+///
+/// Setup problems (unreadable mesh, invalid material) are errors. A refused time step or a
+/// divergence is reported in the summary, so that scenes can expect them; the summary's
+/// `expectations_passed` is false unless they were expected.
+pub fn run_scene(
+    scene: &Scene,
+    scene_path: &Path,
+    opts: &RunOptions,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<RunSummary> {
+    let scene_err = |message: String| Error::Scene {
+        path: scene_path.to_path_buf(),
+        message,
+    };
+    let mesh = build_mesh(scene, scene_path)?;
+    let model =
+        SpringModel::build(&mesh, &model_config(scene)).map_err(|e| scene_err(e.to_string()))?;
+    let packed = model.pack(&mesh)?;
+    let bound = stable_time_step(&packed);
+    let dt = match scene.dt {
+        TimeStep::Seconds(s) => s,
+        TimeStep::BoundFraction(f) if f > 0.0 && f.is_finite() && bound.dt.is_finite() => {
+            f * bound.dt
+        }
+        TimeStep::BoundFraction(f) => {
+            return Err(scene_err(format!(
+                "dt: BoundFraction({f}) needs a positive fraction of a finite bound (bound is \
+                 {:e} s); give dt: Seconds(...) instead",
+                bound.dt
+            )))
+        }
+    };
+    let engine = opts.engine.unwrap_or(scene.engine);
+    let steps = opts.steps.unwrap_or(scene.steps);
+    let config = SimConfig {
+        dt,
+        integrator: scene.integrator,
+        allow_unstable: scene.allow_unstable,
+        ..SimConfig::new(dt)
+    };
+    let mut summary = RunSummary {
+        scene: scene.name.clone(),
+        nodes: packed.node_count(),
+        tets: mesh.tet_count(),
+        springs: packed.springs.len(),
+        steps: 0,
+        dt,
+        dt_bound: bound.dt,
+        dt_bound_node: bound.node,
+        engine: engine.to_string(),
+        integrator: format!("{:?}", scene.integrator),
+        wall_s: 0.0,
+        steps_per_s: 0.0,
+        max_displacement: 0.0,
+        volume_ratio: 1.0,
+        energy: Energy {
+            kinetic: 0.0,
+            elastic: 0.0,
+            gravity: 0.0,
+        },
+        diverged: false,
+        refused: false,
+        message: None,
+        frames_written: 0,
+        pvd: None,
+        expectations: Vec::new(),
+        expectations_passed: false,
+    };
+    let mut sim = match Simulation::new(packed.clone(), engine, config) {
+        Ok(sim) => sim,
+        Err(e @ Error::UnstableTimeStep { .. }) => {
+            summary.refused = true;
+            summary.message = Some(e.to_string());
+            finish(scene, &mesh, &packed, &packed.rest, &mut summary);
+            return Ok(summary);
+        }
+        Err(e) => return Err(e),
+    };
+
+    let mut frames = match (&scene.output, opts.no_output) {
+        (Some(out), false) => {
+            let dir = opts
+                .output_dir
+                .clone()
+                .unwrap_or_else(|| scene_path.parent().unwrap_or(Path::new(".")).join(&out.dir));
+            let stem = sanitize(&scene.name);
+            let mut w = PvdWriter::new(&dir, &stem, Default::default())?;
+            w.frame(0.0, &mesh, Some(&sim.positions()))?;
+            summary.pvd = Some(dir.join(format!("{stem}.pvd")));
+            Some((w, out.every.max(1)))
+        }
+        _ => None,
+    };
+
+    let start = Instant::now();
+    let mut done = 0;
+    let chunk = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
+    while done < steps {
+        let n = chunk.min(steps - done);
+        let result = sim.run_with(n, |d| progress(done + d, steps));
+        done = sim.steps();
+        if let Err(e) = result {
+            summary.diverged = matches!(e, Error::Diverged { .. });
+            summary.message = Some(e.to_string());
+            if !summary.diverged {
+                return Err(e);
+            }
+            break;
+        }
+        if let Some((w, _)) = frames.as_mut() {
+            w.frame(sim.time(), &mesh, Some(&sim.positions()))?;
+        }
+    }
+    summary.wall_s = start.elapsed().as_secs_f64();
+    summary.steps = sim.steps();
+    summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
+    summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
+    summary.energy = sim.energy();
+    let x = sim.positions();
+    finish(scene, &mesh, &packed, &x, &mut summary);
+    Ok(summary)
+}
+
+/// Fill in the end-of-run measures and check the expectations.
+fn finish(
+    scene: &Scene,
+    mesh: &TetMesh,
+    packed: &crate::model::PackedModel,
+    x: &[[f64; 3]],
+    summary: &mut RunSummary,
+) {
+    let finite = x.iter().all(|p| p.iter().all(|c| c.is_finite()));
+    if finite {
+        summary.max_displacement = expect::max_displacement(packed, x);
+        summary.volume_ratio = expect::deformed_volume(mesh, x) / mesh.volume();
+    } else {
+        summary.max_displacement = f64::NAN;
+        summary.volume_ratio = f64::NAN;
+    }
+    let state = FinalState {
+        mesh,
+        model: packed,
+        positions: x,
+        energy: summary.energy,
+        diverged: summary.diverged,
+        refused: summary.refused,
+    };
+    summary.expectations = scene
+        .expect
+        .iter()
+        .map(|e| expect::check(e, &state))
+        .collect();
+    let expected_failure = scene.expect.iter().any(|e| {
+        matches!(
+            e,
+            super::schema::Expectation::Diverges | super::schema::Expectation::RefusesTimeStep
+        )
+    });
+    let clean = !(summary.diverged || summary.refused) || expected_failure;
+    summary.expectations_passed = clean && summary.expectations.iter().all(|r| r.passed);
+}
+
+/// A file-name-safe version of a scene name.
+fn sanitize(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if s.is_empty() {
+        "scene".into()
+    } else {
+        s
+    }
+}

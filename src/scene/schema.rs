@@ -1,0 +1,248 @@
+//! The scene file format (RON): what to simulate, how, what to write and what to check.
+//!
+//! ```ron
+//! Scene(
+//!     name: "hanging beam",
+//!     mesh: Beam(length: 0.1, width: 0.02, height: 0.02, cells_along: 20, cells_across: 4),
+//!     material: (
+//!         stiffness: Material(youngs_modulus: 5e4, poisson_ratio: 0.25),
+//!         mass: Density(1000.0),
+//!         damping: StiffnessProportional(1e-3),
+//!     ),
+//!     gravity: (0.0, 0.0, -9.81),
+//!     fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (1.0, 0.0, 0.0), tolerance: 1e-9)],
+//!     dt: BoundFraction(0.9),
+//!     steps: 2000,
+//!     expect: [MaxDisplacement(min: Some(1e-3), max: Some(2e-2))],
+//! )
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::engine::{EngineKind, Integrator};
+use crate::error::{Error, Result};
+use crate::mesh::generate::{BoxGrid, TetSplit};
+use crate::model::{FixedSelector, Material};
+
+/// Where the mesh comes from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum MeshSource {
+    /// A mesh file. A relative path is taken from the scene file's folder; a path starting with
+    /// `$LANCET_MESH_DIR/` from that environment variable's folder.
+    File(String),
+    /// A generated box of cells.
+    Box(BoxGrid),
+    /// A generated beam along x.
+    Beam {
+        /// Length along x, m.
+        length: f64,
+        /// Width along y, m.
+        width: f64,
+        /// Height along z, m.
+        height: f64,
+        /// Cells along x.
+        cells_along: usize,
+        /// Cells across y and z.
+        cells_across: usize,
+        /// How cells are split.
+        #[serde(default)]
+        split: TetSplit,
+    },
+}
+
+/// A box of space whose tets (by centroid) get a region tag.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionBox {
+    /// The tag to give.
+    pub tag: i32,
+    /// Smallest corner.
+    pub min: [f64; 3],
+    /// Largest corner.
+    pub max: [f64; 3],
+}
+
+/// The time step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum TimeStep {
+    /// A fixed step, s.
+    Seconds(f64),
+    /// This fraction of the model's stable bound.
+    BoundFraction(f64),
+}
+
+/// Writing results.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Output {
+    /// Folder for the frames and the `.pvd` (relative to the scene file's folder).
+    pub dir: String,
+    /// Write a VTU frame every this many steps (the first and last states are always written).
+    pub every: u64,
+}
+
+/// Something the run must satisfy; checked after the last step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Expectation {
+    /// Bounds on the largest nodal displacement, m.
+    MaxDisplacement {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
+    /// Bounds on the displacement of the node nearest `point` (rest position): one component
+    /// (0 = x, 1 = y, 2 = z) or, without `component`, its magnitude.
+    DisplacementAt {
+        /// Rest position to look up the nearest node.
+        point: [f64; 3],
+        /// Which component; `None` for the magnitude.
+        #[serde(default)]
+        component: Option<usize>,
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
+    /// Bounds on deformed volume / rest volume.
+    VolumeRatio {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
+    /// Bounds on an energy at the end, J.
+    Energy {
+        /// Which energy.
+        part: EnergyPart,
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
+    /// The run must be refused because dt is above the stable bound.
+    RefusesTimeStep,
+    /// The run must diverge and be reported (for scenes forced past the bound).
+    Diverges,
+}
+
+/// Which energy an [`Expectation::Energy`] bounds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum EnergyPart {
+    /// Kinetic energy (near zero once the body has settled).
+    Kinetic,
+    /// Energy stored in the springs.
+    Elastic,
+    /// Gravitational potential, zero at rest positions.
+    Gravity,
+    /// The sum.
+    Total,
+}
+
+/// A scene: mesh, model, run settings, outputs and expectations.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scene {
+    /// Name shown in summaries.
+    pub name: String,
+    /// The mesh.
+    pub mesh: MeshSource,
+    /// Region tags to assign to generated (or file) meshes, applied in order.
+    #[serde(default)]
+    pub region_boxes: Vec<RegionBox>,
+    /// Default material.
+    pub material: Material,
+    /// Materials by region tag.
+    #[serde(default)]
+    pub regions: BTreeMap<i32, Material>,
+    /// Gravity, m/s^2.
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    /// Mass-proportional damping, 1/s.
+    #[serde(default)]
+    pub mass_damping: f64,
+    /// Fixed nodes.
+    #[serde(default)]
+    pub fixed: Vec<FixedSelector>,
+    /// Time step.
+    pub dt: TimeStep,
+    /// Number of steps.
+    pub steps: u64,
+    /// Engine.
+    #[serde(default)]
+    pub engine: EngineKind,
+    /// Integration scheme.
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// Run even if dt is above the stable bound.
+    #[serde(default)]
+    pub allow_unstable: bool,
+    /// VTU output.
+    #[serde(default)]
+    pub output: Option<Output>,
+    /// What the run must satisfy.
+    #[serde(default)]
+    pub expect: Vec<Expectation>,
+}
+
+/// The scene lancet runs when given none: a soft beam, clamped at one end, sagging under
+/// gravity. Embedded so that `lancet run` works with no files.
+pub const DEFAULT_SCENE: &str = include_str!("../../fixtures/scenes/default.ron");
+
+impl Scene {
+    /// Parse a scene from RON text; `path` is used in messages.
+    pub fn from_ron(text: &str, path: &Path) -> Result<Scene> {
+        ron::from_str(text).map_err(|e| {
+            let msg = e.code.to_string();
+            Error::parse(
+                path,
+                crate::error::Location::Line(e.span.start.line),
+                None,
+                format!("scene is not valid: {}", msg.to_lowercase()),
+                "see the scene format in the README",
+            )
+        })
+    }
+
+    /// Read a scene file.
+    pub fn read(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Scene::from_ron(&text, path)
+    }
+
+    /// The embedded default scene.
+    pub fn default_scene() -> Scene {
+        // The embedded text is a fixture checked by the test suite, so it always parses.
+        Scene::from_ron(DEFAULT_SCENE, Path::new("<embedded default scene>"))
+            .expect("the embedded default scene parses")
+    }
+}
+
+/// Resolve a mesh path from a scene: relative to the scene's folder, or under
+/// `$LANCET_MESH_DIR`.
+pub fn resolve_mesh_path(file: &str, scene_dir: &Path, scene_path: &Path) -> Result<PathBuf> {
+    if let Some(rest) = file.strip_prefix("$LANCET_MESH_DIR/") {
+        let dir = std::env::var_os("LANCET_MESH_DIR").ok_or_else(|| Error::Scene {
+            path: scene_path.to_path_buf(),
+            message: format!(
+                "mesh {file:?} needs the environment variable LANCET_MESH_DIR; set it to the \
+                 folder of real meshes"
+            ),
+        })?;
+        return Ok(PathBuf::from(dir).join(rest));
+    }
+    let p = PathBuf::from(file);
+    Ok(if p.is_absolute() {
+        p
+    } else {
+        scene_dir.join(p)
+    })
+}

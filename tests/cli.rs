@@ -1,0 +1,223 @@
+//! The `lancet` command line: exit codes, JSON fields, errors that name the file and line.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lancet(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(args)
+        .output()
+        .expect("the lancet binary runs")
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}):\n{}\nstderr:\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes")
+}
+
+#[test]
+fn run_without_arguments_runs_the_embedded_scene_and_reports_json() {
+    let out = lancet(&["run", "--json", "--no-output"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    for key in [
+        "steps",
+        "dt",
+        "dt_bound",
+        "engine",
+        "wall_s",
+        "max_displacement",
+        "diverged",
+        "expectations_passed",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    assert_eq!(v["diverged"], false);
+    assert_eq!(v["expectations_passed"], true);
+    assert!(v["dt"].as_f64().unwrap() <= v["dt_bound"].as_f64().unwrap());
+    assert!(v["steps"].as_u64().unwrap() > 0);
+    assert!(v["max_displacement"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn run_on_a_folder_runs_every_scene_and_prints_a_table() {
+    let out = lancet(&["run", fixtures().to_str().unwrap(), "--no-output"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let scenes = std::fs::read_dir(fixtures())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "ron")
+        })
+        .count();
+    assert!(
+        stdout.contains(&format!("{scenes} scenes, 0 failed")),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn failing_expectation_exits_with_code_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("sags.ron");
+    // Under gravity the free block must move: a bound of 1 nm on its displacement fails.
+    std::fs::write(
+        &scene,
+        r#"Scene(
+    name: "must fail",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    gravity: (0.0, 0.0, -9.81),
+    dt: BoundFraction(0.5),
+    steps: 200,
+    expect: [MaxDisplacement(max: Some(1e-9))],
+)"#,
+    )
+    .unwrap();
+    let out = lancet(&["run", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("FAIL"));
+}
+
+#[test]
+fn malformed_scene_exits_with_code_2_naming_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("broken.ron");
+    std::fs::write(
+        &scene,
+        "Scene(\n    name: \"x\",\n    mesh: Sphere(1.0),\n)",
+    )
+    .unwrap();
+    let out = lancet(&["run", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("broken.ron") && err.contains("line 3"),
+        "{err}"
+    );
+}
+
+#[test]
+fn missing_mesh_file_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("missing.ron");
+    std::fs::write(
+        &scene,
+        r#"Scene(name: "m", mesh: File("nowhere.msh"),
+    material: (stiffness: Spring(10.0), mass: PerNode(0.01)), dt: Seconds(1e-4), steps: 1)"#,
+    )
+    .unwrap();
+    let out = lancet(&["run", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nowhere.msh"));
+}
+
+#[test]
+fn info_reports_counts_volume_and_regions_as_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("two.mesh");
+    // Two tets sharing a face, regions 1 and 7; total volume 1/6 + 1/6.
+    std::fs::write(
+        &mesh,
+        "MeshVersionFormatted 1\nDimension 3\nVertices\n5\n0 0 0 0\n1 0 0 0\n0 1 0 0\n\
+         0 0 1 0\n0 0 -1 0\nTetrahedra\n2\n1 2 3 4 1\n1 3 2 5 7\nEnd\n",
+    )
+    .unwrap();
+    let out = lancet(&["info", mesh.to_str().unwrap(), "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    assert_eq!(v["nodes"], 5);
+    assert_eq!(v["tets"], 2);
+    assert_eq!(v["edges"], 9);
+    assert_eq!(v["boundary_faces"], 6);
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["inverted"], 0);
+    assert!((v["volume"].as_f64().unwrap() - 1.0 / 3.0).abs() < 1e-12);
+    assert_eq!(v["regions"]["1"], 1);
+    assert_eq!(v["regions"]["7"], 1);
+    assert!(v["min_quality"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn info_on_real_meshes_matches_their_readme() {
+    let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {
+        eprintln!("skipped: LANCET_MESH_DIR is not set");
+        return;
+    };
+    let dir = PathBuf::from(dir);
+    // (file, nodes, tets, edges, boundary faces, volume), from the meshes' README.
+    let cases = [
+        (
+            "polyfem-data/cubes_v41.msh",
+            7714,
+            32981,
+            44499,
+            7610,
+            2.09790,
+        ),
+        (
+            "positionbaseddynamics/armadillo_4k.node",
+            1180,
+            3717,
+            5947,
+            2102,
+            1.8596,
+        ),
+    ];
+    for (file, nodes, tets, edges, faces, volume) in cases {
+        let out = lancet(&["info", dir.join(file).to_str().unwrap(), "--json"]);
+        assert!(
+            out.status.success(),
+            "{file}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v = json_of(&out);
+        assert_eq!(v["nodes"], nodes, "{file}");
+        assert_eq!(v["tets"], tets, "{file}");
+        assert_eq!(v["edges"], edges, "{file}");
+        assert_eq!(v["boundary_faces"], faces, "{file}");
+        let vol = v["volume"].as_f64().unwrap();
+        assert!((vol / volume - 1.0).abs() < 1e-4, "{file}: volume {vol}");
+    }
+}
+
+#[test]
+fn info_on_a_bad_file_exits_2_with_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("nan.mesh");
+    std::fs::write(
+        &mesh,
+        "MeshVersionFormatted 1\nDimension 3\nVertices\n4\n0 0 0 0\n1 0 0 0\nnan 1 0 0\n\
+         0 0 1 0\nTetrahedra\n1\n1 2 3 4 1\nEnd\n",
+    )
+    .unwrap();
+    let out = lancet(&["info", mesh.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("nan.mesh") && err.contains("line 7"), "{err}");
+}
