@@ -24,3 +24,8 @@ pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};
 #[cfg(feature = "scene")]
 pub mod scene;
+
+// The README's Rust example runs as a doctest, so it cannot drift from the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctest;
