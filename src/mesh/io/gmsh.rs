@@ -106,7 +106,10 @@ fn read_header(lines: &mut Lines) -> Result<Header> {
     if toks.len() != 3 {
         return Err(lines.error(
             None,
-            format!("expected `version file-type data-size`, found {:?}", clip(line)),
+            format!(
+                "expected `version file-type data-size`, found {:?}",
+                clip(line)
+            ),
             "the $MeshFormat line should read like `4.1 0 8`",
         ));
     }
@@ -474,7 +477,10 @@ impl Source for Ascii<'_, '_> {
             None => Ok(()),
             Some(tok) => Err(self.lines.error(
                 element,
-                format!("unexpected extra value {:?} at the end of the line", clip(tok)),
+                format!(
+                    "unexpected extra value {:?} at the end of the line",
+                    clip(tok)
+                ),
                 "remove it, or check the counts and columns of this row",
             )),
         }
@@ -485,7 +491,10 @@ impl Source for Ascii<'_, '_> {
     }
 
     fn bytes_left(&self) -> usize {
-        self.lines.bytes().len().saturating_sub(self.lines.byte_pos())
+        self.lines
+            .bytes()
+            .len()
+            .saturating_sub(self.lines.byte_pos())
     }
 
     fn error(&self, element: Option<i64>, message: String, hint: &str) -> Error {
@@ -669,9 +678,10 @@ impl<'a> Reader<'a> {
             (_, "$PhysicalNames") => skip_section(lines, name),
             _ => {
                 skip_section(lines, name)?;
-                self.raw
-                    .notes
-                    .push(format!("skipped section {} (not needed for the mesh)", clip(name)));
+                self.raw.notes.push(format!(
+                    "skipped section {} (not needed for the mesh)",
+                    clip(name)
+                ));
                 Ok(())
             }
         }
@@ -902,7 +912,11 @@ impl<'a> Reader<'a> {
             tags.clear();
             tags.reserve(capacity(n, src.bytes_left(), 2));
             for i in 0..n {
-                src.begin(format_args!("tag of node {} of {n} in block {}", i + 1, b + 1))?;
+                src.begin(format_args!(
+                    "tag of node {} of {n} in block {}",
+                    i + 1,
+                    b + 1
+                ))?;
                 tags.push(src.id("node tag", None)?);
                 src.end(None)?;
             }
@@ -938,7 +952,10 @@ impl<'a> Reader<'a> {
         src.end(None)?;
         let mut total: u64 = 0;
         for b in 0..blocks {
-            src.begin(format_args!("header of element block {} of {blocks}", b + 1))?;
+            src.begin(format_args!(
+                "header of element block {} of {blocks}",
+                b + 1
+            ))?;
             let dim = src.int32("entity dimension", None)?;
             let entity = src.int32("entity tag", None)?;
             let etype = src.int32("element type", None)?;
