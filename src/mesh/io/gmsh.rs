@@ -794,7 +794,6 @@ impl<'a> Reader<'a> {
             src.end(Some(id))?;
             self.push_element(etype, id, region, src.loc())?;
         }
-        drop(src);
         expect_end(lines, &end_marker(name), name)
     }
 
