@@ -7,7 +7,7 @@
 //!
 //! The record layouts of ASCII and binary files are the same sequence of values (binary only
 //! fixes their widths), so the 4.1 sections and the 2.2 nodes are read once through the
-//! [`Source`] trait, with an ASCII source that knows lines and a binary one that knows byte
+//! `Source` trait, with an ASCII source that knows lines and a binary one that knows byte
 //! offsets. Every count read from the file is untrusted: buffers are sized by what the remaining
 //! bytes could hold, never by the declared count alone.
 
@@ -82,10 +82,12 @@ enum Header {
 /// Byte order of a binary file, from its check integer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Endian {
+    /// Whether values are big-endian (the check integer read backwards).
     big: bool,
 }
 
 impl Header {
+    /// The format reported to the caller.
     fn format(self) -> Format {
         match self {
             Header::V1 => Format::Gmsh1,
@@ -405,6 +407,7 @@ struct Ascii<'a, 'l> {
 }
 
 impl<'a, 'l> Ascii<'a, 'l> {
+    /// A source reading the lines of `section` from the cursor's position.
     fn new(lines: &'l mut Lines<'a>, section: &'static str) -> Self {
         Ascii {
             lines,
@@ -413,6 +416,7 @@ impl<'a, 'l> Ascii<'a, 'l> {
         }
     }
 
+    /// The next value of the current line.
     fn token(&mut self, what: &str, element: Option<i64>) -> Result<&'a str> {
         self.toks.next().ok_or_else(|| {
             self.lines.error(
@@ -513,6 +517,7 @@ struct Binary<'a> {
 }
 
 impl<'a> Binary<'a> {
+    /// A source reading binary values from the cursor's position.
     fn new(lines: &Lines<'a>, endian: Endian, size_t: usize) -> Self {
         let pos = lines.byte_pos();
         Binary {
@@ -642,6 +647,7 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
+    /// An empty reader for a file with this header.
     fn new(path: &'a Path, header: Header) -> Self {
         Reader {
             path,
@@ -1097,5 +1103,37 @@ impl<'a> Reader<'a> {
             ));
         }
         self.raw
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn end_markers_follow_the_case_of_the_section_name() {
+        assert_eq!(end_marker("$Nodes"), "$EndNodes");
+        assert_eq!(end_marker("$NOD"), "$ENDNOD");
+        assert_eq!(end_marker("$ELM"), "$ENDELM");
+    }
+
+    #[test]
+    fn capacity_is_capped_by_the_bytes_left() {
+        assert_eq!(capacity(u64::MAX, 80, 8), 10);
+        assert_eq!(capacity(3, 80, 8), 3);
+        assert_eq!(capacity(5, 80, 0), 5);
+    }
+
+    #[test]
+    fn every_known_element_type_has_at_least_its_corners() {
+        for t in 0..200 {
+            if let Some((n, kind, _)) = element_type(t) {
+                match kind {
+                    Kind::Tet => assert!(n >= 4, "type {t}"),
+                    Kind::Triangle => assert!(n >= 3, "type {t}"),
+                    _ => assert!(n >= 1, "type {t}"),
+                }
+            }
+        }
     }
 }
