@@ -220,6 +220,11 @@ impl<'a> Bin<'a> {
         }
     }
 
+    /// Number of bytes after the cursor.
+    pub(crate) fn remaining(&self) -> usize {
+        self.bytes.len().saturating_sub(self.pos)
+    }
+
     /// Take `n` bytes or fail with "truncated".
     pub(crate) fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
