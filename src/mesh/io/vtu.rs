@@ -429,19 +429,7 @@ fn scan<'a>(bytes: &'a [u8], path: &'a Path) -> Result<Doc<'a>> {
                     (Some(Tag::Piece), b"Cells") => Tag::Cells,
                     (Some(Tag::Piece), b"CellData") => Tag::CellData,
                     (Some(p), b"DataArray") => {
-                        if let Some(off) = get(&attrs, "offset").and_then(|o| o.parse().ok()) {
-                            doc.appended_offsets.push(off);
-                        }
-                        let desc = match p {
-                            Tag::Points | Tag::Cells | Tag::CellData => {
-                                Some((p, array_header(&attrs, path, line)?))
-                            }
-                            _ => None,
-                        };
-                        let array = OpenArray {
-                            desc,
-                            text_start: after,
-                        };
+                        let array = doc.open_array(p, &attrs, line, after)?;
                         if empty {
                             doc.store_array(array, b"", 0)?;
                         } else {
@@ -471,6 +459,12 @@ fn scan<'a>(bytes: &'a [u8], path: &'a Path) -> Result<Doc<'a>> {
             _ => {}
         }
     }
+    finish_scan(doc, seen_root, closed, seen_grid)
+}
+
+/// Check that the scan found a complete unstructured grid.
+fn finish_scan(mut doc: Doc, seen_root: bool, closed: bool, seen_grid: bool) -> Result<Doc> {
+    let path = doc.path;
     if !seen_root {
         return Err(Error::parse(
             path,
@@ -721,6 +715,27 @@ fn appended_section<'a>(
 }
 
 impl<'a> Doc<'a> {
+    /// Start a `<DataArray>` under `parent`: note its appended offset, and read its attributes
+    /// if it is one lancet uses.
+    fn open_array(
+        &mut self,
+        parent: Tag,
+        attrs: &[(String, String)],
+        line: usize,
+        text_start: usize,
+    ) -> Result<OpenArray<'a>> {
+        if let Some(off) = get(attrs, "offset").and_then(|o| o.parse().ok()) {
+            self.appended_offsets.push(off);
+        }
+        let desc = match parent {
+            Tag::Points | Tag::Cells | Tag::CellData => {
+                Some((parent, array_header(attrs, self.path, line)?))
+            }
+            _ => None,
+        };
+        Ok(OpenArray { desc, text_start })
+    }
+
     /// Attach a finished `<DataArray>` with content `text` to the current piece.
     fn store_array(
         &mut self,

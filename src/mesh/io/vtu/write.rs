@@ -135,6 +135,9 @@ struct Grid {
 /// (signed), both of the current shape so that inverted tets show. Cells follow
 /// [`TetMesh::tets`] order.
 ///
+/// Non-finite positions (a diverged run) are written as they are so that they can be
+/// inspected; lancet's own reader refuses such a file.
+///
 /// The file is written beside `path` under a temporary name and renamed over it, so an
 /// interrupted write never leaves a partial file (nor a half-overwritten input mesh).
 pub fn write_vtu(
