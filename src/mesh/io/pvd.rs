@@ -1,32 +1,107 @@
-//! ParaView `.pvd` time series (placeholder until the VTU writer lands).
+//! ParaView `.pvd` time series: one `.vtu` per frame and a collection file listing them.
+//!
+//! The collection is rewritten (atomically) after every frame, so a run that stops early, or is
+//! watched while it runs, always leaves a series ParaView can open.
 
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+use super::vtu::{atomic_write, write_vtu, VtuOptions};
 use crate::error::{Error, Result};
 use crate::mesh::TetMesh;
 
-/// Writes VTU frames and a `.pvd` collection.
-pub struct PvdWriter;
-
-/// Options of the VTU files.
-#[derive(Default)]
-pub struct VtuOptions;
+/// Writes frames `<dir>/<stem>_<NNNNNN>.vtu` and keeps `<dir>/<stem>.pvd` listing them.
+#[derive(Debug, Clone)]
+pub struct PvdWriter {
+    dir: PathBuf,
+    stem: String,
+    opts: VtuOptions,
+    /// Time and file name (relative to `dir`) of each frame written.
+    frames: Vec<(f64, String)>,
+}
 
 impl PvdWriter {
-    /// Start a series.
-    pub fn new(_dir: &Path, _stem: &str, _opts: VtuOptions) -> Result<Self> {
-        Err(Error::Unsupported(
-            "vtu writing is not available yet".into(),
-        ))
+    /// Start a series in `dir` (created if missing), writing an empty collection right away.
+    /// An existing `<stem>.pvd` is replaced; old frame files are overwritten as frames come.
+    pub fn new(dir: &Path, stem: &str, opts: VtuOptions) -> Result<Self> {
+        if stem.is_empty() || stem.contains(['/', '\\']) || stem == "." || stem == ".." {
+            return Err(Error::io(
+                dir.join(stem),
+                invalid(format!(
+                    "series name {stem:?} must be a plain, non-empty file name"
+                )),
+            ));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let w = PvdWriter {
+            dir: dir.to_path_buf(),
+            stem: stem.to_string(),
+            opts,
+            frames: Vec::new(),
+        };
+        w.write_collection()?;
+        Ok(w)
     }
-    /// Write a frame.
-    pub fn frame(&mut self, _t: f64, _m: &TetMesh, _x: Option<&[[f64; 3]]>) -> Result<PathBuf> {
-        Err(Error::Unsupported(
-            "vtu writing is not available yet".into(),
-        ))
+
+    /// Write a frame at simulation time `time` (finite, greater than the previous frame's) and
+    /// update the collection. `positions` are current positions in
+    /// [`TetMesh::dense_nodes`] order, `None` for the rest shape. Returns the frame's path.
+    pub fn frame(
+        &mut self,
+        time: f64,
+        mesh: &TetMesh,
+        positions: Option<&[[f64; 3]]>,
+    ) -> Result<PathBuf> {
+        let last = self.frames.last().map(|f| f.0);
+        if !time.is_finite() || last.is_some_and(|t| time <= t) {
+            return Err(Error::io(
+                self.pvd_path(),
+                invalid(format!(
+                    "frame time {time} must be finite and greater than the previous {}",
+                    last.map_or("(none)".to_string(), |t| t.to_string())
+                )),
+            ));
+        }
+        let name = format!("{}_{:06}.vtu", self.stem, self.frames.len());
+        let path = self.dir.join(&name);
+        write_vtu(&path, mesh, positions, &self.opts)?;
+        self.frames.push((time, name));
+        self.write_collection()?;
+        Ok(path)
     }
-    /// Frames written.
+
+    /// Number of frames written.
     pub fn frames(&self) -> usize {
-        0
+        self.frames.len()
     }
+
+    /// The collection file, `<dir>/<stem>.pvd`.
+    pub fn pvd_path(&self) -> PathBuf {
+        self.dir.join(format!("{}.pvd", self.stem))
+    }
+
+    fn write_collection(&self) -> Result<()> {
+        atomic_write(&self.pvd_path(), |w| {
+            writeln!(w, "<?xml version=\"1.0\"?>")?;
+            writeln!(
+                w,
+                "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
+            )?;
+            writeln!(w, "  <Collection>")?;
+            for (time, file) in &self.frames {
+                // `{}` of an f64 reads back to the same value.
+                writeln!(
+                    w,
+                    "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>",
+                    quick_xml::escape::escape(file.as_str())
+                )?;
+            }
+            writeln!(w, "  </Collection>")?;
+            writeln!(w, "</VTKFile>")
+        })
+    }
+}
+
+fn invalid(msg: String) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidInput, msg)
 }
