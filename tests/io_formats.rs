@@ -145,8 +145,11 @@ fn source() -> TetMesh {
     BoxGrid::cube_cells([2, 2, 2], 0.1).build().unwrap()
 }
 
+/// Node positions, and tets as dense node indices with their region tags.
+type Arrays = (Vec<[f64; 3]>, Vec<([u32; 4], i32)>);
+
 /// Points and tets (dense indices) of a mesh, with region tags.
-fn arrays(m: &TetMesh) -> (Vec<[f64; 3]>, Vec<([u32; 4], i32)>) {
+fn arrays(m: &TetMesh) -> Arrays {
     let dense = m.dense_nodes();
     let pts = dense
         .keys
@@ -519,7 +522,7 @@ const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTUR
     "mesh",
     "MeshVersionFormatted 1\nDimension 3\nVertices 3\n0 0 0 0\n1 0 0\n",
     "line 5",
-    "the file ends after 1 of the 3 vertices"
+    "the file ends after 1 of the 3 vertices declared at line 3"
 )]
 #[case::medit_non_numeric_vertex(
     "mesh",
@@ -597,8 +600,10 @@ fn tiny_vtk_binary(coord: f32) -> Vec<u8> {
     let mut b =
         b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n"
             .to_vec();
-    for c in [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, coord] {
-        b.extend((c as f32).to_be_bytes());
+    for c in [
+        0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, coord,
+    ] {
+        b.extend(c.to_be_bytes());
     }
     b.extend(b"\nCELLS 1 5\n");
     for v in [4i32, 0, 1, 2, 3] {

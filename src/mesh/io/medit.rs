@@ -162,6 +162,7 @@ fn skip_section(toks: &mut Tokens, kw: &str, st: &mut State) -> Result<()> {
 /// Skip `n` rows of `row` tokens each.
 fn skip_rows(toks: &mut Tokens, n: usize, row: usize, what: &str) -> Result<()> {
     let mut rows = Rows {
+        start: toks.lines().line(),
         toks,
         what,
         n,
@@ -182,16 +183,18 @@ fn count(toks: &mut Tokens, what: &str) -> Result<usize> {
 }
 
 /// The file's end inside a section: name how many rows were expected.
-fn truncated(toks: &Tokens, what: &str, n: usize, k: usize) -> Error {
+fn truncated(toks: &Tokens, what: &str, n: usize, k: usize, start: usize) -> Error {
     toks.error(
         None,
-        format!("the file ends after {k} of the {n} {what} it declares"),
+        format!("the file ends after {k} of the {n} {what} declared at line {start}"),
         "the file is truncated or the count is wrong",
     )
 }
 
 /// A row of one section being read: where the rows are counted for messages.
 struct Rows<'t, 'a> {
+    /// The line of the section's keyword.
+    start: usize,
     toks: &'t mut Tokens<'a>,
     what: &'t str,
     n: usize,
@@ -203,7 +206,7 @@ impl<'a> Rows<'_, 'a> {
     fn token(&mut self) -> Result<&'a str> {
         match self.toks.next_token() {
             Some(t) => t,
-            None => Err(truncated(self.toks, self.what, self.n, self.k)),
+            None => Err(truncated(self.toks, self.what, self.n, self.k, self.start)),
         }
     }
 
@@ -224,6 +227,7 @@ impl<'a> Rows<'_, 'a> {
 fn vertices(toks: &mut Tokens, st: &mut State) -> Result<()> {
     let n = count(toks, "vertices")?;
     let mut rows = Rows {
+        start: toks.lines().line(),
         toks,
         what: "vertices",
         n,
@@ -248,6 +252,7 @@ fn vertices(toks: &mut Tokens, st: &mut State) -> Result<()> {
 fn tetrahedra(toks: &mut Tokens, st: &mut State, nodes: usize, what: &str) -> Result<()> {
     let n = count(toks, what)?;
     let mut rows = Rows {
+        start: toks.lines().line(),
         toks,
         what,
         n,
@@ -287,6 +292,7 @@ fn tetrahedra(toks: &mut Tokens, st: &mut State, nodes: usize, what: &str) -> Re
 fn triangles(toks: &mut Tokens, st: &mut State) -> Result<()> {
     let n = count(toks, "triangles")?;
     let mut rows = Rows {
+        start: toks.lines().line(),
         toks,
         what: "triangles",
         n,

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::text::{capped, Lines};
+use super::text::{capped, tokens, Lines};
 use super::{Format, IdMap, LoadedMesh, RawMesh, RawTet};
 use crate::error::{Error, Result};
 
@@ -49,8 +49,7 @@ pub fn parse(
 
 /// The white-space separated tokens of a line, without a trailing `# comment`.
 fn row_tokens(line: &str) -> Vec<&str> {
-    let data = line.split('#').next().unwrap_or("");
-    data.split_ascii_whitespace().collect()
+    tokens(line.split('#').next().unwrap_or(""))
 }
 
 /// The first token of a row ("" if none, which then fails to parse with a clear message).

@@ -301,10 +301,7 @@ fn set<'a>(lines: &mut Lines<'a>, name: &str, st: &mut State) -> Result<Option<&
         return Err(lines.error(None, "*SET without a name", "write `*SET name`"));
     }
     let mut members = Vec::new();
-    loop {
-        let Some(line) = lines.next_line().transpose()? else {
-            break;
-        };
+    while let Some(line) = lines.next_line().transpose()? {
         if line.starts_with('*') {
             st.sets.insert(name.to_string(), members);
             return Ok(Some(line));

@@ -18,7 +18,10 @@ use crate::error::{Error, Location, Result};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Scalar {
     Bit,
+    /// Signed integer of this many bytes.
     Int(usize),
+    /// Unsigned integer of this many bytes.
+    UInt(usize),
     Float(usize),
     Str,
 }
@@ -28,12 +31,14 @@ impl Scalar {
     fn parse(name: &str) -> Option<Scalar> {
         let s = match name.to_ascii_lowercase().as_str() {
             "bit" => Scalar::Bit,
-            "char" | "unsigned_char" | "vtktypeint8" | "vtktypeuint8" => Scalar::Int(1),
-            "short" | "unsigned_short" | "vtktypeint16" | "vtktypeuint16" => Scalar::Int(2),
-            "int" | "unsigned_int" | "vtktypeint32" | "vtktypeuint32" => Scalar::Int(4),
-            "long" | "unsigned_long" | "vtktypeint64" | "vtktypeuint64" | "vtkidtype" => {
-                Scalar::Int(8)
-            }
+            "char" | "vtktypeint8" => Scalar::Int(1),
+            "unsigned_char" | "vtktypeuint8" => Scalar::UInt(1),
+            "short" | "vtktypeint16" => Scalar::Int(2),
+            "unsigned_short" | "vtktypeuint16" => Scalar::UInt(2),
+            "int" | "vtktypeint32" => Scalar::Int(4),
+            "unsigned_int" | "vtktypeuint32" => Scalar::UInt(4),
+            "long" | "vtktypeint64" | "vtkidtype" => Scalar::Int(8),
+            "unsigned_long" | "vtktypeuint64" => Scalar::UInt(8),
             "float" => Scalar::Float(4),
             "double" => Scalar::Float(8),
             "string" | "utf8_string" => Scalar::Str,
@@ -73,7 +78,15 @@ impl Data<'_, '_> {
             Data::Binary(b) => match ty {
                 Scalar::Int(4) => b.i32(what).map(i64::from),
                 Scalar::Int(8) => b.i64(what),
-                Scalar::Int(n) => Ok(be_int(b.take(n, what)?)),
+                Scalar::Int(n) => Ok(be_int(b.take(n, what)?, true)),
+                Scalar::UInt(8) => {
+                    let v = b.u64(what)?;
+                    i64::try_from(v).map_err(|_| {
+                        b.pos -= 8;
+                        b.error(element, format!("{what} {v} is too large"), "fix the value")
+                    })
+                }
+                Scalar::UInt(n) => Ok(be_int(b.take(n, what)?, false)),
                 _ => Err(b.error(
                     element,
                     format!("{what} must be stored as integers, not {ty:?}"),
@@ -121,9 +134,11 @@ impl Data<'_, '_> {
             Data::Binary(b) => {
                 let bytes = match ty {
                     Scalar::Bit => n.div_ceil(8),
-                    Scalar::Int(s) | Scalar::Float(s) => n.checked_mul(s).ok_or_else(|| {
-                        b.error(None, format!("{what}: size overflows"), "fix the count")
-                    })?,
+                    Scalar::Int(s) | Scalar::UInt(s) | Scalar::Float(s) => {
+                        n.checked_mul(s).ok_or_else(|| {
+                            b.error(None, format!("{what}: size overflows"), "fix the count")
+                        })?
+                    }
                     Scalar::Str => {
                         return Err(b.error(
                             None,
@@ -138,9 +153,9 @@ impl Data<'_, '_> {
     }
 }
 
-/// A big-endian integer of 1, 2 (or any up to 8) bytes, sign-extended.
-fn be_int(bytes: &[u8]) -> i64 {
-    let mut v: i64 = if bytes.first().is_some_and(|b| b & 0x80 != 0) {
+/// A big-endian integer of up to 8 bytes, sign-extended when `signed`.
+fn be_int(bytes: &[u8], signed: bool) -> i64 {
+    let mut v: i64 = if signed && bytes.first().is_some_and(|b| b & 0x80 != 0) {
         -1
     } else {
         0
@@ -652,7 +667,7 @@ impl<'a> Vtk<'a> {
             }
             "COLOR_SCALARS" => {
                 let ty = if self.binary {
-                    Scalar::Int(1)
+                    Scalar::UInt(1)
                 } else {
                     Scalar::Float(4)
                 };
@@ -660,7 +675,7 @@ impl<'a> Vtk<'a> {
             }
             "LOOKUP_TABLE" => {
                 let ty = if self.binary {
-                    Scalar::Int(1)
+                    Scalar::UInt(1)
                 } else {
                     Scalar::Float(4)
                 };
