@@ -595,6 +595,48 @@ fn malformed_file_gives_a_parse_error_naming_the_place_and_the_problem(
     );
 }
 
+#[test]
+fn binary_medit_file_by_extension_says_meshb_is_unsupported() {
+    let err = io::read_bytes(b"\x01\x00\x00\x00", "meshb", Path::new("m.meshb")).unwrap_err();
+    assert!(err.as_parse().is_some(), "{err}");
+    assert!(
+        err.to_string().contains(".meshb) are not supported"),
+        "{err}"
+    );
+}
+
+#[test]
+fn medit_triangle_on_an_undefined_vertex_names_its_line() {
+    let text = format!("{MEDIT_HEAD}Triangles\n1\n1 2 5 3\nTetrahedra 1\n1 2 3 4 1\nEnd\n");
+    let err = parse("mesh", text.as_bytes()).unwrap_err();
+    assert!(err.to_string().contains("line 10: element 1"), "{err}");
+    assert!(err.to_string().contains("references vertex 5"), "{err}");
+}
+
+#[test]
+fn vtk_attribute_blocks_of_every_kind_are_skipped_and_a_scalars_region_without_lookup_table_is_read(
+) {
+    let s = format!(
+        "{VTK_HEAD}FIELD FieldData 1\nTIME 1 1 double\n0.5\nPOINTS 4 float\n\
+         0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n\
+         POINT_DATA 4\nNORMALS n float\n0 0 1 0 0 1 0 0 1 0 0 1\n\
+         TEXTURE_COORDINATES uv 2 float\n0 0 1 0 0 1 1 1\nCOLOR_SCALARS c 3\n\
+         1 0 0 1 0 0 1 0 0 1 0 0\nTENSORS t float\n{}\n\
+         SCALARS temperature float 1\nLOOKUP_TABLE hot\n1 2 3 4\nLOOKUP_TABLE hot 2\n\
+         0 0 0 1 1 1 1 1\nCELL_DATA 1\nSCALARS gmsh:physical int\n42\n",
+        "0 ".repeat(36)
+    );
+    let loaded = io::read_bytes(s.as_bytes(), "vtk", Path::new("a.vtk")).unwrap();
+    assert_eq!(loaded.mesh.regions(), vec![(42, 1)]);
+    let skipped = loaded
+        .report
+        .notes
+        .iter()
+        .filter(|n| n.starts_with("skipped"))
+        .count();
+    assert_eq!(skipped, 7, "{:?}", loaded.report.notes);
+}
+
 /// A small binary VTK file: 4 points, one tet.
 fn tiny_vtk_binary(coord: f32) -> Vec<u8> {
     let mut b =

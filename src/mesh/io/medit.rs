@@ -25,12 +25,15 @@ struct State {
     raw: RawMesh,
     dim: usize,
     tets: Vec<PendingTet>,
-    triangles: Vec<([i64; 3], i32)>,
+    triangles: Vec<([i64; 3], i32, Location)>,
 }
 
 /// Parse an ASCII Medit file; `path` is used in messages only.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
-    if is_binary(bytes) {
+    let meshb = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("meshb"));
+    if meshb || is_binary(bytes) {
         return Err(Error::parse(
             path,
             Location::Byte(0),
@@ -306,7 +309,7 @@ fn triangles(toks: &mut Tokens, st: &mut State) -> Result<()> {
             *slot = rows.int("vertex number", id)?;
         }
         let tag = rows.int("reference", id)?;
-        st.triangles.push((v, tag));
+        st.triangles.push((v, tag, rows.toks.loc()));
     }
     Ok(())
 }
@@ -339,10 +342,10 @@ fn resolve(mut st: State, path: &Path) -> Result<RawMesh> {
             location: t.location,
         });
     }
-    for (k, (v, tag)) in st.triangles.iter().enumerate() {
+    for (k, (v, tag, loc)) in st.triangles.iter().enumerate() {
         let mut nodes = [0u32; 3];
         for (slot, &x) in nodes.iter_mut().zip(v) {
-            *slot = index(x, k as i64 + 1, Location::Unknown)?;
+            *slot = index(x, k as i64 + 1, *loc)?;
         }
         st.raw.triangles.push(RawTriangle { nodes, tag: *tag });
     }
