@@ -369,7 +369,8 @@ pub fn read(path: impl AsRef<Path>) -> Result<LoadedMesh> {
 pub fn read_bytes(bytes: &[u8], ext: &str, path: &Path) -> Result<LoadedMesh> {
     let raw = match ext {
         "msh" => gmsh::parse(bytes, path)?,
-        "mesh" => medit::parse(bytes, path)?,
+        // `.meshb` goes to the Medit reader so that it can say binary Medit is unsupported.
+        "mesh" | "meshb" => medit::parse(bytes, path)?,
         "veg" => vega::parse(bytes, path)?,
         "vtk" => vtk_legacy::parse(bytes, path)?,
         #[cfg(feature = "vtu")]

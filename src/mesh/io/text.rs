@@ -8,6 +8,9 @@ use crate::error::{Error, Location, Result};
 
 /// A cursor over the lines of a (mostly) text file, tracking 1-based line numbers and byte
 /// offsets so that binary sections (Gmsh, VTK) can be read from the same position.
+///
+/// Cloning is cheap (a few words) and is how a reader peeks ahead.
+#[derive(Clone)]
 pub(crate) struct Lines<'a> {
     path: &'a Path,
     bytes: &'a [u8],
@@ -106,6 +109,11 @@ impl<'a> Lines<'a> {
         }
     }
 
+    /// The next content line without consuming it; `None` at the end.
+    pub(crate) fn peek_line(&self) -> Option<Result<&'a str>> {
+        self.clone().next_line()
+    }
+
     /// The next content line, or an error saying the file ended before `what`.
     pub(crate) fn expect_line(&mut self, what: &str) -> Result<&'a str> {
         match self.next_line() {
@@ -139,6 +147,109 @@ impl<'a> Lines<'a> {
     pub(crate) fn int<T: FromStr>(&self, tok: &str, what: &str, element: Option<i64>) -> Result<T> {
         parse_int(tok, what, self.path, self.loc(), element)
     }
+}
+
+/// A cursor over the white-space separated tokens of a text file, across lines, for formats
+/// whose rows may wrap (Medit, VTK ASCII data). Text after a comment character on a line is
+/// ignored. Errors name the line of the token last returned.
+pub(crate) struct Tokens<'a> {
+    lines: Lines<'a>,
+    rest: std::str::SplitAsciiWhitespace<'a>,
+    comment: Option<char>,
+}
+
+impl<'a> Tokens<'a> {
+    /// Tokens of `lines`, from its current position.
+    pub(crate) fn new(lines: Lines<'a>) -> Self {
+        let comment = lines.comment.map(char::from);
+        Tokens {
+            lines,
+            rest: "".split_ascii_whitespace(),
+            comment,
+        }
+    }
+
+    /// The underlying line cursor: use it only when no token of the current line is pending
+    /// (see [`Tokens::line_done`]), for example to switch to a binary block.
+    pub(crate) fn lines(&mut self) -> &mut Lines<'a> {
+        &mut self.lines
+    }
+
+    /// Whether every token of the current line has been returned.
+    pub(crate) fn line_done(&self) -> bool {
+        self.rest.clone().next().is_none()
+    }
+
+    /// The tokens of the current line not yet returned (consumed).
+    pub(crate) fn rest_of_line(&mut self) -> Vec<&'a str> {
+        self.rest.by_ref().collect()
+    }
+
+    /// Location of the token last returned.
+    pub(crate) fn loc(&self) -> Location {
+        self.lines.loc()
+    }
+
+    /// The next token; `None` at the end of the input.
+    pub(crate) fn next_token(&mut self) -> Option<Result<&'a str>> {
+        loop {
+            if let Some(t) = self.rest.next() {
+                return Some(Ok(t));
+            }
+            let line = match self.lines.next_line()? {
+                Ok(l) => l,
+                Err(e) => return Some(Err(e)),
+            };
+            let line = match self.comment.and_then(|c| line.find(c)) {
+                Some(i) => &line[..i],
+                None => line,
+            };
+            self.rest = line.split_ascii_whitespace();
+        }
+    }
+
+    /// The next token, or an error saying the file ended before `what`.
+    pub(crate) fn expect(&mut self, what: &str) -> Result<&'a str> {
+        match self.next_token() {
+            Some(r) => r,
+            None => Err(Error::parse(
+                self.lines.path,
+                Location::Unknown,
+                None,
+                format!("file ends before {what}"),
+                "the file is truncated; export it again",
+            )),
+        }
+    }
+
+    /// The next token as a finite float.
+    pub(crate) fn f64(&mut self, what: &str, element: Option<i64>) -> Result<f64> {
+        let t = self.expect(what)?;
+        self.lines.f64(t, what, element)
+    }
+
+    /// The next token as an integer of type `T`.
+    pub(crate) fn int<T: FromStr>(&mut self, what: &str, element: Option<i64>) -> Result<T> {
+        let t = self.expect(what)?;
+        self.lines.int(t, what, element)
+    }
+
+    /// An error at the line of the token last returned.
+    pub(crate) fn error(
+        &self,
+        element: Option<i64>,
+        message: impl Into<String>,
+        hint: impl Into<String>,
+    ) -> Error {
+        self.lines.error(element, message, hint)
+    }
+}
+
+/// A capacity for `declared` items that the rest of the input (`remaining` bytes, at least
+/// `min_item_bytes` per item) could actually hold, so that a corrupt count cannot make a
+/// reader allocate gigabytes before it finds the file is short.
+pub(crate) fn capped(declared: usize, remaining: usize, min_item_bytes: usize) -> usize {
+    declared.min(remaining / min_item_bytes.max(1))
 }
 
 /// Split a line into white-space separated tokens.
