@@ -78,15 +78,25 @@ fn a_hanging_beam_settles_into_static_equilibrium() {
     let (q, i) = (1000.0 * G * 0.02 * 0.02, 0.02f64.powi(4) / 12.0);
     let theory = q * 0.1f64.powi(4) / (8.0 * 1e6 * i);
     assert!(sag < 0.0, "the beam did not sag down: {sag}");
-    assert!((-sag / theory - 1.0).abs() < 0.3, "sag {sag} vs beam theory {theory}");
+    assert!(
+        (-sag / theory - 1.0).abs() < 0.3,
+        "sag {sag} vs beam theory {theory}"
+    );
 
     // Settled: kinetic energy negligible against the work gravity did, and the tip still.
     let e = sim.energy();
     let work = model.mass.iter().sum::<f64>() * G * -sag;
-    assert!(e.kinetic < 1e-12 * work, "kinetic {:e} J vs {work:e} J", e.kinetic);
+    assert!(
+        e.kinetic < 1e-12 * work,
+        "kinetic {:e} J vs {work:e} J",
+        e.kinetic
+    );
     sim.run((0.02 / dt) as u64).unwrap();
     let later = tip_sag(&model, &sim.positions());
-    assert!((later - sag).abs() < 1e-9 * sag.abs(), "tip moved from {sag} to {later}");
+    assert!(
+        (later - sag).abs() < 1e-9 * sag.abs(),
+        "tip moved from {sag} to {later}"
+    );
 
     // Static equilibrium: on every free node, springs balance gravity to 1e-6 of its weight.
     let x = sim.positions();
@@ -96,7 +106,10 @@ fn a_hanging_beam_settles_into_static_equilibrium() {
         }
         let weight = model.mass[i] * G;
         let net = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-        assert!(net < 1e-6 * weight, "node {i}: net force {net:e} N, weight {weight:e} N");
+        assert!(
+            net < 1e-6 * weight,
+            "node {i}: net force {net:e} N, weight {weight:e} N"
+        );
     }
 }
 
@@ -121,5 +134,8 @@ fn the_sag_converges_as_the_time_step_shrinks() {
     let d1 = (sags[0] - sags[1]).abs();
     let d2 = (sags[1] - sags[2]).abs();
     assert!(d1 > 0.0, "no dependence on dt at all: {sags:?}");
-    assert!(d2 < 0.6 * d1, "differences {d1:e} then {d2:e} do not shrink: {sags:?}");
+    assert!(
+        d2 < 0.6 * d1,
+        "differences {d1:e} then {d2:e} do not shrink: {sags:?}"
+    );
 }

@@ -43,7 +43,10 @@ fn trajectory(kind: EngineKind, integrator: Integrator, steps: usize) -> Vec<f64
         sim.run(1).unwrap();
         let x = sim.positions()[1];
         // The motion stays on the spring's axis.
-        assert!(x[1].abs() < 1e-12 && x[2].abs() < 1e-12, "left the axis: {x:?}");
+        assert!(
+            x[1].abs() < 1e-12 && x[2].abs() < 1e-12,
+            "left the axis: {x:?}"
+        );
         u.push(x[0] - REST);
     }
     u
@@ -71,7 +74,11 @@ fn a_single_spring_oscillates_with_the_analytic_period_and_amplitude(
     let half = (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64;
     let measured = 2.0 * half * period() / 200.0;
     let rel = (measured - period()).abs() / period();
-    assert!(rel < 5e-3, "period {measured} s vs {} s ({rel:.2e})", period());
+    assert!(
+        rel < 5e-3,
+        "period {measured} s vs {} s ({rel:.2e})",
+        period()
+    );
     let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let rel = (peak - AMPLITUDE).abs() / AMPLITUDE;
     assert!(rel < 5e-3, "amplitude {peak} vs {AMPLITUDE} ({rel:.2e})");
@@ -102,7 +109,12 @@ fn damped_tet() -> (PackedModel, Vec<[f64; 3]>, Vec<[f64; 3]>) {
         [0.004, 0.092, 0.001],
         [-0.006, 0.002, 0.107],
     ];
-    let v = vec![[0.0; 3], [0.0, 0.1, 0.0], [0.05, 0.0, -0.02], [0.0, 0.0, 0.0]];
+    let v = vec![
+        [0.0; 3],
+        [0.0, 0.1, 0.0],
+        [0.05, 0.0, -0.02],
+        [0.0, 0.0, 0.0],
+    ];
     (m, x, v)
 }
 

@@ -39,7 +39,10 @@ fn pack(mesh: &TetMesh, config: &ModelConfig) -> PackedModel {
 
 fn elastic_box() -> PackedModel {
     let mesh = BoxGrid::cube_cells([6, 5, 4], 0.01).build().unwrap();
-    pack(&mesh, &ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0)))
+    pack(
+        &mesh,
+        &ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0)),
+    )
 }
 
 /// Rest positions moved randomly by `amount` times the model's size.
@@ -73,10 +76,17 @@ fn a_stiffness_contrast_of_a_million_is_stable_at_the_bound(
     let mut mesh = BoxGrid::cube_cells([6, 5, 4], 0.01).build().unwrap();
     mesh.set_region_where(1, |c| c.x > 0.03);
     let mut config = ModelConfig::new(Material::elastic(1e3, 0.3, 1000.0));
-    config.regions.insert(1, Material::elastic(1e9, 0.3, 1000.0));
+    config
+        .regions
+        .insert(1, Material::elastic(1e9, 0.3, 1000.0));
     let model = pack(&mesh, &config);
     let x0 = perturbed(&model, 1e-4, 7);
-    let mut sim = start(&model, kind, SimConfig::new(0.9 * stable_time_step(&model).dt), &x0);
+    let mut sim = start(
+        &model,
+        kind,
+        SimConfig::new(0.9 * stable_time_step(&model).dt),
+        &x0,
+    );
     let e0 = sim.energy().total();
     for _ in 0..30 {
         sim.run(100).unwrap();
@@ -192,7 +202,10 @@ fn assert_ratio(name: &str, model: &PackedModel) {
         stable_time_step(model).dt
     );
     assert!(ratio >= 1.0, "{name}: diverges below the bound ({ratio})");
-    assert!(ratio <= MAX_RATIO, "{name}: bound too conservative ({ratio})");
+    assert!(
+        ratio <= MAX_RATIO,
+        "{name}: bound too conservative ({ratio})"
+    );
 }
 
 #[test]
@@ -224,7 +237,10 @@ fn the_bound_is_conservative_but_not_wildly_so_on_a_real_mesh(#[case] relative: 
     let Some(mesh) = real_mesh(relative) else {
         return;
     };
-    let model = pack(&mesh, &ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0)));
+    let model = pack(
+        &mesh,
+        &ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0)),
+    );
     assert_ratio(relative, &model);
 }
 

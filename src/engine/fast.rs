@@ -12,8 +12,13 @@
 //! close to it in memory; everything the [`Engine`] trait exposes is in the packed model's
 //! order.
 //!
-//! Float32 keeps positions to about 6e-8 of their magnitude; see `tests/engine_agreement.rs`
-//! for how far that moves a run from the float64 reference.
+//! The state is stored as displacements from rest, not positions: float32 keeps a value to
+//! about 6e-8 of its magnitude, and a position's magnitude is the body's size while a
+//! displacement's is the motion's. This matters most for Verlet, whose velocity is the
+//! difference of two stored states divided by `h`: from positions its noise would be
+//! `6e-8 |x| / h` (about 1e-3 m/s for a 10 cm body at `h = 1e-5 s`), from displacements it is
+//! relative to the motion. Spring vectors are `(r_j - r_i) + (u_j - u_i)` with float32 rest
+//! positions `r`, whose rounding is a fixed, tiny change of the rest shape.
 
 mod rcm;
 
@@ -58,6 +63,8 @@ struct Graph {
     adj: Vec<Entry>,
     inv_mass: Vec<f32>,
     fixed: Vec<bool>,
+    /// Rest positions, float32.
+    rest: Vec<P>,
 }
 
 /// Float32 node-centric engine.
@@ -71,9 +78,9 @@ pub struct FastEngine {
     order: Vec<u32>,
     /// Rest positions in model order, returned exactly for fixed nodes.
     rest: Vec<[f64; 3]>,
-    /// Current positions.
+    /// Current displacements from rest.
     x: Vec<P>,
-    /// Verlet: previous positions. Symplectic Euler: velocities.
+    /// Verlet: previous displacements. Symplectic Euler: velocities.
     second: Vec<P>,
     /// Output buffers of the next step (Verlet uses only `x_next`).
     x_next: Vec<P>,
@@ -99,10 +106,7 @@ impl FastEngine {
             gravity: [g[0] as f32, g[1] as f32, g[2] as f32],
             alpha: model.mass_damping as f32,
         };
-        let x: Vec<P> = order
-            .iter()
-            .map(|&o| to_p(model.rest[o as usize]))
-            .collect();
+        let x: Vec<P> = vec![[0.0; 4]; n];
         let second = match config.integrator {
             Integrator::Verlet => x.clone(),
             Integrator::SymplecticEuler => vec![[0.0; 4]; n],
@@ -169,7 +173,10 @@ impl FastEngine {
     pub fn bandwidth(&self) -> usize {
         (0..self.node_count())
             .flat_map(|i| {
-                self.graph.row(i).iter().map(move |e| i.abs_diff(e.other as usize))
+                self.graph
+                    .row(i)
+                    .iter()
+                    .map(move |e| i.abs_diff(e.other as usize))
             })
             .max()
             .unwrap_or(0)
@@ -197,11 +204,13 @@ impl Engine for FastEngine {
 
     fn positions(&self) -> Vec<[f64; 3]> {
         self.in_model_order(|i| {
+            let r = self.rest[self.order[i] as usize];
             if self.graph.fixed[i] {
-                // Exactly the rest position, not its float32 rounding.
-                self.rest[self.order[i] as usize]
+                // Exactly the rest position.
+                r
             } else {
-                to_f64(self.x[i])
+                let u = to_f64(self.x[i]);
+                [r[0] + u[0], r[1] + u[1], r[2] + u[2]]
             }
         })
     }
@@ -225,14 +234,15 @@ impl Engine for FastEngine {
         let h = self.params.h as f64;
         for (i, &o) in self.order.iter().enumerate() {
             let o = o as usize;
-            let (x, v) = if self.graph.fixed[i] {
-                (self.rest[o], [0.0; 3])
+            let (u, v) = if self.graph.fixed[i] {
+                ([0.0; 3], [0.0; 3])
             } else {
-                (positions[o], velocities[o])
+                let (x, r) = (positions[o], self.rest[o]);
+                ([x[0] - r[0], x[1] - r[1], x[2] - r[2]], velocities[o])
             };
-            self.x[i] = to_p(x);
+            self.x[i] = to_p(u);
             self.second[i] = match self.integrator {
-                Integrator::Verlet => to_p([x[0] - v[0] * h, x[1] - v[1] * h, x[2] - v[2] * h]),
+                Integrator::Verlet => to_p([u[0] - v[0] * h, u[1] - v[1] * h, u[2] - v[2] * h]),
                 Integrator::SymplecticEuler => to_p(v),
             };
         }
@@ -303,6 +313,10 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
             .map(|&o| (1.0 / model.mass[o as usize]) as f32)
             .collect(),
         fixed: order.iter().map(|&o| model.fixed[o as usize]).collect(),
+        rest: order
+            .iter()
+            .map(|&o| to_p(model.rest[o as usize]))
+            .collect(),
     }
 }
 
@@ -317,13 +331,12 @@ fn spring_force<const DAMPED: bool>(
     i: usize,
     w_scale: f32,
 ) -> [f32; 3] {
-    let xi = x[i];
+    let (xi, ri) = (x[i], g.rest[i]);
     let wi = w[i];
     let mut f = [0.0f32; 3];
     for e in g.row(i) {
         let j = e.other as usize;
-        let xj = x[j];
-        let d = [xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]];
+        let d = spring_vector(ri, xi, g.rest[j], x[j]);
         let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         if l2 == 0.0 {
             continue;
@@ -344,7 +357,7 @@ fn spring_force<const DAMPED: bool>(
     f
 }
 
-/// Verlet for nodes `start..start + out.len()`: `out = x + (x - prev) + h^2 a`.
+/// Verlet for nodes `start..start + out.len()`: `out = u + (u - prev) + h^2 a` on displacements.
 fn verlet_block<const DAMPED: bool>(
     g: &Graph,
     p: Params,
@@ -380,14 +393,14 @@ fn verlet_block<const DAMPED: bool>(
 /// Spring force for Verlet with damping: the velocity of node `j` is `(x_j - prev_j) / h`.
 #[inline(always)]
 fn spring_force_verlet(g: &Graph, x: &[P], prev: &[P], i: usize, inv_h: f32) -> [f32; 3] {
-    let xi = x[i];
+    let (xi, ri) = (x[i], g.rest[i]);
     let pi = prev[i];
     let wi = [xi[0] - pi[0], xi[1] - pi[1], xi[2] - pi[2]];
     let mut f = [0.0f32; 3];
     for e in g.row(i) {
         let j = e.other as usize;
         let (xj, pj) = (x[j], prev[j]);
-        let d = [xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]];
+        let d = spring_vector(ri, xi, g.rest[j], xj);
         let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         if l2 == 0.0 {
             continue;
@@ -407,7 +420,7 @@ fn spring_force_verlet(g: &Graph, x: &[P], prev: &[P], i: usize, inv_h: f32) -> 
     f
 }
 
-/// Symplectic Euler for nodes `start..`: `v+ = v + h a(x, v)`, `x+ = x + h v+`.
+/// Symplectic Euler for nodes `start..`: `v+ = v + h a(u, v)`, `u+ = u + h v+`.
 fn euler_block<const DAMPED: bool>(
     g: &Graph,
     p: Params,
@@ -463,6 +476,17 @@ fn for_block_pairs(a: &mut [P], b: &mut [P], f: impl Fn(usize, &mut [P], &mut [P
     for (i, (ca, cb)) in a.chunks_mut(BLOCK).zip(b.chunks_mut(BLOCK)).enumerate() {
         f(i * BLOCK, ca, cb);
     }
+}
+
+/// `x_j - x_i` from rest positions `r` and displacements `u`: the rest difference first, so
+/// that the small displacement difference is not rounded against the body's size.
+#[inline(always)]
+fn spring_vector(ri: P, ui: P, rj: P, uj: P) -> [f32; 3] {
+    [
+        (rj[0] - ri[0]) + (uj[0] - ui[0]),
+        (rj[1] - ri[1]) + (uj[1] - ui[1]),
+        (rj[2] - ri[2]) + (uj[2] - ui[2]),
+    ]
 }
 
 fn to_p(v: [f64; 3]) -> P {
