@@ -17,8 +17,9 @@
 //! displacement's is the motion's. This matters most for Verlet, whose velocity is the
 //! difference of two stored states divided by `h`: from positions its noise would be
 //! `6e-8 |x| / h` (about 1e-3 m/s for a 10 cm body at `h = 1e-5 s`), from displacements it is
-//! relative to the motion. Spring vectors are `(r_j - r_i) + (u_j - u_i)` with float32 rest
-//! positions `r`, whose rounding is a fixed, tiny change of the rest shape.
+//! relative to the motion. Spring vectors are `e_ij + (u_j - u_i)`, the rest edge vector `e_ij`
+//! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
+//! precision of each edge).
 
 mod rcm;
 
@@ -34,10 +35,13 @@ const BLOCK: usize = 1024;
 
 /// One spring as seen from one of its ends.
 #[derive(Debug, Clone, Copy)]
-#[repr(C, align(16))]
+#[repr(C, align(32))]
 struct Entry {
     /// The other end, internal index.
     other: u32,
+    /// Rest vector from this node to the other, m: computed in float64 and rounded once, so
+    /// the rest shape is kept to float32 precision of the edge, not of the coordinates.
+    edge: [f32; 3],
     /// Rest length, m.
     rest: f32,
     /// Stiffness, N/m.
@@ -63,8 +67,6 @@ struct Graph {
     adj: Vec<Entry>,
     inv_mass: Vec<f32>,
     fixed: Vec<bool>,
-    /// Rest positions, float32.
-    rest: Vec<P>,
 }
 
 /// Float32 node-centric engine.
@@ -288,14 +290,20 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     let mut rows_of: Vec<Vec<Entry>> = vec![Vec::new(); n];
     for s in &model.springs {
         let (a, b) = (rank[s.nodes[0] as usize], rank[s.nodes[1] as usize]);
-        let entry = |other| Entry {
+        let (ra, rb) = (
+            model.rest[s.nodes[0] as usize],
+            model.rest[s.nodes[1] as usize],
+        );
+        let ab = [rb[0] - ra[0], rb[1] - ra[1], rb[2] - ra[2]];
+        let entry = |other, sign: f64| Entry {
             other,
+            edge: ab.map(|c| (sign * c) as f32),
             rest: s.rest_length as f32,
             k: s.stiffness as f32,
             c: s.damping as f32,
         };
-        rows_of[a as usize].push(entry(b));
-        rows_of[b as usize].push(entry(a));
+        rows_of[a as usize].push(entry(b, 1.0));
+        rows_of[b as usize].push(entry(a, -1.0));
     }
     let mut rows = Vec::with_capacity(n + 1);
     let mut adj = Vec::with_capacity(2 * model.springs.len());
@@ -313,48 +321,79 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
             .map(|&o| (1.0 / model.mass[o as usize]) as f32)
             .collect(),
         fixed: order.iter().map(|&o| model.fixed[o as usize]).collect(),
-        rest: order
-            .iter()
-            .map(|&o| to_p(model.rest[o as usize]))
-            .collect(),
     }
 }
 
-/// Total spring force on node `i`: elastic `k (l - L) u` plus, when `DAMPED`, damping
-/// `c ((w_j - w_i) . u) u` scaled by `w_scale`, `w` being the velocities. Coincident nodes have
-/// no direction and are skipped, as in the reference engine.
+/// No spring damping: the kernel reads displacements only.
+const UNDAMPED: u8 = 0;
+/// Spring damping with velocities stored (symplectic Euler).
+const DAMPED_VELOCITY: u8 = 1;
+/// Spring damping with velocity `(u - prev) / h` (Verlet).
+const DAMPED_VERLET: u8 = 2;
+
+/// Springs are evaluated four at a time in lane arrays, so that the square roots, divisions
+/// and products compile to SIMD instructions; the gather of neighbours stays scalar.
+const LANES: usize = 4;
+
+/// `h` times the velocity of node `j` (or the velocity, for `DAMPED_VELOCITY`).
 #[inline(always)]
-fn spring_force<const DAMPED: bool>(
+fn w_of<const DAMP: u8>(a: &[P], b: &[P], j: usize) -> [f32; 3] {
+    match DAMP {
+        DAMPED_VERLET => [a[j][0] - b[j][0], a[j][1] - b[j][1], a[j][2] - b[j][2]],
+        _ => [a[j][0], a[j][1], a[j][2]],
+    }
+}
+
+/// Total spring force on node `i` at displacements `x`: elastic `k (l - L) u` plus, when
+/// damped, `c ((w_j - w_i) . u) u * w_scale` with `w` from [`w_of`]. Coincident nodes have no
+/// direction and give nothing, as in the reference engine (their inverse length is set to 0,
+/// which also makes the padding lanes of a partial chunk, with `k = c = 0`, contribute 0).
+#[inline(always)]
+fn spring_force<const DAMP: u8>(
     g: &Graph,
     x: &[P],
-    w: &[P],
+    wa: &[P],
+    wb: &[P],
     i: usize,
     w_scale: f32,
 ) -> [f32; 3] {
-    let (xi, ri) = (x[i], g.rest[i]);
-    let wi = w[i];
-    let mut f = [0.0f32; 3];
-    for e in g.row(i) {
-        let j = e.other as usize;
-        let d = spring_vector(ri, xi, g.rest[j], x[j]);
-        let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if l2 == 0.0 {
-            continue;
+    let ui = x[i];
+    let wi = w_of::<DAMP>(wa, wb, i);
+    let mut acc = [[0.0f32; LANES]; 3];
+    for chunk in g.row(i).chunks(LANES) {
+        let mut d = [[0.0f32; LANES]; 3];
+        let mut dw = [[0.0f32; LANES]; 3];
+        let (mut k, mut rest, mut c) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
+        for (l, e) in chunk.iter().enumerate() {
+            let j = e.other as usize;
+            let v = spring_vector(e.edge, ui, x[j]);
+            (k[l], rest[l], c[l]) = (e.k, e.rest, e.c);
+            let wj = if DAMP != UNDAMPED {
+                w_of::<DAMP>(wa, wb, j)
+            } else {
+                [0.0; 3]
+            };
+            for a in 0..3 {
+                d[a][l] = v[a];
+                dw[a][l] = wj[a] - wi[a];
+            }
         }
-        let inv_l = 1.0 / l2.sqrt();
-        // Force magnitude over length: multiplies the unnormalised `d`.
-        let mut s = e.k * (1.0 - e.rest * inv_l);
-        if DAMPED {
-            let wj = w[j];
-            let dw = [wj[0] - wi[0], wj[1] - wi[1], wj[2] - wi[2]];
-            let along = (dw[0] * d[0] + dw[1] * d[1] + dw[2] * d[2]) * w_scale;
-            s += e.c * along * inv_l * inv_l;
+        for l in 0..LANES {
+            let l2 = d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l];
+            let inv_raw = 1.0 / l2.sqrt();
+            let inv = if l2 > 0.0 { inv_raw } else { 0.0 };
+            // Force magnitude over length: multiplies the unnormalised `d`.
+            let mut s = k[l] * (1.0 - rest[l] * inv);
+            if DAMP != UNDAMPED {
+                let along = dw[0][l] * d[0][l] + dw[1][l] * d[1][l] + dw[2][l] * d[2][l];
+                s += c[l] * along * w_scale * inv * inv;
+            }
+            for a in 0..3 {
+                acc[a][l] += s * d[a][l];
+            }
         }
-        f[0] += s * d[0];
-        f[1] += s * d[1];
-        f[2] += s * d[2];
     }
-    f
+    acc.map(|lanes| lanes.iter().sum())
 }
 
 /// Verlet for nodes `start..start + out.len()`: `out = u + (u - prev) + h^2 a` on displacements.
@@ -375,9 +414,9 @@ fn verlet_block<const DAMPED: bool>(
         // Spring damping needs each neighbour's velocity `(x - prev) / h`, hence a kernel of
         // its own; without damping the plain one reads positions only.
         let f = if DAMPED {
-            spring_force_verlet(g, cur, prev, i, p.inv_h)
+            spring_force::<DAMPED_VERLET>(g, cur, cur, prev, i, p.inv_h)
         } else {
-            spring_force::<false>(g, cur, cur, i, 0.0)
+            spring_force::<UNDAMPED>(g, cur, cur, cur, i, 0.0)
         };
         let m = g.inv_mass[i];
         let dx = [xi[0] - prev[i][0], xi[1] - prev[i][1], xi[2] - prev[i][2]];
@@ -388,36 +427,6 @@ fn verlet_block<const DAMPED: bool>(
         }
         *o = next;
     }
-}
-
-/// Spring force for Verlet with damping: the velocity of node `j` is `(x_j - prev_j) / h`.
-#[inline(always)]
-fn spring_force_verlet(g: &Graph, x: &[P], prev: &[P], i: usize, inv_h: f32) -> [f32; 3] {
-    let (xi, ri) = (x[i], g.rest[i]);
-    let pi = prev[i];
-    let wi = [xi[0] - pi[0], xi[1] - pi[1], xi[2] - pi[2]];
-    let mut f = [0.0f32; 3];
-    for e in g.row(i) {
-        let j = e.other as usize;
-        let (xj, pj) = (x[j], prev[j]);
-        let d = spring_vector(ri, xi, g.rest[j], xj);
-        let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if l2 == 0.0 {
-            continue;
-        }
-        let inv_l = 1.0 / l2.sqrt();
-        let dw = [
-            xj[0] - pj[0] - wi[0],
-            xj[1] - pj[1] - wi[1],
-            xj[2] - pj[2] - wi[2],
-        ];
-        let along = (dw[0] * d[0] + dw[1] * d[1] + dw[2] * d[2]) * inv_h;
-        let s = e.k * (1.0 - e.rest * inv_l) + e.c * along * inv_l * inv_l;
-        f[0] += s * d[0];
-        f[1] += s * d[1];
-        f[2] += s * d[2];
-    }
-    f
 }
 
 /// Symplectic Euler for nodes `start..`: `v+ = v + h a(u, v)`, `u+ = u + h v+`.
@@ -437,7 +446,11 @@ fn euler_block<const DAMPED: bool>(
             *vo = [0.0; 4];
             continue;
         }
-        let f = spring_force::<DAMPED>(g, x, v, i, 1.0);
+        let f = if DAMPED {
+            spring_force::<DAMPED_VELOCITY>(g, x, v, v, i, 1.0)
+        } else {
+            spring_force::<UNDAMPED>(g, x, v, v, i, 1.0)
+        };
         let m = g.inv_mass[i];
         for c in 0..3 {
             let a = f[c] * m + p.gravity[c] - p.alpha * vi[c];
@@ -478,14 +491,14 @@ fn for_block_pairs(a: &mut [P], b: &mut [P], f: impl Fn(usize, &mut [P], &mut [P
     }
 }
 
-/// `x_j - x_i` from rest positions `r` and displacements `u`: the rest difference first, so
-/// that the small displacement difference is not rounded against the body's size.
+/// `x_j - x_i` from the rest edge vector and displacements `u`: the small displacement
+/// difference is never rounded against the body's size.
 #[inline(always)]
-fn spring_vector(ri: P, ui: P, rj: P, uj: P) -> [f32; 3] {
+fn spring_vector(edge: [f32; 3], ui: P, uj: P) -> [f32; 3] {
     [
-        (rj[0] - ri[0]) + (uj[0] - ui[0]),
-        (rj[1] - ri[1]) + (uj[1] - ui[1]),
-        (rj[2] - ri[2]) + (uj[2] - ui[2]),
+        edge[0] + (uj[0] - ui[0]),
+        edge[1] + (uj[1] - ui[1]),
+        edge[2] + (uj[2] - ui[2]),
     ]
 }
 
