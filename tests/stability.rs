@@ -126,9 +126,9 @@ fn free_spring() -> PackedModel {
 /// Bounds: on the spring pair at 1.2x, `w h = 2.4` and the growing root of
 /// `z^2 - (2 - (w h)^2) z + 1` is 3.5 per step; energy must grow by the limit (100x the energy
 /// scale) from a start of 1e-6 of the length, about 1e14, which takes ln(1e14) / (2 ln 3.5) = 13
-/// steps; at 2x, fewer. On the box at 2x (the bound is conservative by less than 1.6 there,
-/// measured below), the worst mode has `w h >= 2.5`, growth >= 4 per step: under 12 steps.
-/// Checks run every 10 steps, so 60 steps is a safe ceiling for all.
+/// steps; at 2x, fewer. On the box at 2x the step is 2 / 1.74 = 1.15 times the measured
+/// threshold (see the bisection below), so its worst mode has `w h ~ 2.3` and grows 2.95 per
+/// step: 15 steps. Checks run every 10 steps, so 60 steps is a safe ceiling for all.
 #[rstest]
 #[case::box_at_twice(elastic_box(), 2.0)]
 #[case::spring_at_twice(free_spring(), 2.0)]
@@ -188,11 +188,13 @@ fn threshold_ratio(model: &PackedModel) -> f64 {
     (lo * hi).sqrt()
 }
 
-/// The Gershgorin bound `2 sum k / m` over-estimates the top eigenvalue by at most the ratio
-/// of a node's full spring sum to what a single mode can load it with. On these meshes the
-/// measured threshold lies within 1.6x of the bound (reported with the test output); 4x would
-/// already waste three quarters of the speed, so we require `1 <= ratio <= 2`.
-const MAX_RATIO: f64 = 2.0;
+/// The Gershgorin bound `2 sum k / m` over-estimates the top eigenvalue of `M^-1 K`: it loads
+/// every spring of a node at once and counts the diagonal block `sum k u u^T` at its largest
+/// possible norm `sum k`. Measured thresholds over the bound (3,000 steps, this bisection):
+/// box 6x5x4 1.74, liver 1.49, armadillo 1.45, tongue 1.92 (the real meshes read with a
+/// stand-in reader before the project's readers were merged). We require `1 <= ratio <= 2.5`:
+/// conservative, yet never wasting more than 60% of the usable step.
+const MAX_RATIO: f64 = 2.5;
 
 fn assert_ratio(name: &str, model: &PackedModel) {
     let ratio = threshold_ratio(model);
@@ -244,8 +246,9 @@ fn the_bound_is_conservative_but_not_wildly_so_on_a_real_mesh(#[case] relative: 
     assert_ratio(relative, &model);
 }
 
-/// Sliver-heavy meshes under gravity, held at the bottom tenth of their height, run 3,000 steps
-/// at exactly the bound without diverging.
+/// Sliver-heavy meshes under gravity, held at the bottom tenth of their height (along z), run
+/// 3,000 steps at exactly the bound without diverging. E = 1 MPa at a density of 1000 in the
+/// meshes' own units: the per-node bound is set by the slivers' stiff short edges.
 #[rstest]
 #[case::armadillo("positionbaseddynamics/armadillo_4k.ele")]
 #[case::tongue("sofa/volumetricTongue.vtu")]
@@ -257,7 +260,7 @@ fn a_sliver_heavy_mesh_runs_stable_at_its_bound(
         return;
     };
     let (lo, hi) = mesh.bounds().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0));
+    let mut config = ModelConfig::new(Material::elastic(1e6, 0.3, 1000.0));
     config.gravity = [0.0, 0.0, -9.81];
     config.fixed = vec![FixedSelector::HalfSpace {
         point: [lo.x, lo.y, lo.z + 0.1 * (hi.z - lo.z)],
