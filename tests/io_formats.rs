@@ -459,6 +459,19 @@ fn vtk_triangles_become_surface_elements_and_lines_are_ignored_with_a_note() {
     assert!(loaded.report.notes.iter().any(|n| n.contains("ignored 1")));
 }
 
+#[test]
+fn vtk_quadratic_triangles_are_kept_on_their_corners_like_the_vtu_reader_does() {
+    let s = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n\
+             0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 2 12\n4 0 1 2 3\n6 0 2 1 3 3 3\nCELL_TYPES 2\n10 22\n";
+    let loaded = io::read_bytes(s.as_bytes(), "vtk", Path::new("t.vtk")).unwrap();
+    assert_eq!(loaded.surface.len(), 1);
+    let notes = loaded.report.notes.join("\n");
+    assert!(
+        notes.contains("read 1 quadratic triangle(s) on their 3 corners"),
+        "{notes}"
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // Errors
 

@@ -527,7 +527,7 @@ fn ascii_with(from: &str, to: &str) -> String {
 )]
 #[case::wrong_cell_size(
     ascii_with("0 1 2 3", "0 1 2 3 0").replacen("          4\n", "          5\n", 1),
-    "has 5 points; it needs 4", Location::Line(15), Some(0)
+    "has 5 points, expected 4", Location::Line(15), Some(0)
 )]
 #[case::value_too_big_for_type(
     ascii_with("          10\n", "          300\n"),

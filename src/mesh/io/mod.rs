@@ -16,6 +16,7 @@ pub mod pvd;
 pub mod tetgen;
 pub(crate) mod text;
 pub mod vega;
+pub(crate) mod vtk_cells;
 pub mod vtk_legacy;
 #[cfg(feature = "vtu")]
 pub mod vtu;

@@ -11,6 +11,7 @@
 use std::path::Path;
 
 use super::text::{capped, Bin, Lines, Tokens};
+use super::vtk_cells::{unsupported_message, CellKind, CellTally, UNSUPPORTED_HINT};
 use super::{Format, RawMesh, RawTet, RawTriangle};
 use crate::error::{Error, Location, Result};
 
@@ -833,7 +834,7 @@ impl<'a> Vtk<'a> {
                 ));
             }
         }
-        let mut tally = Tally::default();
+        let mut tally = CellTally::default();
         for i in 0..cells.starts.len() {
             let tag = region.as_ref().map_or(0.0, |r| r.1[i]);
             self.cell(&cells, i, tag, &mut tally)?;
@@ -854,7 +855,7 @@ impl<'a> Vtk<'a> {
     }
 
     /// Convert cell `i`.
-    fn cell(&mut self, cells: &Cells, i: usize, tag: f64, tally: &mut Tally) -> Result<()> {
+    fn cell(&mut self, cells: &Cells, i: usize, tag: f64, tally: &mut CellTally) -> Result<()> {
         let (ty, _) = cells.types[i];
         let start = cells.starts[i];
         let end = cells.starts.get(i + 1).copied().unwrap_or(cells.conn.len());
@@ -862,28 +863,21 @@ impl<'a> Vtk<'a> {
         let loc = cells.locs[i];
         let id = i as i64 + 1;
         let err = |msg: String, hint: &str| Error::parse(self.path, loc, Some(id), msg, hint);
-        let want = match ty {
-            10 => 4,
-            24 => 10,
-            5 => 3,
-            1..=4 | 6..=9 | 21 | 22 | 23 | 28 | 30 | 34 | 36 | 37 | 69 | 70 => {
-                tally.ignored += 1;
-                return Ok(());
+        let kind = CellKind::of(ty);
+        tally.record(kind);
+        match kind {
+            CellKind::VertexOrLine | CellKind::OtherSurface => return Ok(()),
+            CellKind::Volume(_) | CellKind::Unknown => {
+                return Err(err(unsupported_message(ty), UNSUPPORTED_HINT))
             }
-            _ => return Err(err(unsupported_cell(ty), "convert the mesh to tetrahedra")),
-        };
-        if ids.len() != want {
-            return Err(err(
-                format!(
-                    "cell of type {ty} has {} points, expected {want}",
-                    ids.len()
-                ),
-                "fix the cell's point list or its type",
-            ));
+            _ => {}
+        }
+        if let Some(msg) = kind.wrong_points(ty, ids.len()) {
+            return Err(err(msg, "fix the cell's point list or its type"));
         }
         let n = self.raw.points.len() as i64;
         let mut nodes = [0u32; 4];
-        for (slot, &p) in nodes.iter_mut().zip(ids) {
+        for (slot, &p) in nodes.iter_mut().zip(&ids[..kind.corners()]) {
             if !(0..n).contains(&p) {
                 return Err(err(
                     format!("references point {p}, which is not defined (the file has {n})"),
@@ -892,9 +886,9 @@ impl<'a> Vtk<'a> {
             }
             *slot = p as u32;
         }
-        tally.fractional += (tag.fract() != 0.0) as usize;
+        tally.fractional_tags += (tag.fract() != 0.0) as usize;
         let region = tag.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
-        if ty == 5 {
+        if kind.corners() == 3 {
             let tri = [nodes[0], nodes[1], nodes[2]];
             self.raw.triangles.push(RawTriangle {
                 nodes: tri,
@@ -902,7 +896,6 @@ impl<'a> Vtk<'a> {
             });
             return Ok(());
         }
-        tally.quadratic += (ty == 24) as usize;
         self.raw.tets.push(RawTet {
             nodes,
             region,
@@ -910,55 +903,5 @@ impl<'a> Vtk<'a> {
             location: loc,
         });
         Ok(())
-    }
-}
-
-/// The message for a volume cell type lancet does not simulate.
-fn unsupported_cell(ty: i64) -> String {
-    let name = match ty {
-        11 => "voxel",
-        12 => "hexahedron",
-        13 => "wedge",
-        14 => "pyramid",
-        15 => "pentagonal prism",
-        16 => "hexagonal prism",
-        25 => "quadratic hexahedron",
-        26 => "quadratic wedge",
-        27 => "quadratic pyramid",
-        29 => "triquadratic hexahedron",
-        42 => "polyhedron",
-        _ => return format!("unknown or unsupported vtk cell type {ty}"),
-    };
-    format!("unsupported cell type {ty} ({name}); lancet simulates tetrahedra only")
-}
-
-/// Counts for the notes.
-#[derive(Default)]
-struct Tally {
-    ignored: usize,
-    quadratic: usize,
-    fractional: usize,
-}
-
-impl Tally {
-    fn notes(&self, notes: &mut Vec<String>) {
-        if self.ignored > 0 {
-            notes.push(format!(
-                "ignored {} vertex, line and non-triangle surface cell(s)",
-                self.ignored
-            ));
-        }
-        if self.quadratic > 0 {
-            notes.push(format!(
-                "took the 4 corner nodes of {} quadratic tet(s)",
-                self.quadratic
-            ));
-        }
-        if self.fractional > 0 {
-            notes.push(format!(
-                "rounded {} non-integer region tag(s) to the nearest integer",
-                self.fractional
-            ));
-        }
     }
 }

@@ -22,6 +22,7 @@ use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 
 use super::text::{parse_f64, parse_int};
+use super::vtk_cells::{unsupported_message, CellKind, CellTally, UNSUPPORTED_HINT};
 use super::{Format, RawMesh, RawTet, RawTriangle};
 use crate::error::{Error, Location, Result};
 
@@ -43,7 +44,7 @@ const REGION_NAMES: [&str; 6] = [
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
     let doc = scan(bytes, path)?;
     let mut raw = RawMesh::new(Format::Vtu);
-    let mut counts = CellCounts::default();
+    let mut counts = CellTally::default();
     let mut region_names: Vec<String> = Vec::new();
     for piece in &doc.pieces {
         if let Some(name) = doc.add_piece(piece, &mut raw, &mut counts)? {
@@ -255,44 +256,6 @@ impl Positions {
         match self.lines.as_ref().and_then(|l| l.get(i)) {
             Some(&line) => Location::Line(line as usize),
             None => self.loc,
-        }
-    }
-}
-
-/// Counts of cells that were skipped or simplified, for notes.
-#[derive(Debug, Default)]
-struct CellCounts {
-    vertex_line: usize,
-    other_2d: usize,
-    quadratic_tets: usize,
-    quadratic_tris: usize,
-}
-
-impl CellCounts {
-    fn notes(&self, notes: &mut Vec<String>) {
-        if self.vertex_line > 0 {
-            notes.push(format!(
-                "ignored {} vertex or line cell(s)",
-                self.vertex_line
-            ));
-        }
-        if self.other_2d > 0 {
-            notes.push(format!(
-                "ignored {} surface cell(s) that are not triangles (quads, polygons, strips)",
-                self.other_2d
-            ));
-        }
-        if self.quadratic_tets > 0 {
-            notes.push(format!(
-                "read {} quadratic (10-node) tet(s) as linear tets on their 4 corners",
-                self.quadratic_tets
-            ));
-        }
-        if self.quadratic_tris > 0 {
-            notes.push(format!(
-                "read {} quadratic triangle(s) on their 3 corners",
-                self.quadratic_tris
-            ));
         }
     }
 }
@@ -1179,7 +1142,7 @@ impl<'a> Doc<'a> {
         &self,
         piece: &Piece,
         raw: &mut RawMesh,
-        counts: &mut CellCounts,
+        counts: &mut CellTally,
     ) -> Result<Option<String>> {
         let base = raw.points.len();
         if base.saturating_add(piece.points) > u32::MAX as usize {
@@ -1306,62 +1269,44 @@ impl<'a> Doc<'a> {
         base: usize,
         points: usize,
         raw: &mut RawMesh,
-        counts: &mut CellCounts,
+        counts: &mut CellTally,
     ) -> Result<()> {
         let kind = CellKind::of(cell.kind);
-        if let Some(need) = kind.size() {
-            if cell.nodes.len() != need {
-                return Err(self.err(
-                    cell.loc,
-                    Some(cell.id),
-                    format!(
-                        "cell of type {} ({}) has {} points; it needs {need}",
-                        cell.kind,
-                        kind.name(),
-                        cell.nodes.len()
-                    ),
-                    "fix the offsets or the cell type",
-                ));
-            }
-        }
+        counts.record(kind);
         match kind {
-            CellKind::Tet | CellKind::QuadraticTet => {
-                counts.quadratic_tets += (kind == CellKind::QuadraticTet) as usize;
-                let nodes = self.nodes::<4>(cell, base, points)?;
-                raw.tets.push(RawTet {
-                    nodes,
-                    region: cell.region,
-                    id: cell.id,
-                    location: cell.loc,
-                });
-            }
-            CellKind::Triangle | CellKind::QuadraticTriangle => {
-                counts.quadratic_tris += (kind == CellKind::QuadraticTriangle) as usize;
-                let nodes = self.nodes::<3>(cell, base, points)?;
-                raw.triangles.push(RawTriangle {
-                    nodes,
-                    tag: cell.region,
-                });
-            }
-            CellKind::VertexOrLine => counts.vertex_line += 1,
-            CellKind::OtherSurface => counts.other_2d += 1,
-            CellKind::Volume(name) => {
+            CellKind::VertexOrLine | CellKind::OtherSurface => return Ok(()),
+            CellKind::Volume(_) | CellKind::Unknown => {
                 return Err(self.err(
                     cell.loc,
                     Some(cell.id),
-                    format!("cell type {} ({name}) is not supported", cell.kind),
-                    "lancet simulates tetrahedra: split the cells into tets (for example with \
-                     paraview's tetrahedralize filter) and export again",
+                    unsupported_message(cell.kind),
+                    UNSUPPORTED_HINT,
                 ))
             }
-            CellKind::Unknown => {
-                return Err(self.err(
-                    cell.loc,
-                    Some(cell.id),
-                    format!("unknown vtk cell type {}", cell.kind),
-                    "check the types array",
-                ))
-            }
+            _ => {}
+        }
+        if let Some(msg) = kind.wrong_points(cell.kind, cell.nodes.len()) {
+            return Err(self.err(
+                cell.loc,
+                Some(cell.id),
+                msg,
+                "fix the offsets or the cell type",
+            ));
+        }
+        if kind.corners() == 3 {
+            let nodes = self.nodes::<3>(cell, base, points)?;
+            raw.triangles.push(RawTriangle {
+                nodes,
+                tag: cell.region,
+            });
+        } else {
+            let nodes = self.nodes::<4>(cell, base, points)?;
+            raw.tets.push(RawTet {
+                nodes,
+                region: cell.region,
+                id: cell.id,
+                location: cell.loc,
+            });
         }
         Ok(())
     }
@@ -1407,66 +1352,4 @@ struct Cell<'c> {
     nodes: &'c [i64],
     loc: Location,
     region: i32,
-}
-
-/// What lancet does with a VTK cell type.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum CellKind {
-    Tet,
-    QuadraticTet,
-    Triangle,
-    QuadraticTriangle,
-    VertexOrLine,
-    OtherSurface,
-    Volume(&'static str),
-    Unknown,
-}
-
-impl CellKind {
-    fn of(t: i64) -> Self {
-        match t {
-            10 => CellKind::Tet,
-            24 => CellKind::QuadraticTet,
-            5 => CellKind::Triangle,
-            22 => CellKind::QuadraticTriangle,
-            1..=4 | 21 | 35 => CellKind::VertexOrLine,
-            6..=9 | 23 | 28 | 30 | 36 | 37 => CellKind::OtherSurface,
-            11 => CellKind::Volume("voxel"),
-            12 => CellKind::Volume("hexahedron"),
-            13 => CellKind::Volume("wedge"),
-            14 => CellKind::Volume("pyramid"),
-            15 => CellKind::Volume("pentagonal prism"),
-            16 => CellKind::Volume("hexagonal prism"),
-            25 => CellKind::Volume("quadratic hexahedron"),
-            26 => CellKind::Volume("quadratic wedge"),
-            27 => CellKind::Volume("quadratic pyramid"),
-            29 => CellKind::Volume("triquadratic hexahedron"),
-            42 => CellKind::Volume("polyhedron"),
-            _ => CellKind::Unknown,
-        }
-    }
-
-    /// The number of points a cell of this kind has, when fixed.
-    fn size(self) -> Option<usize> {
-        match self {
-            CellKind::Tet => Some(4),
-            CellKind::QuadraticTet => Some(10),
-            CellKind::Triangle => Some(3),
-            CellKind::QuadraticTriangle => Some(6),
-            _ => None,
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            CellKind::Tet => "tetra",
-            CellKind::QuadraticTet => "quadratic tetra",
-            CellKind::Triangle => "triangle",
-            CellKind::QuadraticTriangle => "quadratic triangle",
-            CellKind::VertexOrLine => "vertex or line",
-            CellKind::OtherSurface => "surface cell",
-            CellKind::Volume(n) => n,
-            CellKind::Unknown => "unknown",
-        }
-    }
 }
