@@ -18,6 +18,7 @@ pub mod mesh;
 pub use error::{Error, Location, ParseError, Result};
 pub use mesh::{NodeKey, TetKey, TetMesh};
 pub mod engine;
+pub mod layout;
 pub mod model;
 
 pub use engine::{EngineKind, Integrator, SimConfig, Simulation};

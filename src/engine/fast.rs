@@ -21,8 +21,6 @@
 //! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
 //! precision of each edge).
 
-mod rcm;
-
 use super::{Engine, Integrator, SimConfig};
 use crate::model::PackedModel;
 
@@ -93,7 +91,7 @@ impl FastEngine {
     /// Start at rest at the rest positions.
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
         let n = model.node_count();
-        let order = locality_order(model);
+        let order = crate::layout::locality_order(model);
         let mut rank = vec![0u32; n];
         for (new, &old) in order.iter().enumerate() {
             rank[old as usize] = new as u32;
@@ -258,30 +256,6 @@ impl Graph {
 }
 
 /// Internal node order: reverse Cuthill–McKee of the spring graph.
-fn locality_order(model: &PackedModel) -> Vec<u32> {
-    let n = model.node_count();
-    let mut rows = vec![0u32; n + 1];
-    for s in &model.springs {
-        rows[s.nodes[0] as usize + 1] += 1;
-        rows[s.nodes[1] as usize + 1] += 1;
-    }
-    for i in 0..n {
-        rows[i + 1] += rows[i];
-    }
-    let mut fill = rows.clone();
-    let mut cols = vec![0u32; rows[n] as usize];
-    for s in &model.springs {
-        let [a, b] = s.nodes;
-        cols[fill[a as usize] as usize] = b;
-        fill[a as usize] += 1;
-        cols[fill[b as usize] as usize] = a;
-        fill[b as usize] += 1;
-    }
-    rcm::reverse_cuthill_mckee(&rcm::Csr {
-        rows: &rows,
-        cols: &cols,
-    })
-}
 
 /// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
 /// forwards.

@@ -1,0 +1,176 @@
+//! Packing the spring model into dense, GPU-ready arrays, in the three memory layouts of the
+//! GPU surgical-simulation literature:
+//!
+//! - [`connectivity`]: every node owns `K` fixed slots (the 2005 "connectivity texture"); a
+//!   node-centric gather, padded to the widest node.
+//! - [`valence`]: nodes grouped into buckets by valence, each bucket a table exactly as wide as
+//!   its valence (the "valence textures"); no padding, nodes permuted.
+//! - [`edges`]: one entry per spring; forces are computed once per spring and reach the nodes by
+//!   atomics or by a gather through a node-to-spring incidence table.
+//!
+//! This module is pure CPU: it builds the arrays, reports their memory and patches them after
+//! edits. The GPU passes that read them live in `engine::gpu` and `shaders/`.
+
+pub mod rcm;
+
+use bytemuck::{Pod, Zeroable};
+use serde::Serialize;
+
+use crate::model::{PackedModel, PackedSpring};
+
+/// One spring as seen from one of its ends: the unit every layout stores.
+///
+/// Mirrors `struct Slot` in `shaders/common.wgsl` (same field order; `vec3<f32>` has 16-byte
+/// alignment and 12-byte size there, so `rest` packs into its fourth word and the struct is 32
+/// bytes on both sides).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct Slot {
+    /// Rest vector from this node to the other, m: computed in float64 and rounded once, so the
+    /// rest shape keeps float32 precision of the edge, not of the coordinates.
+    pub edge: [f32; 3],
+    /// Rest length, m.
+    pub rest: f32,
+    /// Stiffness, N/m.
+    pub k: f32,
+    /// Damping along the spring, N s/m.
+    pub c: f32,
+    /// The other end (index in the layout's node order); [`Slot::EMPTY`] in padding slots.
+    pub other: u32,
+    /// Padding to 32 bytes.
+    pub pad: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<Slot>() == 32);
+
+impl Slot {
+    /// Marks an unused slot.
+    pub const EMPTY: u32 = u32::MAX;
+
+    /// An unused slot (zero stiffness, `other = EMPTY`).
+    pub fn empty() -> Self {
+        Slot {
+            other: Slot::EMPTY,
+            ..Zeroable::zeroed()
+        }
+    }
+
+    /// The slot of spring `s` seen from node `from` (one of its ends, model order), pointing at
+    /// the other end, whose index in the layout's order is `other`.
+    pub fn of(model: &PackedModel, s: &PackedSpring, from: u32, other: u32) -> Self {
+        let to = if s.nodes[0] == from {
+            s.nodes[1]
+        } else {
+            s.nodes[0]
+        };
+        let (a, b) = (model.rest[from as usize], model.rest[to as usize]);
+        Slot {
+            edge: [
+                (b[0] - a[0]) as f32,
+                (b[1] - a[1]) as f32,
+                (b[2] - a[2]) as f32,
+            ],
+            rest: s.rest_length as f32,
+            k: s.stiffness as f32,
+            c: s.damping as f32,
+            other,
+            pad: 0,
+        }
+    }
+}
+
+/// A renumbering of nodes: `order[new] = old`, `rank[old] = new`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NodeOrder {
+    /// Old (model) index of each new index.
+    pub order: Vec<u32>,
+    /// New index of each old (model) index.
+    pub rank: Vec<u32>,
+}
+
+impl NodeOrder {
+    /// Build from `order[new] = old`.
+    pub fn from_order(order: Vec<u32>) -> Self {
+        let mut rank = vec![0u32; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            rank[old as usize] = new as u32;
+        }
+        NodeOrder { order, rank }
+    }
+
+    /// The model's own order.
+    pub fn identity(n: usize) -> Self {
+        Self::from_order((0..n as u32).collect())
+    }
+
+    /// Reverse Cuthill–McKee order of the model's spring graph, for memory locality.
+    pub fn locality(model: &PackedModel) -> Self {
+        Self::from_order(locality_order(model))
+    }
+}
+
+/// The spring graph of a model in CSR form (model order): row starts and neighbour indices.
+pub fn spring_graph(model: &PackedModel) -> (Vec<u32>, Vec<u32>) {
+    let n = model.node_count();
+    let mut rows = vec![0u32; n + 1];
+    for s in &model.springs {
+        rows[s.nodes[0] as usize + 1] += 1;
+        rows[s.nodes[1] as usize + 1] += 1;
+    }
+    for i in 0..n {
+        rows[i + 1] += rows[i];
+    }
+    let mut fill = rows.clone();
+    let mut cols = vec![0u32; rows[n] as usize];
+    for s in &model.springs {
+        let [a, b] = s.nodes;
+        cols[fill[a as usize] as usize] = b;
+        fill[a as usize] += 1;
+        cols[fill[b as usize] as usize] = a;
+        fill[b as usize] += 1;
+    }
+    (rows, cols)
+}
+
+/// Reverse Cuthill–McKee order (`order[new] = old`) of the model's spring graph.
+pub fn locality_order(model: &PackedModel) -> Vec<u32> {
+    let (rows, cols) = spring_graph(model);
+    rcm::reverse_cuthill_mckee(&rcm::Csr {
+        rows: &rows,
+        cols: &cols,
+    })
+}
+
+/// Memory a layout uses on the device.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MemoryStats {
+    /// Each buffer by name and its size in bytes.
+    pub buffers: Vec<(String, u64)>,
+    /// Sum of all buffers, bytes.
+    pub total: u64,
+    /// Bytes spent on padding (unused slots), included in `total`.
+    pub padding: u64,
+    /// `total / nodes`.
+    pub bytes_per_node: f64,
+    /// `total / springs`.
+    pub bytes_per_spring: f64,
+}
+
+impl MemoryStats {
+    /// Stats of the named buffers for a model of `nodes` and `springs`.
+    pub fn new(buffers: Vec<(String, u64)>, padding: u64, nodes: usize, springs: usize) -> Self {
+        let total = buffers.iter().map(|(_, b)| b).sum();
+        MemoryStats {
+            buffers,
+            total,
+            padding,
+            bytes_per_node: total as f64 / nodes.max(1) as f64,
+            bytes_per_spring: total as f64 / springs.max(1) as f64,
+        }
+    }
+
+    /// Padding as a percentage of the total.
+    pub fn padding_percent(&self) -> f64 {
+        100.0 * self.padding as f64 / self.total.max(1) as f64
+    }
+}
