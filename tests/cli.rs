@@ -221,3 +221,29 @@ fn info_on_a_bad_file_exits_2_with_the_line() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("nan.mesh") && err.contains("line 7"), "{err}");
 }
+
+#[test]
+fn run_with_output_writes_a_pvd_series_of_frames_that_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = lancet(&["run", "--output", dir.path().to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let pvd = std::fs::read_to_string(dir.path().join("default_hanging_beam.pvd")).unwrap();
+    let frames: Vec<&str> = pvd
+        .split("file=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap())
+        .collect();
+    // The first state, then every tenth of the run.
+    assert_eq!(frames.len(), 11, "{pvd}");
+    let first = lancet::mesh::io::read(dir.path().join(frames[0])).unwrap();
+    let last = lancet::mesh::io::read(dir.path().join(frames[10])).unwrap();
+    assert_eq!(first.mesh.node_count(), 1701);
+    assert_eq!(last.mesh.tet_count(), first.mesh.tet_count());
+    // The beam sags under gravity: the last frame's lowest point is below the first's.
+    let lowest = |m: &lancet::TetMesh| m.nodes().map(|(_, n)| n.rest.z).fold(f64::MAX, f64::min);
+    assert!(lowest(&last.mesh) < lowest(&first.mesh) - 1e-5);
+}

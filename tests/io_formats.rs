@@ -821,3 +821,23 @@ proptest! {
         survive("vtk51", &mutate(valid("vtk51"), &e, cut));
     }
 }
+
+#[rstest]
+#[case::quadratic_linear_wedge(31)]
+#[case::biquadratic_quadratic_wedge(32)]
+#[case::biquadratic_quadratic_hexahedron(33)]
+#[case::triquadratic_pyramid(37)]
+fn higher_order_volume_cells_are_refused_not_dropped(#[case] ty: u32) {
+    // One tet and one higher-order volume cell: the volume cell must not vanish silently.
+    let text = format!(
+        "# vtk DataFile Version 4.2\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n\
+         0 0 0\n1 0 0\n0 1 0\n0 0 1\nCELLS 2 10\n4 0 1 2 3\n4 0 1 2 3\nCELL_TYPES 2\n10\n{ty}\n"
+    );
+    let err = lancet::mesh::io::read_bytes(text.as_bytes(), "vtk", Path::new("hi.vtk"))
+        .expect_err("a volume cell lancet cannot simulate is an error");
+    assert!(
+        err.to_string()
+            .contains(&format!("unsupported cell type {ty}")),
+        "{err}"
+    );
+}

@@ -207,17 +207,25 @@ pub fn run_scene(
         Err(e) => return Err(e),
     };
 
-    let mut frames = match (&scene.output, opts.no_output) {
-        (Some(out), false) => {
-            let dir = opts
-                .output_dir
-                .clone()
-                .unwrap_or_else(|| scene_path.parent().unwrap_or(Path::new(".")).join(&out.dir));
+    // `--output DIR` turns output on even for a scene without an `output` section, writing
+    // about ten frames.
+    let out_dir = opts.output_dir.clone().or_else(|| {
+        scene
+            .output
+            .as_ref()
+            .map(|o| scene_path.parent().unwrap_or(Path::new(".")).join(&o.dir))
+    });
+    let every = scene
+        .output
+        .as_ref()
+        .map_or((steps / 10).max(1), |o| o.every.max(1));
+    let mut frames = match out_dir {
+        Some(dir) if !opts.no_output => {
             let stem = sanitize(&scene.name);
             let mut w = PvdWriter::new(&dir, &stem, Default::default())?;
             w.frame(0.0, &mesh, Some(&sim.positions()))?;
             summary.pvd = Some(dir.join(format!("{stem}.pvd")));
-            Some((w, out.every.max(1)))
+            Some((w, every))
         }
         _ => None,
     };
