@@ -255,8 +255,6 @@ impl Graph {
     }
 }
 
-/// Internal node order: reverse Cuthill–McKee of the spring graph.
-
 /// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
 /// forwards.
 fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
