@@ -20,6 +20,7 @@ pub use mesh::{NodeKey, TetKey, TetMesh};
 pub mod engine;
 pub mod layout;
 pub mod model;
+pub mod report;
 
 pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};

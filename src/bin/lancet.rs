@@ -47,6 +47,25 @@ enum Command {
         #[arg(long)]
         no_output: bool,
     },
+    /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
+    /// achieved bandwidth against this machine's measured floor, error against the reference.
+    Bench {
+        /// Cube meshes of N^3 cells, six tets each (repeatable).
+        #[arg(long = "cube", default_values = ["10", "26"])]
+        cubes: Vec<usize>,
+        /// Mesh files (repeatable).
+        #[arg(long)]
+        mesh: Vec<PathBuf>,
+        /// Engines to compare, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast"])]
+        engine: Vec<EngineArg>,
+        /// Steps timed per engine.
+        #[arg(long, default_value_t = 200)]
+        steps: u64,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Describe a mesh file: counts, volume, quality, components, regions.
     Info {
         /// The mesh (for TetGen, either file of the `.node`/`.ele` pair).
@@ -96,6 +115,13 @@ fn main() -> ExitCode {
             run(scene.as_deref(), json, &opts)
         }
         Command::Info { mesh, json } => info(&mesh, json),
+        Command::Bench {
+            cubes,
+            mesh,
+            engine,
+            steps,
+            json,
+        } => bench(&cubes, &mesh, &engine, steps, json),
     };
     match result {
         Ok(code) => code,
@@ -265,6 +291,69 @@ fn print_table(summaries: &[RunSummary]) {
     }
     let failed = summaries.iter().filter(|s| !s.expectations_passed).count();
     println!("{} scenes, {} failed", summaries.len(), failed);
+}
+
+/// Run the benchmark matrix and print it.
+fn bench(
+    cubes: &[usize],
+    files: &[PathBuf],
+    engines: &[EngineArg],
+    steps: u64,
+    json: bool,
+) -> lancet::Result<ExitCode> {
+    use lancet::report::{bandwidth, bench};
+    let mut meshes: Vec<bench::BenchMesh> =
+        cubes.iter().map(|&n| bench::BenchMesh::Cube(n)).collect();
+    meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
+    let opts = bench::BenchOptions {
+        engines: engines.iter().map(|&e| e.into()).collect(),
+        steps,
+        ..Default::default()
+    };
+    // 2^24 doubles per array (128 MiB): far beyond any cache, as STREAM requires.
+    let bw = bandwidth::stream_triad(1 << 24, 5);
+    let rows = bench::run_bench(&meshes, &opts, &bw)?;
+    if json {
+        let v = json!({ "bandwidth": bw, "rows": rows });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "memory bandwidth (STREAM triad, {} threads): {:.1} GB/s",
+        bw.threads,
+        bw.bytes_per_s / 1e9
+    );
+    println!(
+        "{:<14} {:>8} {:>9} {:<20} {:>9} {:>6} {:>9} {:>10} {:>8} {:>7} {:>9}",
+        "mesh",
+        "nodes",
+        "springs",
+        "engine",
+        "mem (MB)",
+        "pad %",
+        "ms/step",
+        "Mspring/s",
+        "GB/s",
+        "floor %",
+        "error"
+    );
+    for r in &rows {
+        println!(
+            "{:<14} {:>8} {:>9} {:<20} {:>9.2} {:>6.1} {:>9.3} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
+            r.mesh,
+            r.nodes,
+            r.springs,
+            r.engine,
+            r.memory_bytes as f64 / 1e6,
+            r.padding_percent,
+            r.ms_per_step,
+            r.spring_evals_per_s / 1e6,
+            r.achieved_bytes_per_s / 1e9,
+            100.0 * r.floor_ratio,
+            r.error_vs_reference
+        );
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Print what a mesh file holds.

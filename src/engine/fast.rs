@@ -193,6 +193,38 @@ impl FastEngine {
 }
 
 impl Engine for FastEngine {
+    fn memory(&self) -> super::EngineMemory {
+        let n = self.x.len() as u64;
+        let slots = self.graph.adj.len() as u64;
+        let entry = std::mem::size_of::<Entry>() as u64;
+        let p = std::mem::size_of::<P>() as u64;
+        let buffers = vec![
+            ("adjacency".to_string(), slots * entry),
+            ("row starts".to_string(), (n + 1) * 4),
+            ("inverse masses".to_string(), n * 4),
+            ("fixed flags".to_string(), n),
+            ("displacements (3 buffers)".to_string(), 3 * n * p),
+            (
+                "velocities (symplectic euler, 2 buffers)".to_string(),
+                match self.integrator {
+                    Integrator::Verlet => 0,
+                    Integrator::SymplecticEuler => 2 * n * p,
+                },
+            ),
+        ];
+        // A step streams the adjacency once, reads the current and previous state and writes
+        // the next; neighbours' state is re-read from cache, not memory, when the order is local.
+        let state = match self.integrator {
+            Integrator::Verlet => 3 * n * p,
+            Integrator::SymplecticEuler => 4 * n * p,
+        };
+        let bytes_per_step = slots * entry + (n + 1) * 4 + n * 5 + state;
+        super::EngineMemory {
+            stats: crate::layout::MemoryStats::new(buffers, 0, n as usize, slots as usize / 2),
+            bytes_per_step,
+        }
+    }
+
     fn step(&mut self, steps: u32) {
         for _ in 0..steps {
             match self.integrator {

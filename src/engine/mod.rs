@@ -55,6 +55,18 @@ pub trait Engine: Send {
     fn velocities(&self) -> Vec<[f64; 3]>;
     /// Replace the state (fixed nodes keep their rest position whatever is given).
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
+    /// The engine's arrays and the bytes one step must move at least (each array it reads or
+    /// writes, once): the numerator of the memory-bandwidth floor.
+    fn memory(&self) -> EngineMemory;
+}
+
+/// What an engine keeps in memory and moves per step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EngineMemory {
+    /// Arrays by name, total, padding, per node and per spring.
+    pub stats: crate::layout::MemoryStats,
+    /// Bytes read or written by one step, each array counted once.
+    pub bytes_per_step: u64,
 }
 
 /// How a simulation runs.
@@ -211,6 +223,18 @@ impl Simulation {
         Ok(())
     }
 
+    /// Advance `steps` steps with no divergence check (for timing); call
+    /// [`Simulation::check`] afterwards.
+    pub fn step_unchecked(&mut self, steps: u32) {
+        self.engine.step(steps);
+        self.steps += steps as u64;
+    }
+
+    /// The engine's name as reported in summaries.
+    pub fn engine_name(&self) -> String {
+        self.kind.to_string()
+    }
+
     /// Check the current state for divergence.
     pub fn check(&self) -> Result<()> {
         let x = self.engine.positions();
@@ -325,6 +349,11 @@ impl Simulation {
     /// The configuration.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// Memory and per-step traffic of the engine.
+    pub fn memory(&self) -> EngineMemory {
+        self.engine.memory()
     }
 
     /// Which engine runs.

@@ -118,6 +118,27 @@ impl Engine for ReferenceEngine {
         (0..self.x.len()).map(|i| self.velocity(i)).collect()
     }
 
+    fn memory(&self) -> super::EngineMemory {
+        let (n, m) = (self.x.len() as u64, self.model.springs.len() as u64);
+        let spring = std::mem::size_of::<crate::model::PackedSpring>() as u64;
+        let v3 = std::mem::size_of::<V3>() as u64;
+        let buffers = vec![
+            ("springs".to_string(), m * spring),
+            ("positions".to_string(), n * v3),
+            ("previous (verlet) or velocities".to_string(), n * v3),
+            ("forces".to_string(), n * v3),
+            ("masses".to_string(), n * 8),
+            ("fixed flags".to_string(), n),
+        ];
+        // A step reads the springs, masses and flags, and reads and writes positions, the
+        // second state and the forces.
+        let bytes_per_step = m * spring + n * (8 + 1) + 2 * 3 * n * v3;
+        super::EngineMemory {
+            stats: crate::layout::MemoryStats::new(buffers, 0, n as usize, m as usize),
+            bytes_per_step,
+        }
+    }
+
     fn set_state(&mut self, positions: &[V3], velocities: &[V3]) {
         for i in 0..self.x.len() {
             let (x, v) = if self.model.fixed[i] {
