@@ -11,7 +11,9 @@ fn engines(c: &mut Criterion) {
     let mut group = c.benchmark_group("step");
     group.sample_size(20);
     for n in [10usize, 26] {
-        let mesh = BoxGrid::cube_cells([n; 3], 0.01).build().expect("cube builds");
+        let mesh = BoxGrid::cube_cells([n; 3], 0.01)
+            .build()
+            .expect("cube builds");
         let model = bench_model(&mesh).expect("model builds");
         let dt = 0.9 * stable_time_step(&model).dt;
         group.throughput(Throughput::Elements(model.springs.len() as u64));

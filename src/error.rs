@@ -121,6 +121,10 @@ pub enum Error {
         message: String,
     },
 
+    /// The GPU device refused something (validation, limits, device loss).
+    #[error("gpu: {0}")]
+    Gpu(String),
+
     /// A feature or format that this build or this file needs is not available.
     #[error("unsupported: {0}")]
     Unsupported(String),

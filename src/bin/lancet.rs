@@ -37,6 +37,9 @@ enum Command {
         /// Engine to use instead of the scene's.
         #[arg(long, value_enum)]
         engine: Option<EngineArg>,
+        /// GPU memory layout instead of the scene's.
+        #[arg(long, value_enum)]
+        layout: Option<LayoutArg>,
         /// Number of steps instead of the scene's.
         #[arg(long)]
         steps: Option<u64>,
@@ -84,6 +87,30 @@ enum EngineArg {
     Fast,
     /// The default CPU engine (same as `fast`).
     Cpu,
+    /// The wgpu engine on the preferred adapter.
+    Gpu,
+    /// The GPU when there is one, else the CPU engine (and say so).
+    Auto,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LayoutArg {
+    /// Fixed slots per node.
+    Connectivity,
+    /// Nodes grouped by valence.
+    Valence,
+    /// One record per spring.
+    Edges,
+}
+
+impl From<LayoutArg> for lancet::layout::LayoutKind {
+    fn from(l: LayoutArg) -> Self {
+        match l {
+            LayoutArg::Connectivity => Self::Connectivity,
+            LayoutArg::Valence => Self::Valence,
+            LayoutArg::Edges => Self::Edges,
+        }
+    }
 }
 
 impl From<EngineArg> for EngineKind {
@@ -91,6 +118,8 @@ impl From<EngineArg> for EngineKind {
         match e {
             EngineArg::Reference => EngineKind::Reference,
             EngineArg::Fast | EngineArg::Cpu => EngineKind::Fast,
+            EngineArg::Gpu => EngineKind::Gpu,
+            EngineArg::Auto => EngineKind::Auto,
         }
     }
 }
@@ -102,12 +131,14 @@ fn main() -> ExitCode {
             scene,
             json,
             engine,
+            layout,
             steps,
             output,
             no_output,
         } => {
             let opts = RunOptions {
                 engine: engine.map(Into::into),
+                layout: layout.map(Into::into),
                 steps,
                 output_dir: output,
                 no_output,
@@ -221,6 +252,9 @@ fn print_summary(s: &RunSummary) {
         "engine: {} ({}), dt {:.3e} s, stable bound {:.3e} s (node {})",
         s.engine, s.integrator, s.dt, s.dt_bound, s.dt_bound_node
     );
+    if let Some(n) = &s.engine_note {
+        println!("note: {n}");
+    }
     if let Some(m) = &s.message {
         println!("{}: {m}", if s.refused { "refused" } else { "diverged" });
     }

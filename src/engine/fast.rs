@@ -193,6 +193,10 @@ impl FastEngine {
 }
 
 impl Engine for FastEngine {
+    fn name(&self) -> String {
+        "cpu-fast-f32".into()
+    }
+
     fn memory(&self) -> super::EngineMemory {
         let n = self.x.len() as u64;
         let slots = self.graph.adj.len() as u64;

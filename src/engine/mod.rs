@@ -7,6 +7,8 @@
 //! steps and reported with the step and node.
 
 pub mod fast;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod reference;
 
 use serde::{Deserialize, Serialize};
@@ -26,7 +28,7 @@ pub enum Integrator {
     SymplecticEuler,
 }
 
-/// Which CPU engine to run.
+/// Which engine to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum EngineKind {
     /// Float64, serial, edge-by-edge: plainly correct, the reference for everything else.
@@ -34,6 +36,10 @@ pub enum EngineKind {
     /// Float32, node-centric gather, nodes reordered for locality, multi-threaded.
     #[default]
     Fast,
+    /// Float32 on a wgpu device, in the layout of [`SimConfig::layout`].
+    Gpu,
+    /// The GPU engine when an adapter is found, else the fast CPU engine (and say so).
+    Auto,
 }
 
 impl std::fmt::Display for EngineKind {
@@ -41,6 +47,8 @@ impl std::fmt::Display for EngineKind {
         f.write_str(match self {
             EngineKind::Reference => "cpu-reference-f64",
             EngineKind::Fast => "cpu-fast-f32",
+            EngineKind::Gpu => "gpu",
+            EngineKind::Auto => "auto",
         })
     }
 }
@@ -55,6 +63,10 @@ pub trait Engine: Send {
     fn velocities(&self) -> Vec<[f64; 3]>;
     /// Replace the state (fixed nodes keep their rest position whatever is given).
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
+    /// Block until submitted work has finished (GPU engines; CPU engines finish in `step`).
+    fn wait(&mut self) {}
+    /// The engine's name, with its device where it has one.
+    fn name(&self) -> String;
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
     /// writes, once): the numerator of the memory-bandwidth floor.
     fn memory(&self) -> EngineMemory;
@@ -84,6 +96,9 @@ pub struct SimConfig {
     /// the energy crosses the limit.
     #[serde(default = "default_check_every")]
     pub check_every: u32,
+    /// Spring layout of the GPU engine.
+    #[serde(default)]
+    pub layout: crate::layout::LayoutKind,
 }
 
 fn default_check_every() -> u32 {
@@ -98,6 +113,7 @@ impl SimConfig {
             integrator: Integrator::Verlet,
             allow_unstable: false,
             check_every: default_check_every(),
+            layout: crate::layout::LayoutKind::Connectivity,
         }
     }
 }
@@ -126,6 +142,42 @@ impl Energy {
 /// absorbs the oscillation of the discrete energy near the bound.
 pub const ENERGY_GROWTH_LIMIT: f64 = 100.0;
 
+type Made = (Box<dyn Engine>, EngineKind, Option<String>);
+
+/// Build the engine of `kind`; `Auto` resolves to the GPU or, failing that, the fast CPU engine
+/// with a note saying why.
+fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Result<Made> {
+    Ok(match kind {
+        EngineKind::Reference => (
+            Box::new(reference::ReferenceEngine::new(model, config)),
+            kind,
+            None,
+        ),
+        EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
+        EngineKind::Gpu => (gpu_engine(model, config)?, kind, None),
+        EngineKind::Auto => match gpu_engine(model, config) {
+            Ok(e) => (e, EngineKind::Gpu, None),
+            Err(e) => (
+                Box::new(fast::FastEngine::new(model, config)),
+                EngineKind::Fast,
+                Some(format!("no usable GPU ({e}); running the fast CPU engine")),
+            ),
+        },
+    })
+}
+
+#[cfg(feature = "gpu")]
+fn gpu_engine(model: &PackedModel, config: SimConfig) -> Result<Box<dyn Engine>> {
+    Ok(Box::new(gpu::GpuEngine::new(model, config, config.layout)?))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_engine(_: &PackedModel, _: SimConfig) -> Result<Box<dyn Engine>> {
+    Err(Error::Unsupported(
+        "this build has no GPU engine (enable the `gpu` cargo feature)".into(),
+    ))
+}
+
 /// An engine with safety checks around it.
 pub struct Simulation {
     engine: Box<dyn Engine>,
@@ -136,6 +188,7 @@ pub struct Simulation {
     steps: u64,
     start_energy: f64,
     energy_scale: f64,
+    note: Option<String>,
 }
 
 impl Simulation {
@@ -159,10 +212,7 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let engine: Box<dyn Engine> = match kind {
-            EngineKind::Reference => Box::new(reference::ReferenceEngine::new(&model, config)),
-            EngineKind::Fast => Box::new(fast::FastEngine::new(&model, config)),
-        };
+        let (engine, kind, note) = make_engine(&model, kind, config)?;
         let mut sim = Simulation {
             engine,
             model,
@@ -172,6 +222,7 @@ impl Simulation {
             steps: 0,
             start_energy: 0.0,
             energy_scale: 0.0,
+            note,
         };
         sim.reset_energy_reference();
         Ok(sim)
@@ -227,12 +278,18 @@ impl Simulation {
     /// [`Simulation::check`] afterwards.
     pub fn step_unchecked(&mut self, steps: u32) {
         self.engine.step(steps);
+        self.engine.wait();
         self.steps += steps as u64;
     }
 
-    /// The engine's name as reported in summaries.
+    /// The engine's name as reported in summaries (with its device for the GPU).
     pub fn engine_name(&self) -> String {
-        self.kind.to_string()
+        self.engine.name()
+    }
+
+    /// Why the engine differs from the one asked for (`Auto` without a GPU), if it does.
+    pub fn engine_note(&self) -> Option<&str> {
+        self.note.as_deref()
     }
 
     /// Check the current state for divergence.

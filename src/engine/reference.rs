@@ -118,6 +118,10 @@ impl Engine for ReferenceEngine {
         (0..self.x.len()).map(|i| self.velocity(i)).collect()
     }
 
+    fn name(&self) -> String {
+        "cpu-reference-f64".into()
+    }
+
     fn memory(&self) -> super::EngineMemory {
         let (n, m) = (self.x.len() as u64, self.model.springs.len() as u64);
         let spring = std::mem::size_of::<crate::model::PackedSpring>() as u64;

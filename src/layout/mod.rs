@@ -11,12 +11,25 @@
 //! This module is pure CPU: it builds the arrays, reports their memory and patches them after
 //! edits. The GPU passes that read them live in `engine::gpu` and `shaders/`.
 
+pub mod connectivity;
 pub mod rcm;
 
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;
 
 use crate::model::{PackedModel, PackedSpring};
+
+/// Which memory layout a GPU engine packs the springs in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
+pub enum LayoutKind {
+    /// Fixed slots per node, padded to the widest node; node-centric gather.
+    #[default]
+    Connectivity,
+    /// Nodes grouped by valence, no padding.
+    Valence,
+    /// One record per spring, forces accumulated to nodes.
+    Edges,
+}
 
 /// One spring as seen from one of its ends: the unit every layout stores.
 ///

@@ -30,7 +30,15 @@ impl BenchMesh {
                 format!("cube {n}^3"),
                 BoxGrid::cube_cells([*n; 3], 0.01).build()?,
             ),
+            #[cfg(feature = "formats")]
             BenchMesh::File(p) => (p.display().to_string(), crate::mesh::io::read(p)?.mesh),
+            #[cfg(not(feature = "formats"))]
+            BenchMesh::File(p) => {
+                return Err(crate::Error::Unsupported(format!(
+                    "{}: this build reads no mesh files (enable the `formats` feature)",
+                    p.display()
+                )))
+            }
         })
     }
 }

@@ -19,6 +19,8 @@ use crate::model::{stable_time_step, ModelConfig, SpringModel};
 pub struct RunOptions {
     /// Run on this engine instead of the scene's.
     pub engine: Option<EngineKind>,
+    /// Use this GPU layout instead of the scene's.
+    pub layout: Option<crate::layout::LayoutKind>,
     /// Run this many steps instead of the scene's.
     pub steps: Option<u64>,
     /// Write frames here instead of the scene's output folder.
@@ -46,8 +48,10 @@ pub struct RunSummary {
     pub dt_bound: f64,
     /// Node that limits the bound.
     pub dt_bound_node: usize,
-    /// Engine that ran.
+    /// Engine that ran (with its device for the GPU).
     pub engine: String,
+    /// Why the engine differs from the one asked for (no GPU for `Auto`), if it does.
+    pub engine_note: Option<String>,
     /// Integration scheme.
     pub integrator: String,
     /// Wall time of the stepping, s.
@@ -166,6 +170,7 @@ pub fn run_scene(
         dt,
         integrator: scene.integrator,
         allow_unstable: scene.allow_unstable,
+        layout: opts.layout.unwrap_or(scene.layout),
         ..SimConfig::new(dt)
     };
     let mut summary = RunSummary {
@@ -178,6 +183,7 @@ pub fn run_scene(
         dt_bound: bound.dt,
         dt_bound_node: bound.node,
         engine: engine.to_string(),
+        engine_note: None,
         integrator: format!("{:?}", scene.integrator),
         wall_s: 0.0,
         steps_per_s: 0.0,
@@ -206,6 +212,8 @@ pub fn run_scene(
         }
         Err(e) => return Err(e),
     };
+    summary.engine = sim.engine_name();
+    summary.engine_note = sim.engine_note().map(str::to_string);
 
     // `--output DIR` turns output on even for a scene without an `output` section, writing
     // about ten frames.

@@ -179,6 +179,9 @@ pub struct Scene {
     /// Engine.
     #[serde(default)]
     pub engine: EngineKind,
+    /// GPU memory layout (for `engine: Gpu` or `Auto`).
+    #[serde(default)]
+    pub layout: crate::layout::LayoutKind,
     /// Integration scheme.
     #[serde(default)]
     pub integrator: Integrator,

@@ -1,0 +1,128 @@
+//! Small wgpu helpers shared by the passes: binding entries, pipelines built inside an error
+//! scope, limit checks, and readback.
+
+use super::GpuContext;
+use crate::error::{Error, Result};
+
+/// A storage-buffer binding visible to compute.
+pub fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A uniform-buffer binding visible to compute.
+pub fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// Bind-group entries binding `buffers[i]` whole at binding `i`.
+pub fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
+    buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect()
+}
+
+/// Compile `source` and build a compute pipeline with entry point `main`; a shader or
+/// validation problem becomes an error instead of a panic.
+pub fn compute_pipeline(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> Result<wgpu::ComputePipeline> {
+    let d = &ctx.device;
+    let scope = d.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    match pollster::block_on(scope.pop()) {
+        None => Ok(pipeline),
+        Some(e) => Err(Error::Gpu(format!("pipeline {label}: {e}"))),
+    }
+}
+
+/// Fail with a clear error when a buffer exceeds what one binding may hold on this device.
+pub fn check_binding(ctx: &GpuContext, what: &str, bytes: u64) -> Result<()> {
+    let max = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    if bytes > max {
+        return Err(Error::Gpu(format!(
+            "{what} needs {bytes} bytes but {} binds at most {max} bytes per buffer; use a \
+             smaller mesh, a layout without padding (valence or edges), or the cpu engine",
+            ctx.info.name
+        )));
+    }
+    Ok(())
+}
+
+/// Copy `src` into a mappable buffer and read it back as vec4s.
+pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> {
+    let d = &ctx.device;
+    let staging = d.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: src.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("readback"),
+    });
+    enc.copy_buffer_to_buffer(src, 0, &staging, 0, src.size());
+    let index = ctx.queue.submit([enc.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    d.poll(wgpu::PollType::Wait {
+        submission_index: Some(index),
+        timeout: None,
+    })
+    .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+    rx.recv()
+        .map_err(|_| Error::Gpu("readback was never answered".into()))?
+        .map_err(|e| Error::Gpu(format!("mapping the readback buffer: {e}")))?;
+    let bytes = staging
+        .get_mapped_range(..)
+        .map_err(|e| Error::Gpu(format!("reading the mapped buffer: {e}")))?
+        .to_vec();
+    staging.unmap();
+    Ok(bytemuck::pod_collect_to_vec(&bytes))
+}

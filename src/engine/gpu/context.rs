@@ -1,0 +1,82 @@
+//! Choosing a GPU adapter and opening a device on it.
+
+use crate::error::{Error, Result};
+
+/// An open wgpu device with what lancet needs to know about it.
+pub struct GpuContext {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The adapter it runs on.
+    pub info: wgpu::AdapterInfo,
+    /// The limits requested (the adapter's own, which are larger than wgpu's defaults).
+    pub limits: wgpu::Limits,
+}
+
+/// Preference among adapters: discrete GPUs first, a CPU device (lavapipe) last but one.
+fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    };
+    // Native APIs before OpenGL, which wgpu supports with fewer compute features.
+    let backend = u8::from(info.backend == wgpu::Backend::Gl);
+    (kind, backend)
+}
+
+impl GpuContext {
+    /// Open the preferred adapter. Without any adapter this is an error that says what to
+    /// install, never a panic.
+    pub fn new() -> Result<Self> {
+        // Native APIs first; OpenGL (which also runs compute on llvmpipe) only when none has an
+        // adapter, since probing it costs time and prints EGL warnings.
+        let adapter = [wgpu::Backends::PRIMARY, wgpu::Backends::GL]
+            .into_iter()
+            .find_map(|backends| {
+                let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                    backends,
+                    ..wgpu::InstanceDescriptor::new_without_display_handle()
+                });
+                pollster::block_on(instance.enumerate_adapters(backends))
+                    .into_iter()
+                    .min_by_key(|a| rank(&a.get_info()))
+            })
+            .ok_or_else(|| {
+                Error::Unsupported(
+                    "no GPU adapter found; install a Vulkan driver (on Debian: apt-get install \
+                     mesa-vulkan-drivers libvulkan1 gives a CPU Vulkan device) or run with \
+                     --engine cpu"
+                        .into(),
+                )
+            })?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("lancet"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+        })
+    }
+
+    /// "name (backend, device type)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+}

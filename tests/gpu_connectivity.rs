@@ -1,0 +1,268 @@
+//! The connectivity layout on the GPU: its pass equals its CPU twin on random inputs, and the
+//! GPU engine agrees with the float64 reference.
+
+mod common;
+
+use lancet::engine::gpu::{step_params, GpuEngine};
+use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
+use lancet::layout::connectivity::ConnectivityLayout;
+use lancet::layout::{LayoutKind, NodeOrder};
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{
+    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringDamping, SpringModel,
+};
+use lancet::report::bench::relative_l2;
+use lancet::Error;
+use rstest::rstest;
+
+/// A small xorshift generator: reproducible random inputs without another dependency.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// A perturbed box with random per-spring stiffness and damping, random masses, gravity and a
+/// fixed base: every term of the force law is exercised.
+fn random_model(seed: u64, damped: bool) -> PackedModel {
+    let mut rng = Rng(seed);
+    let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
+    let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(
+        if damped {
+            SpringDamping::StiffnessProportional(2e-4)
+        } else {
+            SpringDamping::None
+        },
+    ));
+    config.gravity = [0.3, -0.2, -9.81];
+    config.mass_damping = 3.0;
+    config.fixed.push(FixedSelector::Plane {
+        point: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        tolerance: 1e-9,
+    });
+    let mut model = SpringModel::build(&mesh, &config)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    for s in &mut model.springs {
+        let f = 0.5 + rng.next();
+        s.stiffness *= f;
+        s.damping *= f;
+    }
+    for m in &mut model.mass {
+        *m *= 0.5 + rng.next();
+    }
+    model
+}
+
+/// Random displacements of about 5% of a cell and random velocities, in layout order.
+fn random_state(n: usize, seed: u64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let mut rng = Rng(seed);
+    let mut v = |s: f64| {
+        [
+            (rng.next() - 0.5) * s,
+            (rng.next() - 0.5) * s,
+            (rng.next() - 0.5) * s,
+        ]
+    };
+    let cur = (0..n)
+        .map(|_| {
+            let a = v(1e-3);
+            [a[0] as f32, a[1] as f32, a[2] as f32, 0.0]
+        })
+        .collect();
+    let second = (0..n)
+        .map(|_| {
+            let a = v(1e-3);
+            [a[0] as f32, a[1] as f32, a[2] as f32, 0.0]
+        })
+        .collect();
+    (cur, second)
+}
+
+#[rstest]
+fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
+    #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
+    #[values(false, true)] damped: bool,
+    #[values(1, 50)] steps: u32,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let model = random_model(7, damped);
+    let dt = 0.5 * stable_time_step(&model).dt;
+    let config = SimConfig {
+        integrator,
+        ..SimConfig::new(dt)
+    };
+    let layout = ConnectivityLayout::new(&model, NodeOrder::locality(&model), None).unwrap();
+    let p = step_params(&model, config);
+    // Start both from the same random state (positions and velocities in model order).
+    let (cur, second) = random_state(model.node_count(), 11);
+    let mut engine =
+        GpuEngine::with_context(ctx, &model, config, LayoutKind::Connectivity).unwrap();
+    let order = &layout.order;
+    let to_model = |u: &[[f32; 4]]| -> Vec<[f64; 3]> {
+        let mut x = vec![[0.0; 3]; u.len()];
+        for (new, &old) in order.order.iter().enumerate() {
+            for c in 0..3 {
+                x[old as usize][c] = model.rest[old as usize][c] + u[new][c] as f64;
+            }
+        }
+        x
+    };
+    // The engine takes velocities; derive them exactly as the twin's second state means them.
+    let vel: Vec<[f64; 3]> = {
+        let mut v = vec![[0.0; 3]; cur.len()];
+        for (new, &old) in order.order.iter().enumerate() {
+            for c in 0..3 {
+                v[old as usize][c] = match integrator {
+                    Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / dt,
+                    Integrator::SymplecticEuler => second[new][c] as f64,
+                };
+            }
+        }
+        v
+    };
+    engine.set_state(&to_model(&cur), &vel);
+    // The engine rounds the state to float32 on upload; start the twin from what it stored.
+    let (mut u, mut s) = (cur.clone(), second.clone());
+    for (new, &old) in order.order.iter().enumerate() {
+        if model.fixed[old as usize] {
+            u[new] = [0.0; 4];
+            s[new] = [0.0; 4];
+        } else if integrator == Integrator::Verlet {
+            for c in 0..3 {
+                s[new][c] = (cur[new][c] as f64 - vel[old as usize][c] * dt) as f32;
+            }
+        }
+    }
+    for _ in 0..steps {
+        let (nu, ns) = layout.step_cpu(&p, &u, &s);
+        s = match integrator {
+            Integrator::Verlet => u,
+            Integrator::SymplecticEuler => ns,
+        };
+        u = nu;
+    }
+    engine.step(steps);
+    let gpu = engine.positions();
+    let cpu = to_model(&u);
+    // Both sides run the same float32 operations in the same order; a GPU may still contract
+    // a multiply-add or round a square root differently, so allow a few float32 ulps of the
+    // motion, accumulated over the steps.
+    let motion = cpu
+        .iter()
+        .zip(&model.rest)
+        .map(|(x, r)| (0..3).map(|c| (x[c] - r[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    let worst = gpu
+        .iter()
+        .zip(&cpu)
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    eprintln!("{integrator:?} damped={damped} steps={steps}: worst {worst:e}, motion {motion:e}");
+    assert!(
+        motion > 1e-5,
+        "the inputs must move the nodes (motion {motion:e})"
+    );
+    assert!(
+        worst <= 1e-5 * motion * steps as f64,
+        "gpu and cpu twin differ by {worst:e} (motion {motion:e})"
+    );
+}
+
+#[rstest]
+fn gpu_engine_agrees_with_the_float64_reference(
+    #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
+) {
+    let Some(_) = common::gpu() else { return };
+    let model = random_model(3, true);
+    let dt = 0.8 * stable_time_step(&model).dt;
+    let config = SimConfig {
+        integrator,
+        ..SimConfig::new(dt)
+    };
+    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config).unwrap();
+    gpu.run(300).unwrap();
+    reference.run(300).unwrap();
+    let err = relative_l2(&model.rest, &gpu.positions(), &reference.positions());
+    // Same bar as the float32 CPU engine (tests/engine_agreement.rs).
+    assert!(err < 1e-3, "relative L2 displacement error {err:e}");
+    assert!(
+        gpu.engine_name().starts_with("gpu-connectivity"),
+        "{}",
+        gpu.engine_name()
+    );
+}
+
+#[test]
+fn gpu_engine_runs_a_real_mesh_like_the_reference() {
+    let Some(_) = common::gpu() else { return };
+    let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {
+        eprintln!("skipped: LANCET_MESH_DIR is not set");
+        return;
+    };
+    let mesh = lancet::mesh::io::read(std::path::Path::new(&dir).join("sofa/liver.msh"))
+        .unwrap()
+        .mesh;
+    let mut config = ModelConfig::new(Material::elastic(3e3, 0.25, 1000.0));
+    config.gravity = [0.0, -9.81, 0.0];
+    config.mass_damping = 2.0;
+    let ymax = mesh.bounds().unwrap().1.y;
+    config.fixed.push(FixedSelector::HalfSpace {
+        point: [0.0, ymax - 0.5, 0.0],
+        normal: [0.0, -1.0, 0.0],
+        tolerance: 0.0,
+    });
+    let model = SpringModel::build(&mesh, &config)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let dt = 0.9 * stable_time_step(&model).dt;
+    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, SimConfig::new(dt)).unwrap();
+    let mut reference =
+        Simulation::new(model.clone(), EngineKind::Reference, SimConfig::new(dt)).unwrap();
+    gpu.run(200).unwrap();
+    reference.run(200).unwrap();
+    let err = relative_l2(&model.rest, &gpu.positions(), &reference.positions());
+    assert!(
+        err < 1e-3,
+        "relative L2 displacement error {err:e} on the liver"
+    );
+}
+
+#[test]
+fn capacity_below_the_widest_node_is_an_error_naming_it() {
+    let model = random_model(1, false);
+    match ConnectivityLayout::new(&model, NodeOrder::identity(model.node_count()), Some(3)) {
+        Err(Error::Model(msg)) => assert!(msg.contains("slots per node") && msg.contains("node")),
+        other => panic!("expected a capacity error, got {other:?}"),
+    }
+}
+
+#[test]
+fn padding_is_the_share_of_empty_slots() {
+    let model = random_model(1, false);
+    let layout = ConnectivityLayout::new(&model, NodeOrder::locality(&model), Some(20)).unwrap();
+    let (stats, _) = layout.memory(Integrator::Verlet);
+    let empty = (20 * model.node_count() - 2 * model.springs.len()) as u64;
+    assert_eq!(stats.padding, empty * 32);
+    // Each spring appears once in each end's row.
+    let used = layout.slots.iter().filter(|s| s.other != u32::MAX).count();
+    assert_eq!(used, 2 * model.springs.len());
+}
+
+#[test]
+fn auto_engine_uses_the_gpu_when_there_is_one() {
+    let Some(_) = common::gpu() else { return };
+    let model = random_model(5, false);
+    let dt = 0.5 * stable_time_step(&model).dt;
+    let sim = Simulation::new(model, EngineKind::Auto, SimConfig::new(dt)).unwrap();
+    assert_eq!(sim.kind(), EngineKind::Gpu);
+    assert!(sim.engine_note().is_none());
+}
