@@ -13,6 +13,7 @@
 
 pub mod connectivity;
 pub mod rcm;
+pub mod valence;
 
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;

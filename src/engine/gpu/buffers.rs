@@ -50,7 +50,7 @@ pub fn compute_pipeline(
     ctx: &GpuContext,
     label: &str,
     source: &str,
-    layout: &wgpu::BindGroupLayout,
+    layouts: &[&wgpu::BindGroupLayout],
 ) -> Result<wgpu::ComputePipeline> {
     let d = &ctx.device;
     let scope = d.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -60,7 +60,7 @@ pub fn compute_pipeline(
     });
     let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
-        bind_group_layouts: &[Some(layout)],
+        bind_group_layouts: &layouts.iter().map(|l| Some(*l)).collect::<Vec<_>>(),
         immediate_size: 0,
     });
     let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

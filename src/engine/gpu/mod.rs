@@ -10,7 +10,9 @@
 
 pub mod buffers;
 pub mod context;
+pub mod node_gather;
 pub mod springs_connectivity;
+pub mod springs_valence;
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
@@ -20,7 +22,8 @@ pub use context::GpuContext;
 use super::{Engine, EngineMemory, Integrator, SimConfig};
 use crate::error::{Error, Result};
 use crate::layout::connectivity::{ConnectivityLayout, StepParams};
-use crate::layout::{LayoutKind, MemoryStats, NodeOrder};
+use crate::layout::valence::ValenceLayout;
+use crate::layout::{LayoutKind, NodeOrder};
 use crate::model::PackedModel;
 
 /// Per-step constants; mirrors `struct Params` in `shaders/common.wgsl` (48 bytes).
@@ -120,6 +123,7 @@ impl NodeState {
 /// The passes of the chosen layout.
 enum Passes {
     Connectivity(springs_connectivity::ConnectivityPass),
+    Valence(springs_valence::ValencePass),
 }
 
 /// Mass-spring engine on a wgpu device.
@@ -152,16 +156,29 @@ impl GpuEngine {
         layout: LayoutKind,
     ) -> Result<Self> {
         let n = model.node_count();
-        let order = NodeOrder::locality(model);
+        let locality = NodeOrder::locality(model);
         let groups = dispatch_size(&ctx, n as u32);
         let params = step_params(model, config);
-        let conn = match layout {
-            LayoutKind::Connectivity => ConnectivityLayout::new(model, order.clone(), None)?,
+        // The packing decides the node order (valence regroups nodes) and the slot width.
+        enum Packed {
+            Connectivity(ConnectivityLayout),
+            Valence(ValenceLayout),
+        }
+        let packed = match layout {
+            LayoutKind::Connectivity => {
+                Packed::Connectivity(ConnectivityLayout::new(model, locality, None)?)
+            }
+            LayoutKind::Valence => Packed::Valence(ValenceLayout::new(model, &locality)),
             other => {
                 return Err(Error::Unsupported(format!(
-                    "the {other:?} layout is not on the GPU yet; use --layout connectivity"
+                    "the {other:?} layout is not on the GPU yet; use --layout connectivity or \
+                     valence"
                 )))
             }
+        };
+        let width = match &packed {
+            Packed::Connectivity(c) => c.capacity,
+            Packed::Valence(_) => 0,
         };
         let uniform_data = StepUniform {
             h: params.h,
@@ -171,7 +188,7 @@ impl GpuEngine {
             gravity: params.gravity,
             integrator: (config.integrator == Integrator::SymplecticEuler) as u32,
             n: n as u32,
-            width: conn.capacity,
+            width,
             damped: params.damped as u32,
             row: groups.0 * WORKGROUP,
         };
@@ -183,10 +200,26 @@ impl GpuEngine {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
         let state = NodeState::new(&ctx, n, config.integrator)?;
-        let (stats, bytes_per_step): (MemoryStats, u64) = conn.memory(config.integrator);
-        let passes = Passes::Connectivity(springs_connectivity::ConnectivityPass::new(
-            &ctx, &conn, &uniform, &state,
-        )?);
+        let (order, passes, (stats, bytes_per_step)) = match packed {
+            Packed::Connectivity(c) => (
+                c.order.clone(),
+                Passes::Connectivity(springs_connectivity::ConnectivityPass::new(
+                    &ctx, &c, &uniform, &state,
+                )?),
+                c.memory(config.integrator),
+            ),
+            Packed::Valence(v) => (
+                v.order.clone(),
+                Passes::Valence(springs_valence::ValencePass::new(
+                    &ctx,
+                    &v,
+                    &uniform,
+                    &state,
+                    uniform_data.row,
+                )?),
+                v.memory(config.integrator, springs_valence::bucket_stride(&ctx)),
+            ),
+        };
         Ok(GpuEngine {
             ctx,
             layout,
@@ -295,6 +328,7 @@ impl Engine for GpuEngine {
             for _ in 0..steps {
                 match &self.passes {
                     Passes::Connectivity(p) => p.record(&mut pass, self.phase, self.groups),
+                    Passes::Valence(p) => p.record(&mut pass, self.phase),
                 }
                 self.phase = (self.phase + 1) % self.state.phases();
             }

@@ -1,11 +1,12 @@
-//! The connectivity layout on the GPU: its pass equals its CPU twin on random inputs, and the
-//! GPU engine agrees with the float64 reference.
+//! The GPU layouts: each pass equals its CPU twin on random inputs, and the GPU engine in each
+//! layout agrees with the float64 reference and with the other layouts.
 
 mod common;
 
 use lancet::engine::gpu::{step_params, GpuEngine};
 use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
-use lancet::layout::connectivity::ConnectivityLayout;
+use lancet::layout::connectivity::{ConnectivityLayout, StepParams};
+use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{
@@ -85,8 +86,33 @@ fn random_state(n: usize, seed: u64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     (cur, second)
 }
 
+/// The CPU twin of a layout's pass, and the node order it packs in.
+type Twin = Box<dyn Fn(&StepParams, &[[f32; 4]], &[[f32; 4]]) -> (Vec<[f32; 4]>, Vec<[f32; 4]>)>;
+
+fn twin(layout: LayoutKind, model: &PackedModel) -> (NodeOrder, Twin) {
+    let base = NodeOrder::locality(model);
+    match layout {
+        LayoutKind::Connectivity => {
+            let l = ConnectivityLayout::new(model, base, None).unwrap();
+            (
+                l.order.clone(),
+                Box::new(move |p, u, s| l.step_cpu(p, u, s)),
+            )
+        }
+        LayoutKind::Valence => {
+            let l = ValenceLayout::new(model, &base);
+            (
+                l.order.clone(),
+                Box::new(move |p, u, s| l.step_cpu(p, u, s)),
+            )
+        }
+        other => panic!("no twin for {other:?}"),
+    }
+}
+
 #[rstest]
-fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
+fn layout_pass_equals_its_cpu_twin_on_random_inputs(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
     #[values(false, true)] damped: bool,
     #[values(1, 50)] steps: u32,
@@ -98,13 +124,12 @@ fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
         integrator,
         ..SimConfig::new(dt)
     };
-    let layout = ConnectivityLayout::new(&model, NodeOrder::locality(&model), None).unwrap();
+    let (order, step_twin) = twin(kind, &model);
     let p = step_params(&model, config);
     // Start both from the same random state (positions and velocities in model order).
     let (cur, second) = random_state(model.node_count(), 11);
-    let mut engine =
-        GpuEngine::with_context(ctx, &model, config, LayoutKind::Connectivity).unwrap();
-    let order = &layout.order;
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let order = &order;
     let to_model = |u: &[[f32; 4]]| -> Vec<[f64; 3]> {
         let mut x = vec![[0.0; 3]; u.len()];
         for (new, &old) in order.order.iter().enumerate() {
@@ -141,7 +166,7 @@ fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
         }
     }
     for _ in 0..steps {
-        let (nu, ns) = layout.step_cpu(&p, &u, &s);
+        let (nu, ns) = step_twin(&p, &u, &s);
         s = match integrator {
             Integrator::Verlet => u,
             Integrator::SymplecticEuler => ns,
@@ -164,7 +189,9 @@ fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
         .zip(&cpu)
         .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
         .fold(0.0, f64::max);
-    eprintln!("{integrator:?} damped={damped} steps={steps}: worst {worst:e}, motion {motion:e}");
+    eprintln!(
+        "{kind:?} {integrator:?} damped={damped} steps={steps}: worst {worst:e}, motion {motion:e}"
+    );
     assert!(
         motion > 1e-5,
         "the inputs must move the nodes (motion {motion:e})"
@@ -177,6 +204,7 @@ fn connectivity_pass_equals_its_cpu_twin_on_random_inputs(
 
 #[rstest]
 fn gpu_engine_agrees_with_the_float64_reference(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] layout: LayoutKind,
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
 ) {
     let Some(_) = common::gpu() else { return };
@@ -200,8 +228,10 @@ fn gpu_engine_agrees_with_the_float64_reference(
     );
 }
 
-#[test]
-fn gpu_engine_runs_a_real_mesh_like_the_reference() {
+#[rstest]
+fn gpu_engine_runs_a_real_mesh_like_the_reference(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] layout: LayoutKind,
+) {
     let Some(_) = common::gpu() else { return };
     let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {
         eprintln!("skipped: LANCET_MESH_DIR is not set");
@@ -224,7 +254,11 @@ fn gpu_engine_runs_a_real_mesh_like_the_reference() {
         .pack(&mesh)
         .unwrap();
     let dt = 0.9 * stable_time_step(&model).dt;
-    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, SimConfig::new(dt)).unwrap();
+    let config = SimConfig {
+        layout,
+        ..SimConfig::new(dt)
+    };
+    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
     let mut reference =
         Simulation::new(model.clone(), EngineKind::Reference, SimConfig::new(dt)).unwrap();
     gpu.run(200).unwrap();
@@ -265,4 +299,81 @@ fn auto_engine_uses_the_gpu_when_there_is_one() {
     let sim = Simulation::new(model, EngineKind::Auto, SimConfig::new(dt)).unwrap();
     assert_eq!(sim.kind(), EngineKind::Gpu);
     assert!(sim.engine_note().is_none());
+}
+
+#[test]
+fn layouts_on_the_gpu_agree_with_each_other() {
+    let Some(_) = common::gpu() else { return };
+    let model = random_model(9, true);
+    let dt = 0.8 * stable_time_step(&model).dt;
+    let run = |layout| {
+        let config = SimConfig {
+            layout,
+            ..SimConfig::new(dt)
+        };
+        let mut sim = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+        sim.run(200).unwrap();
+        sim.positions()
+    };
+    let (a, b) = (run(LayoutKind::Connectivity), run(LayoutKind::Valence));
+    // Same slots in the same order per node, only the node numbering differs: the two runs do
+    // the same float32 arithmetic per node.
+    let err = relative_l2(&model.rest, &a, &b);
+    assert!(err < 1e-5, "connectivity and valence differ by {err:e}");
+}
+
+#[test]
+fn valence_buckets_cover_every_node_without_padding() {
+    let model = random_model(2, false);
+    let layout = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    let n = model.node_count();
+    // The permutation and its inverse are inverse.
+    for (new, &old) in layout.order.order.iter().enumerate() {
+        assert_eq!(layout.order.rank[old as usize] as usize, new);
+    }
+    // Buckets are contiguous, in increasing valence, and cover all nodes.
+    let mut next_node = 0;
+    let mut next_slot = 0;
+    for pair in layout.buckets.windows(2) {
+        assert!(pair[0].valence < pair[1].valence);
+    }
+    for b in &layout.buckets {
+        assert_eq!(b.first, next_node);
+        assert_eq!(b.offset, next_slot);
+        next_node += b.count;
+        next_slot += b.count * b.valence;
+    }
+    assert_eq!(next_node as usize, n);
+    // Exactly two slots per spring, none empty: no padding.
+    assert_eq!(layout.slots.len(), 2 * model.springs.len());
+    assert!(layout.slots.iter().all(|s| s.other != u32::MAX));
+    // Each node's table lists exactly its springs' other ends.
+    let mut expected: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for s in &model.springs {
+        let (a, b) = (
+            layout.order.rank[s.nodes[0] as usize],
+            layout.order.rank[s.nodes[1] as usize],
+        );
+        expected[a as usize].push(b);
+        expected[b as usize].push(a);
+    }
+    for b in &layout.buckets {
+        for local in 0..b.count {
+            let i = (b.first + local) as usize;
+            let at = (b.offset + local * b.valence) as usize;
+            let mut got: Vec<u32> = layout.slots[at..at + b.valence as usize]
+                .iter()
+                .map(|s| s.other)
+                .collect();
+            got.sort();
+            expected[i].sort();
+            assert_eq!(got, expected[i], "node {i}");
+        }
+    }
+    let (stats, _) = layout.memory(Integrator::Verlet, 256);
+    assert_eq!(stats.padding, 0);
+    assert_eq!(
+        stats.total,
+        stats.buffers.iter().map(|(_, b)| b).sum::<u64>()
+    );
 }

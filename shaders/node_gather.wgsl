@@ -1,0 +1,50 @@
+// The node-centric update shared by the connectivity and valence passes: bindings of group 0
+// and the gather-and-integrate of one node over a run of slots. Prepended (after common.wgsl)
+// by the Rust side of each pass; each pass file adds only its entry point.
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> slots: array<Slot>;
+@group(0) @binding(2) var<storage, read> inv_mass: array<f32>;
+// Verlet: previous displacements. Symplectic Euler: velocities.
+@group(0) @binding(3) var<storage, read> second_in: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> cur: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> next: array<vec4<f32>>;
+// Symplectic Euler: next velocities. Verlet: unused.
+@group(0) @binding(6) var<storage, read_write> second_out: array<vec4<f32>>;
+
+// Sum the forces of slots[base .. base + width) on node i (stopping at an empty slot) and
+// integrate it; the twin is `layout::connectivity::node_update`.
+fn update_node(i: u32, base: u32, width: u32) {
+    let m_inv = inv_mass[i];
+    if (m_inv == 0.0) {
+        // Fixed node: stays at rest.
+        next[i] = vec4<f32>(0.0);
+        if (p.integrator != VERLET) {
+            second_out[i] = vec4<f32>(0.0);
+        }
+        return;
+    }
+    let ui = cur[i].xyz;
+    let vi = velocity(p, ui, second_in[i].xyz);
+    var f = vec3<f32>(0.0);
+    for (var s = 0u; s < width; s = s + 1u) {
+        let slot = slots[base + s];
+        if (slot.other == EMPTY) {
+            break;
+        }
+        let uj = cur[slot.other].xyz;
+        var dv = vec3<f32>(0.0);
+        if (p.damped != 0u) {
+            dv = velocity(p, uj, second_in[slot.other].xyz) - vi;
+        }
+        f = f + slot_force(p, slot, slot.edge + (uj - ui), dv);
+    }
+    let a = f * m_inv + p.gravity - p.alpha * vi;
+    if (p.integrator == VERLET) {
+        next[i] = vec4<f32>(ui + (ui - second_in[i].xyz) + p.h2 * a, 0.0);
+    } else {
+        let v = vi + p.h * a;
+        second_out[i] = vec4<f32>(v, 0.0);
+        next[i] = vec4<f32>(ui + p.h * v, 0.0);
+    }
+}

@@ -1,0 +1,125 @@
+//! The valence pass: pairs with `shaders/springs_valence.wgsl`. Group 0 is the node gather;
+//! group 1 holds the bucket table in a uniform buffer, one entry per dynamic offset, so each
+//! bucket is one dispatch with nothing rebuilt per step.
+
+use wgpu::util::DeviceExt;
+
+use super::node_gather::NodeGather;
+use super::{buffers, GpuContext, NodeState, WORKGROUP};
+use crate::error::Result;
+use crate::layout::valence::{Bucket, ValenceLayout};
+
+/// WGSL has no includes: the shared parts are prepended.
+const SOURCE: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/node_gather.wgsl"),
+    include_str!("../../../shaders/springs_valence.wgsl")
+);
+
+/// The pass with its device data.
+pub struct ValencePass {
+    pipeline: wgpu::ComputePipeline,
+    gather: NodeGather,
+    buckets: wgpu::BindGroup,
+    _table: wgpu::Buffer,
+    /// Per bucket: its dynamic offset and its workgroup counts.
+    dispatches: Vec<(u32, (u32, u32))>,
+}
+
+/// Bytes between bucket entries: the device's uniform offset alignment.
+pub fn bucket_stride(ctx: &GpuContext) -> u64 {
+    (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(16)
+}
+
+impl ValencePass {
+    /// Upload the layout and build the pipeline and bind groups. `row` is the invocations per
+    /// dispatch row of the step constants.
+    pub fn new(
+        ctx: &GpuContext,
+        layout: &ValenceLayout,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+        row: u32,
+    ) -> Result<Self> {
+        let d = &ctx.device;
+        let gather = NodeGather::new(
+            ctx,
+            "springs_valence",
+            &layout.slots,
+            &layout.nodes.inv_mass,
+            uniform,
+            state,
+        )?;
+        let stride = bucket_stride(ctx);
+        let mut table = vec![0u8; (layout.buckets.len().max(1) as u64 * stride) as usize];
+        for (b, bucket) in layout.buckets.iter().enumerate() {
+            let at = b * stride as usize;
+            table[at..at + 16].copy_from_slice(bytemuck::bytes_of(bucket));
+        }
+        let table = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("valence buckets"),
+            contents: &table,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bucket_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("valence bucket"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<Bucket>() as u64),
+                },
+                count: None,
+            }],
+        });
+        let buckets = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("valence bucket"),
+            layout: &bucket_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &table,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(std::mem::size_of::<Bucket>() as u64),
+                }),
+            }],
+        });
+        let pipeline = buffers::compute_pipeline(
+            ctx,
+            "springs_valence",
+            SOURCE,
+            &[&gather.layout, &bucket_layout],
+        )?;
+        let per_row = (row / WORKGROUP).max(1);
+        let dispatches = layout
+            .buckets
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.count > 0)
+            .map(|(i, b)| {
+                let groups = b.count.div_ceil(WORKGROUP);
+                let size = (groups.min(per_row), b.count.div_ceil(row.max(1)));
+                ((i as u64 * stride) as u32, size)
+            })
+            .collect();
+        Ok(ValencePass {
+            pipeline,
+            gather,
+            buckets,
+            _table: table,
+            dispatches,
+        })
+    }
+
+    /// Record one step in phase `phase` of the state rotation: one dispatch per bucket.
+    pub fn record(&self, pass: &mut wgpu::ComputePass<'_>, phase: usize) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.gather.bind_groups[phase], &[]);
+        for &(offset, (x, y)) in &self.dispatches {
+            pass.set_bind_group(1, &self.buckets, &[offset]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+}
