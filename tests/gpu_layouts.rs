@@ -212,6 +212,7 @@ fn gpu_engine_agrees_with_the_float64_reference(
     let dt = 0.8 * stable_time_step(&model).dt;
     let config = SimConfig {
         integrator,
+        layout,
         ..SimConfig::new(dt)
     };
     let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
@@ -221,8 +222,9 @@ fn gpu_engine_agrees_with_the_float64_reference(
     let err = relative_l2(&model.rest, &gpu.positions(), &reference.positions());
     // Same bar as the float32 CPU engine (tests/engine_agreement.rs).
     assert!(err < 1e-3, "relative L2 displacement error {err:e}");
+    let name = format!("gpu-{layout:?}").to_lowercase();
     assert!(
-        gpu.engine_name().starts_with("gpu-connectivity"),
+        gpu.engine_name().starts_with(&name),
         "{}",
         gpu.engine_name()
     );
