@@ -10,7 +10,7 @@ struct Slot {
     pad: u32,
 }
 
-// Per-step constants; mirrors `engine::gpu::StepUniform` (48 bytes).
+// Per-step constants; mirrors `engine::gpu::StepUniform` (64 bytes).
 struct Params {
     h: f32,
     h2: f32,
@@ -22,6 +22,10 @@ struct Params {
     width: u32,          // slots per node (connectivity layout)
     damped: u32,         // 1 when any spring has damping
     row: u32,            // invocations per dispatch row (2D dispatch of large meshes)
+    springs: u32,        // springs (edge layout)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 const EMPTY: u32 = 0xffffffffu;
@@ -49,3 +53,20 @@ fn slot_force(p: Params, s: Slot, d: vec3<f32>, dv: vec3<f32>) -> vec3<f32> {
     }
     return mag * dir;
 }
+
+// The next state of a free node from its spring force `f`; twin of
+// `layout::connectivity::integrate`.
+struct Integrated {
+    u: vec3<f32>,   // next displacement
+    v: vec3<f32>,   // next velocity (symplectic Euler only)
+}
+
+fn integrate(p: Params, ui: vec3<f32>, second_i: vec3<f32>, vi: vec3<f32>, f: vec3<f32>, m_inv: f32) -> Integrated {
+    let a = f * m_inv + p.gravity - p.alpha * vi;
+    if (p.integrator == VERLET) {
+        return Integrated(ui + (ui - second_i) + p.h2 * a, vec3<f32>(0.0));
+    }
+    let v = vi + p.h * a;
+    return Integrated(ui + p.h * v, v);
+}
+

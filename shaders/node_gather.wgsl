@@ -39,12 +39,9 @@ fn update_node(i: u32, base: u32, width: u32) {
         }
         f = f + slot_force(p, slot, slot.edge + (uj - ui), dv);
     }
-    let a = f * m_inv + p.gravity - p.alpha * vi;
-    if (p.integrator == VERLET) {
-        next[i] = vec4<f32>(ui + (ui - second_in[i].xyz) + p.h2 * a, 0.0);
-    } else {
-        let v = vi + p.h * a;
-        second_out[i] = vec4<f32>(v, 0.0);
-        next[i] = vec4<f32>(ui + p.h * v, 0.0);
+    let r = integrate(p, ui, second_in[i].xyz, vi, f, m_inv);
+    next[i] = vec4<f32>(r.u, 0.0);
+    if (p.integrator != VERLET) {
+        second_out[i] = vec4<f32>(r.v, 0.0);
     }
 }

@@ -6,6 +6,7 @@ mod common;
 use lancet::engine::gpu::{step_params, GpuEngine};
 use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
 use lancet::layout::connectivity::{ConnectivityLayout, StepParams};
+use lancet::layout::edges::{EdgeLayout, B_END};
 use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::mesh::generate::BoxGrid;
@@ -106,13 +107,19 @@ fn twin(layout: LayoutKind, model: &PackedModel) -> (NodeOrder, Twin) {
                 Box::new(move |p, u, s| l.step_cpu(p, u, s)),
             )
         }
-        other => panic!("no twin for {other:?}"),
+        LayoutKind::Edges => {
+            let l = EdgeLayout::new(model, base);
+            (
+                l.order.clone(),
+                Box::new(move |p, u, s| l.step_cpu(p, u, s)),
+            )
+        }
     }
 }
 
 #[rstest]
 fn layout_pass_equals_its_cpu_twin_on_random_inputs(
-    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
     #[values(false, true)] damped: bool,
     #[values(1, 50)] steps: u32,
@@ -204,7 +211,7 @@ fn layout_pass_equals_its_cpu_twin_on_random_inputs(
 
 #[rstest]
 fn gpu_engine_agrees_with_the_float64_reference(
-    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] layout: LayoutKind,
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
 ) {
     let Some(_) = common::gpu() else { return };
@@ -232,7 +239,7 @@ fn gpu_engine_agrees_with_the_float64_reference(
 
 #[rstest]
 fn gpu_engine_runs_a_real_mesh_like_the_reference(
-    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] layout: LayoutKind,
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
 ) {
     let Some(_) = common::gpu() else { return };
     let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {
@@ -317,11 +324,15 @@ fn layouts_on_the_gpu_agree_with_each_other() {
         sim.run(200).unwrap();
         sim.positions()
     };
-    let (a, b) = (run(LayoutKind::Connectivity), run(LayoutKind::Valence));
-    // Same slots in the same order per node, only the node numbering differs: the two runs do
-    // the same float32 arithmetic per node.
-    let err = relative_l2(&model.rest, &a, &b);
-    assert!(err < 1e-5, "connectivity and valence differ by {err:e}");
+    let base = run(LayoutKind::Connectivity);
+    // Every layout computes each spring force with the same float32 operations (an edge force
+    // seen from its other end is the exact negation) and sums a node's springs in ascending
+    // neighbour order; only the node numbering differs. Allow rounding-level differences
+    // should a device reorder anything.
+    for other in [LayoutKind::Valence, LayoutKind::Edges] {
+        let err = relative_l2(&model.rest, &run(other), &base);
+        assert!(err < 1e-5, "{other:?} and connectivity differ by {err:e}");
+    }
 }
 
 #[test]
@@ -378,4 +389,38 @@ fn valence_buckets_cover_every_node_without_padding() {
         stats.total,
         stats.buffers.iter().map(|(_, b)| b).sum::<u64>()
     );
+}
+
+#[test]
+fn edge_incidence_lists_every_spring_once_from_each_end() {
+    let model = random_model(4, false);
+    let layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
+    assert_eq!(layout.springs.len(), model.springs.len());
+    let mut seen = vec![(0u32, 0u32); layout.springs.len()];
+    for i in 0..layout.node_count() {
+        let (lo, hi) = (layout.incidence_rows[i], layout.incidence_rows[i + 1]);
+        for &e in &layout.incidence[lo as usize..hi as usize] {
+            let s = &layout.springs[(e & !B_END) as usize];
+            if e & B_END != 0 {
+                assert_eq!(s.b as usize, i);
+                seen[(e & !B_END) as usize].1 += 1;
+            } else {
+                assert_eq!(s.a as usize, i);
+                seen[(e & !B_END) as usize].0 += 1;
+            }
+        }
+    }
+    assert!(seen.iter().all(|&c| c == (1, 1)));
+    // Each spring stored once with a < b, and its rest vector points from a to b.
+    for s in &layout.springs {
+        assert!(s.a < s.b);
+        let (a, b) = (
+            layout.order.order[s.a as usize] as usize,
+            layout.order.order[s.b as usize] as usize,
+        );
+        for c in 0..3 {
+            let want = (model.rest[b][c] - model.rest[a][c]) as f32;
+            assert_eq!(s.edge[c], want);
+        }
+    }
 }

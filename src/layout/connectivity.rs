@@ -172,24 +172,11 @@ pub(crate) fn node_update(
     second: &[[f32; 4]],
     i: usize,
 ) -> ([f32; 4], [f32; 4]) {
-    let verlet = p.integrator == Integrator::Verlet;
-    let inv_h = 1.0 / p.h;
-    let vel = |j: usize| -> [f32; 3] {
-        if verlet {
-            [
-                (cur[j][0] - second[j][0]) * inv_h,
-                (cur[j][1] - second[j][1]) * inv_h,
-                (cur[j][2] - second[j][2]) * inv_h,
-            ]
-        } else {
-            [second[j][0], second[j][1], second[j][2]]
-        }
-    };
     if inv_mass == 0.0 {
         return ([0.0; 4], [0.0; 4]);
     }
     let ui = cur[i];
-    let vi = vel(i);
+    let vi = velocity(p, ui, second[i]);
     let mut f = [0.0f32; 3];
     for s in slots {
         if s.other == Slot::EMPTY {
@@ -201,30 +188,68 @@ pub(crate) fn node_update(
             s.edge[1] + (cur[j][1] - ui[1]),
             s.edge[2] + (cur[j][2] - ui[2]),
         ];
-        let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if l > 0.0 {
-            let dir = [d[0] / l, d[1] / l, d[2] / l];
-            let mut mag = s.k * (l - s.rest);
-            if p.damped {
-                let vj = vel(j);
-                mag += s.c
-                    * ((vj[0] - vi[0]) * dir[0]
-                        + (vj[1] - vi[1]) * dir[1]
-                        + (vj[2] - vi[2]) * dir[2]);
-            }
-            for a in 0..3 {
-                f[a] += mag * dir[a];
-            }
+        let dv = if p.damped {
+            let vj = velocity(p, cur[j], second[j]);
+            [vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]]
+        } else {
+            [0.0; 3]
+        };
+        let fs = spring_force(p, s, d, dv);
+        for a in 0..3 {
+            f[a] += fs[a];
         }
     }
+    integrate(p, ui, second[i], vi, f, inv_mass)
+}
+
+/// Velocity of a node from its state, as the WGSL `velocity` computes it: backward difference
+/// for Verlet (`second` = previous displacement), the stored velocity for symplectic Euler.
+pub(crate) fn velocity(p: &StepParams, cur: [f32; 4], second: [f32; 4]) -> [f32; 3] {
+    if p.integrator == Integrator::Verlet {
+        let inv_h = 1.0 / p.h;
+        [
+            (cur[0] - second[0]) * inv_h,
+            (cur[1] - second[1]) * inv_h,
+            (cur[2] - second[2]) * inv_h,
+        ]
+    } else {
+        [second[0], second[1], second[2]]
+    }
+}
+
+/// Force of spring `s` on the node it is seen from, given the current spring vector `d` and
+/// the relative velocity `dv` (other minus self), as the WGSL `slot_force` computes it.
+pub(crate) fn spring_force(p: &StepParams, s: &Slot, d: [f32; 3], dv: [f32; 3]) -> [f32; 3] {
+    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    if l <= 0.0 {
+        return [0.0; 3];
+    }
+    let dir = [d[0] / l, d[1] / l, d[2] / l];
+    let mut mag = s.k * (l - s.rest);
+    if p.damped {
+        mag += s.c * (dv[0] * dir[0] + dv[1] * dir[1] + dv[2] * dir[2]);
+    }
+    [mag * dir[0], mag * dir[1], mag * dir[2]]
+}
+
+/// The next displacement and second state of a free node under spring force `f`, as the WGSL
+/// `integrate` computes it.
+pub(crate) fn integrate(
+    p: &StepParams,
+    ui: [f32; 4],
+    second_i: [f32; 4],
+    vi: [f32; 3],
+    f: [f32; 3],
+    inv_mass: f32,
+) -> ([f32; 4], [f32; 4]) {
     let mut a = [0.0f32; 3];
     for c in 0..3 {
         a[c] = f[c] * inv_mass + p.gravity[c] - p.alpha * vi[c];
     }
-    if verlet {
+    if p.integrator == Integrator::Verlet {
         let mut next = [0.0f32; 4];
         for c in 0..3 {
-            next[c] = ui[c] + (ui[c] - second[i][c]) + (p.h * p.h) * a[c];
+            next[c] = ui[c] + (ui[c] - second_i[c]) + (p.h * p.h) * a[c];
         }
         (next, [0.0; 4])
     } else {

@@ -12,6 +12,7 @@
 //! edits. The GPU passes that read them live in `engine::gpu` and `shaders/`.
 
 pub mod connectivity;
+pub mod edges;
 pub mod rcm;
 pub mod valence;
 

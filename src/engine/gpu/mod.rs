@@ -12,6 +12,7 @@ pub mod buffers;
 pub mod context;
 pub mod node_gather;
 pub mod springs_connectivity;
+pub mod springs_edges;
 pub mod springs_valence;
 
 use bytemuck::{Pod, Zeroable};
@@ -20,13 +21,14 @@ use wgpu::util::DeviceExt;
 pub use context::GpuContext;
 
 use super::{Engine, EngineMemory, Integrator, SimConfig};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::layout::connectivity::{ConnectivityLayout, StepParams};
+use crate::layout::edges::EdgeLayout;
 use crate::layout::valence::ValenceLayout;
 use crate::layout::{LayoutKind, NodeOrder};
 use crate::model::PackedModel;
 
-/// Per-step constants; mirrors `struct Params` in `shaders/common.wgsl` (48 bytes).
+/// Per-step constants; mirrors `struct Params` in `shaders/common.wgsl` (64 bytes).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct StepUniform {
@@ -40,9 +42,11 @@ pub struct StepUniform {
     width: u32,
     damped: u32,
     row: u32,
+    springs: u32,
+    pad: [u32; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<StepUniform>() == 48);
+const _: () = assert!(std::mem::size_of::<StepUniform>() == 64);
 
 /// Node state read back from the device: current displacements and the second state.
 type StatePair = (Vec<[f32; 4]>, Vec<[f32; 4]>);
@@ -124,6 +128,8 @@ impl NodeState {
 enum Passes {
     Connectivity(springs_connectivity::ConnectivityPass),
     Valence(springs_valence::ValencePass),
+    /// With the spring pass's workgroup counts.
+    Edges(springs_edges::EdgePasses, (u32, u32)),
 }
 
 /// Mass-spring engine on a wgpu device.
@@ -157,28 +163,33 @@ impl GpuEngine {
     ) -> Result<Self> {
         let n = model.node_count();
         let locality = NodeOrder::locality(model);
-        let groups = dispatch_size(&ctx, n as u32);
+        let m = model.springs.len() as u32;
+        // One row width serves both the node and the spring dispatches.
+        let groups = dispatch_size(&ctx, (n as u32).max(m));
+        let row = groups.0 * WORKGROUP;
+        let fold = |count: u32| {
+            (
+                count.div_ceil(WORKGROUP).clamp(1, groups.0),
+                count.div_ceil(row).max(1),
+            )
+        };
         let params = step_params(model, config);
         // The packing decides the node order (valence regroups nodes) and the slot width.
         enum Packed {
             Connectivity(ConnectivityLayout),
             Valence(ValenceLayout),
+            Edges(EdgeLayout),
         }
         let packed = match layout {
             LayoutKind::Connectivity => {
                 Packed::Connectivity(ConnectivityLayout::new(model, locality, None)?)
             }
             LayoutKind::Valence => Packed::Valence(ValenceLayout::new(model, &locality)),
-            other => {
-                return Err(Error::Unsupported(format!(
-                    "the {other:?} layout is not on the GPU yet; use --layout connectivity or \
-                     valence"
-                )))
-            }
+            LayoutKind::Edges => Packed::Edges(EdgeLayout::new(model, locality)),
         };
         let width = match &packed {
             Packed::Connectivity(c) => c.capacity,
-            Packed::Valence(_) => 0,
+            _ => 0,
         };
         let uniform_data = StepUniform {
             h: params.h,
@@ -190,7 +201,9 @@ impl GpuEngine {
             n: n as u32,
             width,
             damped: params.damped as u32,
-            row: groups.0 * WORKGROUP,
+            row,
+            springs: m,
+            pad: [0; 3],
         };
         let uniform = ctx
             .device
@@ -219,6 +232,14 @@ impl GpuEngine {
                 )?),
                 v.memory(config.integrator, springs_valence::bucket_stride(&ctx)),
             ),
+            Packed::Edges(e) => (
+                e.order.clone(),
+                Passes::Edges(
+                    springs_edges::EdgePasses::new(&ctx, &e, &uniform, &state)?,
+                    fold(m),
+                ),
+                e.memory(config.integrator),
+            ),
         };
         Ok(GpuEngine {
             ctx,
@@ -231,7 +252,7 @@ impl GpuEngine {
             passes,
             _uniform: uniform,
             phase: 0,
-            groups,
+            groups: fold(n as u32),
             memory: EngineMemory {
                 stats,
                 bytes_per_step,
@@ -329,6 +350,9 @@ impl Engine for GpuEngine {
                 match &self.passes {
                     Passes::Connectivity(p) => p.record(&mut pass, self.phase, self.groups),
                     Passes::Valence(p) => p.record(&mut pass, self.phase),
+                    Passes::Edges(p, spring_groups) => {
+                        p.record(&mut pass, self.phase, *spring_groups, self.groups)
+                    }
                 }
                 self.phase = (self.phase + 1) % self.state.phases();
             }

@@ -1,0 +1,48 @@
+// Edge layout, pass 2: one invocation per node sums the forces of its incident springs (in the
+// incidence table's fixed order, so the result is deterministic) and integrates the node.
+// Prepended with common.wgsl.
+
+const B_END: u32 = 0x80000000u;
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> incidence_rows: array<u32>;
+@group(0) @binding(2) var<storage, read> incidence: array<u32>;
+@group(0) @binding(3) var<storage, read> forces: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> inv_mass: array<f32>;
+@group(0) @binding(5) var<storage, read> second_in: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> cur: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> next: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> second_out: array<vec4<f32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * p.row;
+    if (i >= p.n) {
+        return;
+    }
+    let m_inv = inv_mass[i];
+    if (m_inv == 0.0) {
+        next[i] = vec4<f32>(0.0);
+        if (p.integrator != VERLET) {
+            second_out[i] = vec4<f32>(0.0);
+        }
+        return;
+    }
+    var f = vec3<f32>(0.0);
+    for (var e = incidence_rows[i]; e < incidence_rows[i + 1u]; e = e + 1u) {
+        let entry = incidence[e];
+        let fs = forces[entry & ~B_END].xyz;
+        if ((entry & B_END) != 0u) {
+            f = f - fs;
+        } else {
+            f = f + fs;
+        }
+    }
+    let ui = cur[i].xyz;
+    let vi = velocity(p, ui, second_in[i].xyz);
+    let r = integrate(p, ui, second_in[i].xyz, vi, f, m_inv);
+    next[i] = vec4<f32>(r.u, 0.0);
+    if (p.integrator != VERLET) {
+        second_out[i] = vec4<f32>(r.v, 0.0);
+    }
+}

@@ -1,0 +1,143 @@
+//! The edge passes: pair with `shaders/springs_edges.wgsl` (one force per spring) and
+//! `shaders/gather_edges.wgsl` (each node sums its springs' forces and integrates). Both
+//! pipelines, their bind-group layouts and one bind group per rotation phase are made once.
+
+use wgpu::util::DeviceExt;
+
+use super::{buffers, GpuContext, NodeState};
+use crate::error::Result;
+use crate::layout::edges::{EdgeLayout, EdgeSpring};
+
+const SPRINGS: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/springs_edges.wgsl")
+);
+const GATHER: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/gather_edges.wgsl")
+);
+
+/// The two passes with their device data.
+pub struct EdgePasses {
+    springs: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    /// Per phase: (spring pass, gather pass) bind groups.
+    bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+    _buffers: Vec<wgpu::Buffer>,
+}
+
+/// A read-only storage buffer holding `data` (at least one element, as empty bindings are
+/// invalid).
+fn upload<T: bytemuck::Pod + bytemuck::Zeroable>(
+    ctx: &GpuContext,
+    label: &str,
+    data: &[T],
+) -> Result<wgpu::Buffer> {
+    buffers::check_binding(ctx, label, std::mem::size_of_val(data) as u64)?;
+    let one = [T::zeroed()];
+    let data = if data.is_empty() { &one[..] } else { data };
+    Ok(ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(data),
+            usage: wgpu::BufferUsages::STORAGE,
+        }))
+}
+
+impl EdgePasses {
+    /// Upload the layout and build both pipelines and their bind groups.
+    pub fn new(
+        ctx: &GpuContext,
+        layout: &EdgeLayout,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) -> Result<Self> {
+        let d = &ctx.device;
+        let springs = upload::<EdgeSpring>(ctx, "edge springs", &layout.springs)?;
+        let rows = upload(ctx, "incidence rows", &layout.incidence_rows)?;
+        let incidence = upload(ctx, "incidence", &layout.incidence)?;
+        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass)?;
+        let force_bytes = (layout.springs.len().max(1) * 16) as u64;
+        buffers::check_binding(ctx, "spring forces", force_bytes)?;
+        let forces = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("spring forces"),
+            size: force_bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let spring_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("springs_edges"),
+            entries: &[
+                buffers::uniform_entry(0),
+                buffers::storage_entry(1, true),
+                buffers::storage_entry(2, true),
+                buffers::storage_entry(3, true),
+                buffers::storage_entry(4, false),
+            ],
+        });
+        let gather_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("gather_edges"),
+            entries: &[
+                buffers::uniform_entry(0),
+                buffers::storage_entry(1, true),
+                buffers::storage_entry(2, true),
+                buffers::storage_entry(3, true),
+                buffers::storage_entry(4, true),
+                buffers::storage_entry(5, true),
+                buffers::storage_entry(6, true),
+                buffers::storage_entry(7, false),
+                buffers::storage_entry(8, false),
+            ],
+        });
+        let bind_groups = (0..state.phases())
+            .map(|phase| {
+                let b = state.bindings(phase);
+                let spring = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("springs_edges"),
+                    layout: &spring_layout,
+                    entries: &buffers::entries(&[uniform, &springs, b.second_in, b.cur, &forces]),
+                });
+                let gather = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("gather_edges"),
+                    layout: &gather_layout,
+                    entries: &buffers::entries(&[
+                        uniform,
+                        &rows,
+                        &incidence,
+                        &forces,
+                        &inv_mass,
+                        b.second_in,
+                        b.cur,
+                        b.next,
+                        b.second_out,
+                    ]),
+                });
+                (spring, gather)
+            })
+            .collect();
+        Ok(EdgePasses {
+            springs: buffers::compute_pipeline(ctx, "springs_edges", SPRINGS, &[&spring_layout])?,
+            gather: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
+            bind_groups,
+            _buffers: vec![springs, rows, incidence, inv_mass, forces],
+        })
+    }
+
+    /// Record one step in phase `phase`: the spring pass, then the node gather.
+    pub fn record(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        phase: usize,
+        spring_groups: (u32, u32),
+        node_groups: (u32, u32),
+    ) {
+        let (spring_bg, gather_bg) = &self.bind_groups[phase];
+        pass.set_pipeline(&self.springs);
+        pass.set_bind_group(0, spring_bg, &[]);
+        pass.dispatch_workgroups(spring_groups.0, spring_groups.1, 1);
+        pass.set_pipeline(&self.gather);
+        pass.set_bind_group(0, gather_bg, &[]);
+        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+    }
+}
