@@ -99,6 +99,10 @@ pub struct SimConfig {
     /// Spring layout of the GPU engine.
     #[serde(default)]
     pub layout: crate::layout::LayoutKind,
+    /// How the edge layout brings spring forces to the nodes (default: the deterministic
+    /// gather, the fastest on lavapipe); ignored by the other layouts.
+    #[serde(default)]
+    pub accumulation: crate::layout::edges::Accumulation,
 }
 
 fn default_check_every() -> u32 {
@@ -114,6 +118,7 @@ impl SimConfig {
             allow_unstable: false,
             check_every: default_check_every(),
             layout: crate::layout::LayoutKind::Connectivity,
+            accumulation: crate::layout::edges::Accumulation::Gather,
         }
     }
 }

@@ -3,12 +3,23 @@
 //! through a second pass in which every node sums its incident springs' forces from a
 //! node-to-spring incidence table and integrates itself.
 //!
-//! That gather is deterministic (each node sums in a fixed order) and needs no atomics. The
-//! alternative, atomic accumulation from the spring pass, measured 2.4x (fixed-point integer
-//! atomics) and 3.5x (float atomics) slower than a gather on lavapipe (DESIGN.md section 5), and
-//! float atomics sum in a different order every run; it is left for measurement on real GPUs.
+//! That gather ([`Accumulation::Gather`], the default) is deterministic (each node sums in a
+//! fixed order) and needs no atomics. The alternatives accumulate from the spring pass with
+//! atomics into three accumulators per node, which a node pass then reads, integrates and
+//! clears:
+//!
+//! - [`Accumulation::AtomicFixed`]: `atomic<i32>` in fixed point ([`FixedPoint`]); integer
+//!   addition is associative, so the result is deterministic whatever the order of the adds.
+//! - [`Accumulation::AtomicFloat`]: `atomic<f32>`, only on adapters with
+//!   `SHADER_FLOAT32_ATOMIC`; the order of the additions, hence the rounding, changes between
+//!   runs.
+//!
+//! On lavapipe the atomic variants measured 2.4x (fixed point) and 3.5x (float) slower than the
+//! gather (DESIGN.md section 5), which is why the gather is the default; on real GPUs atomics
+//! are cheaper and the variants are kept for measuring there.
 
 use bytemuck::{Pod, Zeroable};
+use serde::{Deserialize, Serialize};
 
 use super::connectivity::{
     integrate, spring_force, state_buffers, state_traffic, velocity, NodeArrays, StepParams,
@@ -48,6 +59,97 @@ impl EdgeSpring {
             other: self.b,
             pad: 0,
         }
+    }
+}
+
+/// How spring forces reach the nodes in the edge layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum Accumulation {
+    /// Spring pass stores one force per spring; a node pass sums each node's incident forces
+    /// in incidence-table order. Deterministic, no atomics; fastest on lavapipe.
+    #[default]
+    Gather,
+    /// Spring pass adds each force to per-node `atomic<i32>` accumulators in fixed point.
+    /// Deterministic (integer addition is associative).
+    AtomicFixed,
+    /// Spring pass adds each force to per-node `atomic<f32>` accumulators. Needs the adapter
+    /// feature `SHADER_FLOAT32_ATOMIC`; the summation order is not deterministic.
+    AtomicFloat,
+}
+
+/// Fixed-point constants of [`Accumulation::AtomicFixed`]; mirrors `struct FixedPoint` in
+/// `shaders/accumulate_fixed.wgsl` and `shaders/integrate_fixed.wgsl` (16 bytes).
+///
+/// A spring force component `f` (N) becomes `q = i32(clamp(round(f * scale), -limit, limit))`
+/// (round half to even, as WGSL `round`), added to both ends (negated at `b`); a node's force is
+/// `f32(sum) * inv_scale`. `scale` and `limit` are powers of two, so the products are exact:
+///
+/// - `limit = 2^(30 - ceil(log2(max valence)))`: a node sums at most `max valence` terms of at
+///   most `limit`, i.e. at most `2^30`, so an accumulator can never wrap.
+/// - `scale` is the largest power of two with `limit / scale >= bound`, where `bound` is
+///   [`FixedPoint::HEADROOM`] times the larger of `max k * rest` over springs (the force of a
+///   spring stretched to twice its length) and `max m * |g|` over nodes (a node's weight).
+///
+/// Resolution: one unit is `1 / scale` N; a node's force is off by at most
+/// `valence / (2 * scale)` N per component from the exact float32 sum of its springs' forces.
+/// A spring force beyond `limit / scale` is saturated and sets the overflow flag
+/// ([`EdgeLayout::accumulate_fixed_cpu`]'s second result, `overflow` in the shader), which the
+/// host can read back.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct FixedPoint {
+    /// Units per newton (a power of two).
+    pub scale: f32,
+    /// `1 / scale`, N per unit (exact).
+    pub inv_scale: f32,
+    /// Largest magnitude of one spring's quantized component (a power of two).
+    pub limit: f32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<FixedPoint>() == 16);
+
+impl FixedPoint {
+    /// Safety factor between the plausible force of one spring and its saturation level.
+    pub const HEADROOM: f64 = 16.0;
+
+    /// Constants for springs of plausible force `force` (N) summed at nodes of at most
+    /// `max_valence` springs.
+    pub fn new(force: f64, max_valence: u32) -> Self {
+        let bits = 30 - max_valence.max(1).next_power_of_two().trailing_zeros() as i32;
+        let limit = 2f64.powi(bits);
+        let bound = Self::HEADROOM * force;
+        let exp = if bound > 0.0 && bound.is_finite() {
+            ((limit / bound).log2().floor() as i32).clamp(-100, 100)
+        } else {
+            0
+        };
+        let scale = 2f64.powi(exp);
+        FixedPoint {
+            scale: scale as f32,
+            inv_scale: (1.0 / scale) as f32,
+            limit: limit as f32,
+            pad: 0,
+        }
+    }
+
+    /// One unit, N: the resolution of one quantized spring force component.
+    pub fn resolution(&self) -> f64 {
+        self.inv_scale as f64
+    }
+
+    /// Largest spring force component stored without saturating, N.
+    pub fn max_force(&self) -> f64 {
+        self.limit as f64 * self.inv_scale as f64
+    }
+
+    /// `f` quantized as the shader does it, and whether it saturated.
+    pub fn quantize(&self, f: f32) -> (i32, bool) {
+        let q = (f * self.scale).round_ties_even();
+        let c = q.clamp(-self.limit, self.limit);
+        // NaN fails the comparison too: it is reported as an overflow.
+        (c as i32, c != q)
     }
 }
 
@@ -99,22 +201,7 @@ impl EdgeLayout {
             })
             .collect();
         springs.sort_by_key(|s| (s.a, s.b));
-        let mut incidence_rows = vec![0u32; n + 1];
-        for s in &springs {
-            incidence_rows[s.a as usize + 1] += 1;
-            incidence_rows[s.b as usize + 1] += 1;
-        }
-        for i in 0..n {
-            incidence_rows[i + 1] += incidence_rows[i];
-        }
-        let mut fill = incidence_rows.clone();
-        let mut incidence = vec![0u32; incidence_rows[n] as usize];
-        for (idx, s) in springs.iter().enumerate() {
-            for (node, flag) in [(s.a, 0), (s.b, B_END)] {
-                incidence[fill[node as usize] as usize] = idx as u32 | flag;
-                fill[node as usize] += 1;
-            }
-        }
+        let (incidence_rows, incidence) = incidence_table(n, &springs);
         let nodes = NodeArrays::new(model, &order);
         EdgeLayout {
             order,
@@ -130,26 +217,77 @@ impl EdgeLayout {
         self.nodes.inv_mass.len()
     }
 
-    /// Device memory with node state, and the bytes one step moves (the spring pass reads the
-    /// records and writes one force per spring; the node pass reads the incidence table and the
-    /// forces).
-    pub fn memory(&self, integrator: Integrator) -> (MemoryStats, u64) {
+    /// Device memory of the layout with node state in `accumulation`, and the bytes one step
+    /// moves.
+    ///
+    /// Gather: the spring pass reads the records and writes one force per spring; the node
+    /// pass reads the incidence table and the forces. Atomics: the spring pass reads the
+    /// records and adds to both ends' accumulators (3 x 4 bytes each); the node pass reads and
+    /// clears its accumulators.
+    pub fn memory(&self, integrator: Integrator, accumulation: Accumulation) -> (MemoryStats, u64) {
         let n = self.node_count() as u64;
         let m = self.springs.len() as u64;
         let records = m * 32;
-        let forces = m * 16;
-        let table = (self.incidence_rows.len() + self.incidence.len()) as u64 * 4;
-        let mut buffers = vec![
-            ("springs".to_string(), records),
-            ("spring forces".to_string(), forces),
-            ("incidence table".to_string(), table),
-            ("inverse masses".to_string(), n * 4),
-        ];
+        let mut buffers = vec![("springs".to_string(), records)];
+        let per_step = match accumulation {
+            Accumulation::Gather => {
+                let forces = m * 16;
+                let table = (self.incidence_rows.len() + self.incidence.len()) as u64 * 4;
+                buffers.push(("spring forces".to_string(), forces));
+                buffers.push(("incidence table".to_string(), table));
+                // Forces are written once and read once.
+                records + 2 * forces + table
+            }
+            Accumulation::AtomicFixed | Accumulation::AtomicFloat => {
+                let acc = n * 12;
+                buffers.push(("accumulators (3 x 32-bit)".to_string(), acc));
+                if accumulation == Accumulation::AtomicFixed {
+                    buffers.push(("fixed-point constants".to_string(), 16));
+                    buffers.push(("overflow flag".to_string(), 16));
+                }
+                records + 2 * m * 12 + 2 * acc
+            }
+        };
+        buffers.push(("inverse masses".to_string(), n * 4));
         buffers.extend(state_buffers(n, integrator));
         let stats = MemoryStats::new(buffers, 0, n as usize, m as usize);
-        // Forces are written once and read once.
-        let per_step = records + 2 * forces + table + n * 4 + state_traffic(n, integrator);
-        (stats, per_step)
+        (stats, per_step + n * 4 + state_traffic(n, integrator))
+    }
+
+    /// Largest number of springs at one node.
+    pub fn max_valence(&self) -> u32 {
+        self.incidence_rows
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The fixed-point constants for this layout of `model` (see [`FixedPoint`]).
+    pub fn fixed_point(&self, model: &PackedModel) -> FixedPoint {
+        let spring = self
+            .springs
+            .iter()
+            .map(|s| (s.k as f64 * s.rest as f64).abs())
+            .fold(0.0, f64::max);
+        let g = model.gravity;
+        let g = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let weight = model.mass.iter().map(|m| m * g).fold(0.0, f64::max);
+        FixedPoint::new(spring.max(weight), self.max_valence())
+    }
+
+    /// Reorder the spring records (`perm[new] = old`) and rebuild the incidence table to match.
+    /// Only the summation order of the passes changes.
+    pub fn permute_springs(&mut self, perm: &[u32]) {
+        assert_eq!(
+            perm.len(),
+            self.springs.len(),
+            "a permutation of the springs"
+        );
+        self.springs = perm.iter().map(|&old| self.springs[old as usize]).collect();
+        let (rows, incidence) = incidence_table(self.node_count(), &self.springs);
+        self.incidence_rows = rows;
+        self.incidence = incidence;
     }
 
     /// The spring pass on the CPU, as `shaders/springs_edges.wgsl` computes it: the force each
@@ -184,12 +322,49 @@ impl EdgeLayout {
             .collect()
     }
 
+    /// The node forces of the gather pass: each node sums its incident forces in table order
+    /// (as `shaders/gather_edges.wgsl` does).
+    pub fn gather_forces_cpu(&self, forces: &[[f32; 4]]) -> Vec<[f32; 3]> {
+        (0..self.node_count())
+            .map(|i| {
+                let mut f = [0.0f32; 3];
+                let (lo, hi) = (self.incidence_rows[i], self.incidence_rows[i + 1]);
+                for &e in &self.incidence[lo as usize..hi as usize] {
+                    let fs = forces[(e & !B_END) as usize];
+                    if e & B_END != 0 {
+                        for c in 0..3 {
+                            f[c] -= fs[c];
+                        }
+                    } else {
+                        for c in 0..3 {
+                            f[c] += fs[c];
+                        }
+                    }
+                }
+                f
+            })
+            .collect()
+    }
+
     /// The node pass on the CPU, as `shaders/gather_edges.wgsl` computes it: each node sums its
     /// incident forces in table order and integrates.
     pub fn gather_cpu(
         &self,
         p: &StepParams,
         forces: &[[f32; 4]],
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+        let f = self.gather_forces_cpu(forces);
+        self.integrate_cpu(p, &f, cur, second)
+    }
+
+    /// Integrate every node under its spring force `f` (fixed nodes stay at rest), as the node
+    /// passes of every variant do.
+    pub fn integrate_cpu(
+        &self,
+        p: &StepParams,
+        f: &[[f32; 3]],
         cur: &[[f32; 4]],
         second: &[[f32; 4]],
     ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
@@ -201,19 +376,98 @@ impl EdgeLayout {
             if m_inv == 0.0 {
                 continue;
             }
-            let mut f = [0.0f32; 3];
-            let (lo, hi) = (self.incidence_rows[i], self.incidence_rows[i + 1]);
-            for &e in &self.incidence[lo as usize..hi as usize] {
-                let fs = forces[(e & !B_END) as usize];
-                let sign = if e & B_END != 0 { -1.0 } else { 1.0 };
-                for c in 0..3 {
-                    f[c] += sign * fs[c];
-                }
-            }
             let vi = velocity(p, cur[i], second[i]);
-            (next[i], second_next[i]) = integrate(p, cur[i], second[i], vi, f, m_inv);
+            (next[i], second_next[i]) = integrate(p, cur[i], second[i], vi, f[i], m_inv);
         }
         (next, second_next)
+    }
+
+    /// The fixed-point spring pass on the CPU, as `shaders/accumulate_fixed.wgsl` computes it:
+    /// the integer accumulators of every node (wrapping adds, as `atomicAdd` on `i32`) and
+    /// whether any spring force saturated.
+    pub fn accumulate_fixed_cpu(
+        &self,
+        fp: &FixedPoint,
+        forces: &[[f32; 4]],
+    ) -> (Vec<[i32; 3]>, bool) {
+        let mut acc = vec![[0i32; 3]; self.node_count()];
+        let mut overflow = false;
+        for (s, f) in self.springs.iter().zip(forces) {
+            for c in 0..3 {
+                let (q, o) = fp.quantize(f[c]);
+                overflow |= o;
+                acc[s.a as usize][c] = acc[s.a as usize][c].wrapping_add(q);
+                acc[s.b as usize][c] = acc[s.b as usize][c].wrapping_sub(q);
+            }
+        }
+        (acc, overflow)
+    }
+
+    /// Node forces from fixed-point accumulators, as `shaders/integrate_fixed.wgsl` converts
+    /// them: `f32(sum) * inv_scale`.
+    pub fn fixed_forces(fp: &FixedPoint, acc: &[[i32; 3]]) -> Vec<[f32; 3]> {
+        acc.iter()
+            .map(|q| [0, 1, 2].map(|c| q[c] as f32 * fp.inv_scale))
+            .collect()
+    }
+
+    /// One fixed-point step on the CPU (spring pass, then integration), and whether any force
+    /// saturated. Bitwise independent of the spring order.
+    pub fn step_fixed_cpu(
+        &self,
+        p: &StepParams,
+        fp: &FixedPoint,
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, bool) {
+        let forces = self.spring_forces_cpu(p, cur, second);
+        let (acc, overflow) = self.accumulate_fixed_cpu(fp, &forces);
+        let (next, second_next) = self.integrate_cpu(p, &Self::fixed_forces(fp, &acc), cur, second);
+        (next, second_next, overflow)
+    }
+
+    /// The float-atomic spring pass on the CPU in one of the orders a device may take: springs
+    /// in record order, `a` end before `b` end (`shaders/accumulate_float.wgsl`).
+    pub fn accumulate_float_cpu(&self, forces: &[[f32; 4]]) -> Vec<[f32; 3]> {
+        let mut acc = vec![[0.0f32; 3]; self.node_count()];
+        for (s, f) in self.springs.iter().zip(forces) {
+            for c in 0..3 {
+                acc[s.a as usize][c] += f[c];
+                acc[s.b as usize][c] += -f[c];
+            }
+        }
+        acc
+    }
+
+    /// One float-atomic step on the CPU, summing in record order.
+    pub fn step_float_cpu(
+        &self,
+        p: &StepParams,
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+        let forces = self.spring_forces_cpu(p, cur, second);
+        self.integrate_cpu(p, &self.accumulate_float_cpu(&forces), cur, second)
+    }
+
+    /// One step of `accumulation` on the CPU (fixed point with [`EdgeLayout::fixed_point`]
+    /// constants supplied as `fp`; the overflow flag is dropped).
+    pub fn step_variant_cpu(
+        &self,
+        accumulation: Accumulation,
+        p: &StepParams,
+        fp: &FixedPoint,
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+        match accumulation {
+            Accumulation::Gather => self.step_cpu(p, cur, second),
+            Accumulation::AtomicFixed => {
+                let (u, s, _) = self.step_fixed_cpu(p, fp, cur, second);
+                (u, s)
+            }
+            Accumulation::AtomicFloat => self.step_float_cpu(p, cur, second),
+        }
     }
 
     /// Both passes: one step on the CPU.
@@ -226,4 +480,26 @@ impl EdgeLayout {
         let forces = self.spring_forces_cpu(p, cur, second);
         self.gather_cpu(p, &forces, cur, second)
     }
+}
+
+/// The node-to-spring incidence table of `springs` over `n` nodes: row starts and entries (spring
+/// index, [`B_END`] where the node is the `b` end), each row in spring order.
+fn incidence_table(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
+    let mut rows = vec![0u32; n + 1];
+    for s in springs {
+        rows[s.a as usize + 1] += 1;
+        rows[s.b as usize + 1] += 1;
+    }
+    for i in 0..n {
+        rows[i + 1] += rows[i];
+    }
+    let mut fill = rows.clone();
+    let mut incidence = vec![0u32; rows[n] as usize];
+    for (idx, s) in springs.iter().enumerate() {
+        for (node, flag) in [(s.a, 0), (s.b, B_END)] {
+            incidence[fill[node as usize] as usize] = idx as u32 | flag;
+            fill[node as usize] += 1;
+        }
+    }
+    (rows, incidence)
 }

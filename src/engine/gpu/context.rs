@@ -55,9 +55,12 @@ impl GpuContext {
             })?;
         let info = adapter.get_info();
         let limits = adapter.limits();
+        // Float atomics serve only the edge layout's AtomicFloat variant; ask for them where the
+        // adapter has them, never require them.
+        let features = adapter.features() & wgpu::Features::SHADER_FLOAT32_ATOMIC;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("lancet"),
-            required_features: wgpu::Features::empty(),
+            required_features: features,
             required_limits: limits.clone(),
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,

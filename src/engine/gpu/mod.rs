@@ -8,6 +8,7 @@
 //! holds one bind group per rotation phase, made at setup: stepping allocates nothing. Only
 //! positions (and velocities) are read back, when asked for.
 
+pub mod atomic_edges;
 pub mod buffers;
 pub mod context;
 pub mod node_gather;
@@ -23,7 +24,7 @@ pub use context::GpuContext;
 use super::{Engine, EngineMemory, Integrator, SimConfig};
 use crate::error::Result;
 use crate::layout::connectivity::{ConnectivityLayout, StepParams};
-use crate::layout::edges::EdgeLayout;
+use crate::layout::edges::{Accumulation, EdgeLayout};
 use crate::layout::valence::ValenceLayout;
 use crate::layout::{LayoutKind, NodeOrder};
 use crate::model::PackedModel;
@@ -130,12 +131,15 @@ enum Passes {
     Valence(springs_valence::ValencePass),
     /// With the spring pass's workgroup counts.
     Edges(springs_edges::EdgePasses, (u32, u32)),
+    /// Atomic accumulation, with the spring pass's workgroup counts.
+    AtomicEdges(atomic_edges::AtomicEdgePasses, (u32, u32)),
 }
 
 /// Mass-spring engine on a wgpu device.
 pub struct GpuEngine {
     ctx: GpuContext,
     layout: LayoutKind,
+    accumulation: Accumulation,
     order: NodeOrder,
     rest: Vec<[f64; 3]>,
     fixed: Vec<bool>,
@@ -234,16 +238,30 @@ impl GpuEngine {
             ),
             Packed::Edges(e) => (
                 e.order.clone(),
-                Passes::Edges(
-                    springs_edges::EdgePasses::new(&ctx, &e, &uniform, &state)?,
-                    fold(m),
-                ),
-                e.memory(config.integrator),
+                match config.accumulation {
+                    Accumulation::Gather => Passes::Edges(
+                        springs_edges::EdgePasses::new(&ctx, &e, &uniform, &state)?,
+                        fold(m),
+                    ),
+                    atomic => Passes::AtomicEdges(
+                        atomic_edges::AtomicEdgePasses::new(
+                            &ctx,
+                            &e,
+                            atomic,
+                            e.fixed_point(model),
+                            &uniform,
+                            &state,
+                        )?,
+                        fold(m),
+                    ),
+                },
+                e.memory(config.integrator, config.accumulation),
             ),
         };
         Ok(GpuEngine {
             ctx,
             layout,
+            accumulation: config.accumulation,
             order,
             rest: model.rest.clone(),
             fixed: model.fixed.clone(),
@@ -260,13 +278,27 @@ impl GpuEngine {
         })
     }
 
-    /// "gpu-connectivity on <adapter>".
+    /// "gpu-connectivity on <adapter>"; the edge layout with atomics names its variant
+    /// ("gpu-edges-atomicfixed on ...").
     pub fn describe(&self) -> String {
+        let variant = match (&self.passes, self.accumulation) {
+            (Passes::AtomicEdges(..), a) => format!("-{a:?}").to_lowercase(),
+            _ => String::new(),
+        };
         format!(
-            "gpu-{} on {}",
+            "gpu-{}{variant} on {}",
             format!("{:?}", self.layout).to_lowercase(),
             self.ctx.describe()
         )
+    }
+
+    /// Whether a spring force has saturated the fixed-point accumulators (edge layout with
+    /// [`Accumulation::AtomicFixed`]) since setup; false for every other layout and variant.
+    pub fn fixed_point_overflowed(&self) -> Result<bool> {
+        match &self.passes {
+            Passes::AtomicEdges(p, _) => p.overflowed(&self.ctx),
+            _ => Ok(false),
+        }
     }
 
     /// Current displacements and second state (previous displacements or velocities), layout
@@ -351,6 +383,9 @@ impl Engine for GpuEngine {
                     Passes::Connectivity(p) => p.record(&mut pass, self.phase, self.groups),
                     Passes::Valence(p) => p.record(&mut pass, self.phase),
                     Passes::Edges(p, spring_groups) => {
+                        p.record(&mut pass, self.phase, *spring_groups, self.groups)
+                    }
+                    Passes::AtomicEdges(p, spring_groups) => {
                         p.record(&mut pass, self.phase, *spring_groups, self.groups)
                     }
                 }

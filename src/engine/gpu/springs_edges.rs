@@ -10,6 +10,7 @@ use crate::layout::edges::{EdgeLayout, EdgeSpring};
 
 const SPRINGS: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/edge_spring.wgsl"),
     include_str!("../../../shaders/springs_edges.wgsl")
 );
 const GATHER: &str = concat!(
@@ -28,7 +29,7 @@ pub struct EdgePasses {
 
 /// A read-only storage buffer holding `data` (at least one element, as empty bindings are
 /// invalid).
-fn upload<T: bytemuck::Pod + bytemuck::Zeroable>(
+pub(crate) fn upload<T: bytemuck::Pod + bytemuck::Zeroable>(
     ctx: &GpuContext,
     label: &str,
     data: &[T],

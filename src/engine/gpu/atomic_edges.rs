@@ -1,0 +1,248 @@
+//! The edge passes with atomic accumulation: pair with `shaders/accumulate_fixed.wgsl` +
+//! `shaders/integrate_fixed.wgsl` (fixed point in `atomic<i32>`) and
+//! `shaders/accumulate_float.wgsl` + `shaders/integrate_float.wgsl` (`atomic<f32>`). The spring
+//! pass adds each force to both ends' accumulators; the node pass reads, clears and integrates.
+//! Pipelines, bind-group layouts and one bind group pair per rotation phase are made once.
+
+use wgpu::util::DeviceExt;
+
+use super::springs_edges::upload;
+use super::{buffers, GpuContext, NodeState};
+use crate::error::{Error, Result};
+use crate::layout::edges::{Accumulation, EdgeLayout, EdgeSpring, FixedPoint};
+
+const ACCUMULATE_FIXED: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/accumulate_fixed.wgsl")
+);
+const INTEGRATE_FIXED: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/integrate_fixed.wgsl")
+);
+const ACCUMULATE_FLOAT: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/accumulate_float.wgsl")
+);
+const INTEGRATE_FLOAT: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/integrate_float.wgsl")
+);
+
+/// The two passes of an atomic variant with their device data.
+pub struct AtomicEdgePasses {
+    accumulate: wgpu::ComputePipeline,
+    integrate: wgpu::ComputePipeline,
+    /// Per phase: (spring pass, node pass) bind groups.
+    bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+    /// The overflow flag of the fixed-point variant (16 bytes; nonzero once a force saturated).
+    overflow: Option<wgpu::Buffer>,
+    _buffers: Vec<wgpu::Buffer>,
+}
+
+impl AtomicEdgePasses {
+    /// Upload the layout and build both passes of `accumulation` (an atomic variant) with the
+    /// fixed-point constants `fp` (used by [`Accumulation::AtomicFixed`] only). Float atomics
+    /// without `SHADER_FLOAT32_ATOMIC` on the device are an [`Error::Unsupported`].
+    pub fn new(
+        ctx: &GpuContext,
+        layout: &EdgeLayout,
+        accumulation: Accumulation,
+        fp: FixedPoint,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) -> Result<Self> {
+        let fixed = match accumulation {
+            Accumulation::AtomicFixed => true,
+            Accumulation::AtomicFloat => {
+                if !ctx
+                    .device
+                    .features()
+                    .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC)
+                {
+                    return Err(Error::Unsupported(format!(
+                        "the AtomicFloat accumulation needs float32 atomics \
+                         (SHADER_FLOAT32_ATOMIC), which {} does not have; use AtomicFixed or \
+                         Gather",
+                        ctx.describe()
+                    )));
+                }
+                false
+            }
+            Accumulation::Gather => {
+                return Err(Error::Gpu(
+                    "the gather variant runs in springs_edges, not with atomics".into(),
+                ))
+            }
+        };
+        let d = &ctx.device;
+        let springs = upload::<EdgeSpring>(ctx, "edge springs", &layout.springs)?;
+        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass)?;
+        let acc_bytes = (layout.node_count().max(1) * 12) as u64;
+        buffers::check_binding(ctx, "accumulators", acc_bytes)?;
+        // Created zeroed; the node pass leaves them zero after every step.
+        let acc = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("accumulators"),
+            size: acc_bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let fx = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("fixed-point constants"),
+            contents: bytemuck::bytes_of(&fp),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let overflow = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("overflow flag"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let storage = buffers::storage_entry;
+        let (accumulate_entries, integrate_entries) = if fixed {
+            (
+                vec![
+                    buffers::uniform_entry(0),
+                    storage(1, true),
+                    storage(2, true),
+                    storage(3, true),
+                    storage(4, false),
+                    buffers::uniform_entry(5),
+                    storage(6, false),
+                ],
+                vec![
+                    buffers::uniform_entry(0),
+                    buffers::uniform_entry(1),
+                    storage(2, false),
+                    storage(3, true),
+                    storage(4, true),
+                    storage(5, true),
+                    storage(6, false),
+                    storage(7, false),
+                ],
+            )
+        } else {
+            (
+                vec![
+                    buffers::uniform_entry(0),
+                    storage(1, true),
+                    storage(2, true),
+                    storage(3, true),
+                    storage(4, false),
+                ],
+                vec![
+                    buffers::uniform_entry(0),
+                    storage(1, false),
+                    storage(2, true),
+                    storage(3, true),
+                    storage(4, true),
+                    storage(5, false),
+                    storage(6, false),
+                ],
+            )
+        };
+        let accumulate_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("accumulate_edges"),
+            entries: &accumulate_entries,
+        });
+        let integrate_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("integrate_edges"),
+            entries: &integrate_entries,
+        });
+        let bind_groups = (0..state.phases())
+            .map(|phase| {
+                let b = state.bindings(phase);
+                let (a, i) = if fixed {
+                    (
+                        vec![uniform, &springs, b.second_in, b.cur, &acc, &fx, &overflow],
+                        vec![
+                            uniform,
+                            &fx,
+                            &acc,
+                            &inv_mass,
+                            b.second_in,
+                            b.cur,
+                            b.next,
+                            b.second_out,
+                        ],
+                    )
+                } else {
+                    (
+                        vec![uniform, &springs, b.second_in, b.cur, &acc],
+                        vec![
+                            uniform,
+                            &acc,
+                            &inv_mass,
+                            b.second_in,
+                            b.cur,
+                            b.next,
+                            b.second_out,
+                        ],
+                    )
+                };
+                let accumulate = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("accumulate_edges"),
+                    layout: &accumulate_layout,
+                    entries: &buffers::entries(&a),
+                });
+                let integrate = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("integrate_edges"),
+                    layout: &integrate_layout,
+                    entries: &buffers::entries(&i),
+                });
+                (accumulate, integrate)
+            })
+            .collect();
+        let (a_src, i_src, a_name, i_name) = if fixed {
+            (
+                ACCUMULATE_FIXED,
+                INTEGRATE_FIXED,
+                "accumulate_fixed",
+                "integrate_fixed",
+            )
+        } else {
+            (
+                ACCUMULATE_FLOAT,
+                INTEGRATE_FLOAT,
+                "accumulate_float",
+                "integrate_float",
+            )
+        };
+        Ok(AtomicEdgePasses {
+            accumulate: buffers::compute_pipeline(ctx, a_name, a_src, &[&accumulate_layout])?,
+            integrate: buffers::compute_pipeline(ctx, i_name, i_src, &[&integrate_layout])?,
+            bind_groups,
+            overflow: fixed.then(|| overflow.clone()),
+            _buffers: vec![springs, inv_mass, acc, fx, overflow],
+        })
+    }
+
+    /// Record one step in phase `phase`: the accumulating spring pass, then the node pass.
+    pub fn record(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        phase: usize,
+        spring_groups: (u32, u32),
+        node_groups: (u32, u32),
+    ) {
+        let (accumulate_bg, integrate_bg) = &self.bind_groups[phase];
+        pass.set_pipeline(&self.accumulate);
+        pass.set_bind_group(0, accumulate_bg, &[]);
+        pass.dispatch_workgroups(spring_groups.0, spring_groups.1, 1);
+        pass.set_pipeline(&self.integrate);
+        pass.set_bind_group(0, integrate_bg, &[]);
+        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+    }
+
+    /// Whether a spring force has saturated the fixed-point range since setup (always false
+    /// for float atomics).
+    pub fn overflowed(&self, ctx: &GpuContext) -> Result<bool> {
+        match &self.overflow {
+            None => Ok(false),
+            Some(b) => Ok(buffers::read_vec4(ctx, b)?
+                .iter()
+                .any(|v| v.iter().any(|x| x.to_bits() != 0))),
+        }
+    }
+}
