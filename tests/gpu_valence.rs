@@ -140,3 +140,36 @@ fn gpu_valence_engine_agrees_with_the_reference_and_the_connectivity_layout(
         "valence and connectivity differ by {between:e}"
     );
 }
+
+#[test]
+fn a_model_without_springs_falls_freely_through_the_valence_pass() {
+    let Some(ctx) = common::gpu() else { return };
+    // Every node in the valence-0 bucket and no slots at all.
+    let mut model = PackedModel::from_springs(
+        vec![[0.0; 3], [0.01, 0.0, 0.0], [0.0, 0.02, 0.0]],
+        vec![1e-3; 3],
+        &[],
+    )
+    .unwrap();
+    model.gravity = [0.5, -1.0, -9.81];
+    let layout = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    assert_eq!(layout.buckets.len(), 1);
+    assert!(layout.slots.is_empty());
+    let dt = 1e-3;
+    let mut engine =
+        GpuEngine::with_context(ctx, &model, SimConfig::new(dt), LayoutKind::Valence).unwrap();
+    let steps = 20;
+    engine.step(steps);
+    // From rest, Verlet gives u_k = g h^2 k (k + 1) / 2.
+    let (k, h2) = (steps as f64, (dt as f32 as f64).powi(2));
+    for (x, r) in engine.positions().iter().zip(&model.rest) {
+        for (c, g) in model.gravity.iter().enumerate() {
+            let want = g * h2 * k * (k + 1.0) / 2.0;
+            let got = x[c] - r[c];
+            assert!(
+                (got - want).abs() <= 1e-5 * want.abs(),
+                "axis {c}: {got:e} vs {want:e}"
+            );
+        }
+    }
+}

@@ -291,15 +291,14 @@ fn a_springless_node_falls_freely_in_the_twin() {
     }
     // From rest, Verlet gives u_k = g h^2 k (k + 1) / 2.
     let (k, h2) = (steps as f64, (p.h as f64).powi(2));
-    for i in 0..2 {
-        let new = layout.order.rank[n - 1 - i] as usize;
-        for c in 0..3 {
-            let want = model.gravity[c] * h2 * k * (k + 1.0) / 2.0;
-            let got = u[new][c] as f64;
+    for old in [n - 1, n - 2] {
+        let got = u[layout.order.rank[old] as usize];
+        for (c, g) in model.gravity.iter().enumerate() {
+            let want = g * h2 * k * (k + 1.0) / 2.0;
             assert!(
-                (got - want).abs() <= 1e-5 * want.abs(),
-                "node {} axis {c}: {got:e} vs {want:e}",
-                n - 1 - i
+                (got[c] as f64 - want).abs() <= 1e-5 * want.abs(),
+                "node {old} axis {c}: {:e} vs {want:e}",
+                got[c]
             );
         }
     }
