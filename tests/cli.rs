@@ -1,5 +1,7 @@
 //! The `lancet` command line: exit codes, JSON fields, errors that name the file and line.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -246,4 +248,40 @@ fn run_with_output_writes_a_pvd_series_of_frames_that_read_back() {
     // The beam sags under gravity: the last frame's lowest point is below the first's.
     let lowest = |m: &lancet::TetMesh| m.nodes().map(|(_, n)| n.rest.z).fold(f64::MAX, f64::min);
     assert!(lowest(&last.mesh) < lowest(&first.mesh) - 1e-5);
+}
+
+#[test]
+fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
+    let has_gpu = common::gpu().is_some();
+    let engines = if has_gpu { "fast,gpu" } else { "fast" };
+    let out = lancet(&[
+        "bench", "--cube", "4", "--steps", "40", "--engine", engines, "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    assert!(v["bandwidth"]["bytes_per_s"].as_f64().unwrap() > 1e8);
+    let rows = v["rows"].as_array().unwrap();
+    // The CPU engine once, the GPU engine in each of the three layouts (when there is a GPU).
+    let gpu_rows = rows
+        .iter()
+        .filter(|r| r["engine"].as_str().unwrap().starts_with("gpu-"))
+        .count();
+    assert!(
+        gpu_rows == 3
+            || (gpu_rows == 0 && std::env::var("LANCET_REQUIRE_GPU").as_deref() != Ok("1"))
+    );
+    for r in rows {
+        let ms = r["ms_per_step"].as_f64().unwrap();
+        let bytes = r["bytes_per_step"].as_u64().unwrap();
+        assert!(ms > 0.0 && bytes > 0, "{r}");
+        // Achieved bandwidth is bytes over time, and the floor ratio is its share of the triad.
+        let achieved = r["achieved_bytes_per_s"].as_f64().unwrap();
+        assert!((achieved - bytes as f64 / (ms * 1e-3)).abs() <= 1e-6 * achieved);
+        assert!(r["floor_ratio"].as_f64().unwrap() > 0.0);
+        assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+    }
 }

@@ -62,6 +62,9 @@ enum Command {
         /// Engines to compare, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast"])]
         engine: Vec<EngineArg>,
+        /// GPU layouts to compare, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
+        layout: Vec<LayoutArg>,
         /// Steps timed per engine.
         #[arg(long, default_value_t = 200)]
         steps: u64,
@@ -150,9 +153,10 @@ fn main() -> ExitCode {
             cubes,
             mesh,
             engine,
+            layout,
             steps,
             json,
-        } => bench(&cubes, &mesh, &engine, steps, json),
+        } => bench(&cubes, &mesh, &engine, &layout, steps, json),
     };
     match result {
         Ok(code) => code,
@@ -332,6 +336,7 @@ fn bench(
     cubes: &[usize],
     files: &[PathBuf],
     engines: &[EngineArg],
+    layouts: &[LayoutArg],
     steps: u64,
     json: bool,
 ) -> lancet::Result<ExitCode> {
@@ -341,6 +346,7 @@ fn bench(
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
     let opts = bench::BenchOptions {
         engines: engines.iter().map(|&e| e.into()).collect(),
+        layouts: layouts.iter().map(|&l| l.into()).collect(),
         steps,
         ..Default::default()
     };
@@ -357,6 +363,14 @@ fn bench(
         bw.threads,
         bw.bytes_per_s / 1e9
     );
+    let mut devices: Vec<&str> = rows
+        .iter()
+        .filter_map(|r| r.engine.split_once(" on ").map(|(_, d)| d))
+        .collect();
+    devices.dedup();
+    for d in devices {
+        println!("gpu device: {d}");
+    }
     println!(
         "{:<14} {:>8} {:>9} {:<20} {:>9} {:>6} {:>9} {:>10} {:>8} {:>7} {:>9}",
         "mesh",
@@ -372,12 +386,13 @@ fn bench(
         "error"
     );
     for r in &rows {
+        let engine = r.engine.split(" on ").next().unwrap_or(&r.engine);
         println!(
             "{:<14} {:>8} {:>9} {:<20} {:>9.2} {:>6.1} {:>9.3} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
             r.mesh,
             r.nodes,
             r.springs,
-            r.engine,
+            engine,
             r.memory_bytes as f64 / 1e6,
             r.padding_percent,
             r.ms_per_step,

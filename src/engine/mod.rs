@@ -61,6 +61,10 @@ pub trait Engine: Send {
     fn positions(&self) -> Vec<[f64; 3]>;
     /// Current velocities, m/s (for Verlet, the backward difference the damping uses).
     fn velocities(&self) -> Vec<[f64; 3]>;
+    /// Positions and velocities together (one readback for engines that must copy them back).
+    fn state(&self) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        (self.positions(), self.velocities())
+    }
     /// Replace the state (fixed nodes keep their rest position whatever is given).
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
     /// Block until submitted work has finished (GPU engines; CPU engines finish in `step`).
@@ -299,8 +303,7 @@ impl Simulation {
 
     /// Check the current state for divergence.
     pub fn check(&self) -> Result<()> {
-        let x = self.engine.positions();
-        let v = self.engine.velocities();
+        let (x, v) = self.engine.state();
         let bad = x
             .iter()
             .zip(&v)
@@ -349,7 +352,8 @@ impl Simulation {
 
     /// Energies of the current state.
     pub fn energy(&self) -> Energy {
-        self.energy_of(&self.engine.positions(), &self.engine.velocities())
+        let (x, v) = self.engine.state();
+        self.energy_of(&x, &v)
     }
 
     /// Replace the state (initial displacement or velocity); resets the divergence reference.

@@ -48,6 +48,8 @@ impl BenchMesh {
 pub struct BenchOptions {
     /// Engines to compare.
     pub engines: Vec<EngineKind>,
+    /// Layouts to run each GPU engine in.
+    pub layouts: Vec<crate::layout::LayoutKind>,
     /// Steps timed per engine (after a warm-up).
     pub steps: u64,
     /// Steps per timed chunk; the median chunk gives the time per step.
@@ -60,6 +62,7 @@ impl Default for BenchOptions {
     fn default() -> Self {
         BenchOptions {
             engines: vec![EngineKind::Reference, EngineKind::Fast],
+            layouts: vec![crate::layout::LayoutKind::Connectivity],
             steps: 200,
             chunk: 20,
             integrator: Integrator::Verlet,
@@ -133,7 +136,17 @@ pub fn run_bench(
         let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config)?;
         reference.run(total)?;
         let x_ref = reference.positions();
-        for &engine in &opts.engines {
+        // GPU engines run once per layout; CPU engines have none.
+        let runs = opts.engines.iter().flat_map(|&e| {
+            let layouts = if matches!(e, EngineKind::Gpu | EngineKind::Auto) {
+                opts.layouts.clone()
+            } else {
+                vec![config.layout]
+            };
+            layouts.into_iter().map(move |l| (e, l))
+        });
+        for (engine, layout) in runs {
+            let config = SimConfig { layout, ..config };
             let mut sim = Simulation::new(model.clone(), engine, config)?;
             // Warm-up: first touches of memory, thread pools, shader compilation.
             sim.step_unchecked(opts.chunk.min(10) as u32);

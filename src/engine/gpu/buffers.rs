@@ -32,6 +32,24 @@ pub fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// The layout every pass here uses: the step constants at binding 0, then one storage buffer
+/// per entry of `read_only` (true for read-only) at bindings 1, 2, ...
+pub fn pass_layout(ctx: &GpuContext, label: &str, read_only: &[bool]) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = std::iter::once(uniform_entry(0))
+        .chain(
+            read_only
+                .iter()
+                .enumerate()
+                .map(|(i, &r)| storage_entry(i as u32 + 1, r)),
+        )
+        .collect();
+    ctx.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &entries,
+        })
+}
+
 /// Bind-group entries binding `buffers[i]` whole at binding `i`.
 pub fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
     buffers

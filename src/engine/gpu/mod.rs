@@ -407,6 +407,10 @@ impl Engine for GpuEngine {
         self.state_f64().1
     }
 
+    fn state(&self) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        self.state_f64()
+    }
+
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
         let n = self.rest.len();
         let mut cur = vec![[0.0f32; 4]; n];

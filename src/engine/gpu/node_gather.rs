@@ -42,18 +42,8 @@ impl NodeGather {
             contents: bytemuck::cast_slice(inv_mass),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         });
-        let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some(label),
-            entries: &[
-                buffers::uniform_entry(0),
-                buffers::storage_entry(1, true),
-                buffers::storage_entry(2, true),
-                buffers::storage_entry(3, true),
-                buffers::storage_entry(4, true),
-                buffers::storage_entry(5, false),
-                buffers::storage_entry(6, false),
-            ],
-        });
+        // slots, masses, second state, current (read); next, second out (written).
+        let layout = buffers::pass_layout(ctx, label, &[true, true, true, true, false, false]);
         let bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);

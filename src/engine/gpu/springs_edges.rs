@@ -67,30 +67,14 @@ impl EdgePasses {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let spring_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("springs_edges"),
-            entries: &[
-                buffers::uniform_entry(0),
-                buffers::storage_entry(1, true),
-                buffers::storage_entry(2, true),
-                buffers::storage_entry(3, true),
-                buffers::storage_entry(4, false),
-            ],
-        });
-        let gather_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("gather_edges"),
-            entries: &[
-                buffers::uniform_entry(0),
-                buffers::storage_entry(1, true),
-                buffers::storage_entry(2, true),
-                buffers::storage_entry(3, true),
-                buffers::storage_entry(4, true),
-                buffers::storage_entry(5, true),
-                buffers::storage_entry(6, true),
-                buffers::storage_entry(7, false),
-                buffers::storage_entry(8, false),
-            ],
-        });
+        // springs, second state, current (read); forces (written).
+        let spring_layout = buffers::pass_layout(ctx, "springs_edges", &[true, true, true, false]);
+        // rows, incidence, forces, masses, second state, current (read); next, second out.
+        let gather_layout = buffers::pass_layout(
+            ctx,
+            "gather_edges",
+            &[true, true, true, true, true, true, false, false],
+        );
         let bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
