@@ -2,6 +2,8 @@
 //! layout agrees with the float64 reference and with the other layouts.
 
 mod common;
+#[path = "common/models.rs"]
+mod models;
 
 use lancet::engine::gpu::{step_params, GpuEngine};
 use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
@@ -9,58 +11,13 @@ use lancet::layout::connectivity::{ConnectivityLayout, StepParams};
 use lancet::layout::edges::{EdgeLayout, B_END};
 use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder};
-use lancet::mesh::generate::BoxGrid;
 use lancet::model::{
-    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringDamping, SpringModel,
+    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringModel,
 };
 use lancet::report::bench::relative_l2;
 use lancet::Error;
+use models::{random_box as random_model, Rng};
 use rstest::rstest;
-
-/// A small xorshift generator: reproducible random inputs without another dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// A perturbed box with random per-spring stiffness and damping, random masses, gravity and a
-/// fixed base: every term of the force law is exercised.
-fn random_model(seed: u64, damped: bool) -> PackedModel {
-    let mut rng = Rng(seed);
-    let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(
-        if damped {
-            SpringDamping::StiffnessProportional(2e-4)
-        } else {
-            SpringDamping::None
-        },
-    ));
-    config.gravity = [0.3, -0.2, -9.81];
-    config.mass_damping = 3.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
-        tolerance: 1e-9,
-    });
-    let mut model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    for s in &mut model.springs {
-        let f = 0.5 + rng.next();
-        s.stiffness *= f;
-        s.damping *= f;
-    }
-    for m in &mut model.mass {
-        *m *= 0.5 + rng.next();
-    }
-    model
-}
 
 /// Random displacements of about 5% of a cell and random velocities, in layout order.
 fn random_state(n: usize, seed: u64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {

@@ -5,15 +5,15 @@
 
 mod common;
 
-#[path = "common/irregular.rs"]
-mod irregular;
+#[path = "common/models.rs"]
+mod models;
 
-use irregular::{random_model, random_state};
 use lancet::engine::gpu::{step_params, GpuEngine};
 use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
 use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::model::{stable_time_step, PackedModel};
+use models::{random_model, random_state};
 use rstest::rstest;
 
 /// `|u - u_ref| / |u_ref|` over all nodes, `u` being displacements from `rest`.

@@ -2,6 +2,9 @@
 //! the gather twin steps like the float32 CPU engine and the float64 reference, and the
 //! fixed-point twin is deterministic and as accurate as its resolution.
 
+#[path = "common/models.rs"]
+mod models;
+
 use lancet::engine::fast::FastEngine;
 use lancet::engine::gpu::step_params;
 use lancet::engine::reference::ReferenceEngine;
@@ -9,69 +12,10 @@ use lancet::engine::{Engine, Integrator, SimConfig};
 use lancet::layout::connectivity::StepParams;
 use lancet::layout::edges::{Accumulation, EdgeLayout, FixedPoint, B_END};
 use lancet::layout::NodeOrder;
-use lancet::mesh::generate::BoxGrid;
-use lancet::model::{
-    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringDamping, SpringModel,
-};
+use lancet::model::{stable_time_step, PackedModel};
 use lancet::report::bench::relative_l2;
+use models::{random_box as random_model, Rng};
 use rstest::rstest;
-
-/// A small xorshift generator: reproducible random inputs without another dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// A perturbed box: random rest positions (up to 20% of a cell), random per-spring stiffness
-/// and damping, random masses, gravity, mass damping and a fixed base.
-fn random_model(seed: u64, damped: bool) -> PackedModel {
-    let mut rng = Rng(seed);
-    let mut mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
-    let keys: Vec<_> = mesh.nodes().map(|(k, _)| k).collect();
-    for k in keys {
-        let mut p = mesh.rest(k);
-        // Keep the base plane flat so the fixed selector still finds it.
-        if p.z > 1e-9 {
-            p.x += (rng.next() - 0.5) * 2e-3;
-            p.y += (rng.next() - 0.5) * 2e-3;
-            p.z += (rng.next() - 0.5) * 2e-3;
-            mesh.set_rest(k, p).unwrap();
-        }
-    }
-    let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(
-        if damped {
-            SpringDamping::StiffnessProportional(2e-4)
-        } else {
-            SpringDamping::None
-        },
-    ));
-    config.gravity = [0.3, -0.2, -9.81];
-    config.mass_damping = 3.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
-        tolerance: 1e-9,
-    });
-    let mut model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    for s in &mut model.springs {
-        let f = 0.5 + rng.next();
-        s.stiffness *= f;
-        s.damping *= f;
-    }
-    for m in &mut model.mass {
-        *m *= 0.5 + rng.next();
-    }
-    assert!(model.fixed.iter().any(|&f| f) && model.fixed.iter().any(|&f| !f));
-    model
-}
 
 /// Random displacements (about 5% of a cell) and velocities of the free nodes, model order.
 fn random_state(model: &PackedModel, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {

@@ -10,9 +10,9 @@ use lancet::layout::NodeOrder;
 use lancet::model::{stable_time_step, PackedModel};
 use rstest::rstest;
 
-#[path = "common/irregular.rs"]
-mod irregular;
-use irregular::{random_model, random_state};
+#[path = "common/models.rs"]
+mod models;
+use models::{random_model, random_state};
 
 fn valences(model: &PackedModel) -> Vec<u32> {
     let mut v = vec![0u32; model.node_count()];

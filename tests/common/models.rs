@@ -1,6 +1,6 @@
-//! An irregular random model for the valence layout tests (CPU and GPU): valences spread over
-//! many buckets, including springless nodes. Included with `#[path]` so the CPU tests do not
-//! pull in the GPU helpers of `common/mod.rs`.
+//! Random models shared by the layout and GPU tests. Included with `#[path]` so the CPU tests do
+//! not pull in the GPU helpers of `common/mod.rs`.
+#![allow(dead_code)] // each test file uses a different subset
 
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{
@@ -8,9 +8,10 @@ use lancet::model::{
 };
 
 /// A small xorshift generator: reproducible random inputs without another dependency.
-struct Rng(u64);
+pub struct Rng(pub u64);
 impl Rng {
-    fn next(&mut self) -> f64 {
+    /// The next value, uniform in [0, 1).
+    pub fn next(&mut self) -> f64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
@@ -19,9 +20,9 @@ impl Rng {
 }
 
 /// A box with random per-spring stiffness, damping and masses, gravity, mass damping and a
-/// fixed base (corner, edge, face and inner nodes differ in valence, so there are several
-/// buckets), plus two springless nodes (a bucket of valence 0).
-pub fn random_model(seed: u64, damped: bool) -> PackedModel {
+/// fixed base: every term of the force law is exercised, and corner, edge, face and inner nodes
+/// differ in valence.
+pub fn random_box(seed: u64, damped: bool) -> PackedModel {
     let mut rng = Rng(seed);
     let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
     let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(
@@ -50,6 +51,12 @@ pub fn random_model(seed: u64, damped: bool) -> PackedModel {
     for m in &mut model.mass {
         *m *= 0.5 + rng.next();
     }
+    model
+}
+
+/// [`random_box`] plus two springless nodes (a valence bucket of width 0).
+pub fn random_model(seed: u64, damped: bool) -> PackedModel {
+    let mut model = random_box(seed, damped);
     for p in [[0.05, 0.05, 0.05], [-0.02, 0.01, 0.03]] {
         model.rest.push(p);
         model.mass.push(1e-4);
