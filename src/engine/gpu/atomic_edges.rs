@@ -32,10 +32,8 @@ const INTEGRATE_FLOAT: &str = concat!(
 
 /// The two passes of an atomic variant with their device data.
 pub struct AtomicEdgePasses {
-    accumulate: wgpu::ComputePipeline,
-    integrate: wgpu::ComputePipeline,
-    /// Per phase: (spring pass, node pass) bind groups.
-    bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+    /// Accumulating spring pass, then the integrating node pass.
+    passes: super::springs_edges::SpringThenNode,
     /// The overflow flag of the fixed-point variant (16 bytes; nonzero once a force saturated).
     overflow: Option<wgpu::Buffer>,
     _buffers: Vec<wgpu::Buffer>,
@@ -210,9 +208,11 @@ impl AtomicEdgePasses {
             )
         };
         Ok(AtomicEdgePasses {
-            accumulate: buffers::compute_pipeline(ctx, a_name, a_src, &[&accumulate_layout])?,
-            integrate: buffers::compute_pipeline(ctx, i_name, i_src, &[&integrate_layout])?,
-            bind_groups,
+            passes: super::springs_edges::SpringThenNode {
+                springs: buffers::compute_pipeline(ctx, a_name, a_src, &[&accumulate_layout])?,
+                nodes: buffers::compute_pipeline(ctx, i_name, i_src, &[&integrate_layout])?,
+                bind_groups,
+            },
             overflow: fixed.then(|| overflow.clone()),
             _buffers: vec![springs, inv_mass, acc, fx, overflow],
         })
@@ -226,13 +226,7 @@ impl AtomicEdgePasses {
         spring_groups: (u32, u32),
         node_groups: (u32, u32),
     ) {
-        let (accumulate_bg, integrate_bg) = &self.bind_groups[phase];
-        pass.set_pipeline(&self.accumulate);
-        pass.set_bind_group(0, accumulate_bg, &[]);
-        pass.dispatch_workgroups(spring_groups.0, spring_groups.1, 1);
-        pass.set_pipeline(&self.integrate);
-        pass.set_bind_group(0, integrate_bg, &[]);
-        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+        self.passes.record(pass, phase, spring_groups, node_groups);
     }
 
     /// Whether a spring force has saturated the fixed-point range since setup (always false

@@ -20,11 +20,38 @@ const GATHER: &str = concat!(
 
 /// The two passes with their device data.
 pub struct EdgePasses {
-    springs: wgpu::ComputePipeline,
-    gather: wgpu::ComputePipeline,
-    /// Per phase: (spring pass, gather pass) bind groups.
-    bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+    passes: SpringThenNode,
     _buffers: Vec<wgpu::Buffer>,
+}
+
+/// A pass over springs followed by a pass over nodes, each with one bind group per rotation
+/// phase: the step shape of every edge variant (gather or atomics).
+pub struct SpringThenNode {
+    /// The pass over springs.
+    pub springs: wgpu::ComputePipeline,
+    /// The pass over nodes.
+    pub nodes: wgpu::ComputePipeline,
+    /// Per phase: (spring pass, node pass) bind groups.
+    pub bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+}
+
+impl SpringThenNode {
+    /// Record one step in phase `phase`.
+    pub fn record(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        phase: usize,
+        spring_groups: (u32, u32),
+        node_groups: (u32, u32),
+    ) {
+        let (spring_bg, node_bg) = &self.bind_groups[phase];
+        pass.set_pipeline(&self.springs);
+        pass.set_bind_group(0, spring_bg, &[]);
+        pass.dispatch_workgroups(spring_groups.0, spring_groups.1, 1);
+        pass.set_pipeline(&self.nodes);
+        pass.set_bind_group(0, node_bg, &[]);
+        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+    }
 }
 
 /// A read-only storage buffer holding `data` (at least one element, as empty bindings are
@@ -102,9 +129,16 @@ impl EdgePasses {
             })
             .collect();
         Ok(EdgePasses {
-            springs: buffers::compute_pipeline(ctx, "springs_edges", SPRINGS, &[&spring_layout])?,
-            gather: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
-            bind_groups,
+            passes: SpringThenNode {
+                springs: buffers::compute_pipeline(
+                    ctx,
+                    "springs_edges",
+                    SPRINGS,
+                    &[&spring_layout],
+                )?,
+                nodes: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
+                bind_groups,
+            },
             _buffers: vec![springs, rows, incidence, inv_mass, forces],
         })
     }
@@ -117,12 +151,6 @@ impl EdgePasses {
         spring_groups: (u32, u32),
         node_groups: (u32, u32),
     ) {
-        let (spring_bg, gather_bg) = &self.bind_groups[phase];
-        pass.set_pipeline(&self.springs);
-        pass.set_bind_group(0, spring_bg, &[]);
-        pass.dispatch_workgroups(spring_groups.0, spring_groups.1, 1);
-        pass.set_pipeline(&self.gather);
-        pass.set_bind_group(0, gather_bg, &[]);
-        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+        self.passes.record(pass, phase, spring_groups, node_groups);
     }
 }
