@@ -3,6 +3,8 @@
 // Prepended with common.wgsl.
 
 const B_END: u32 = 0x80000000u;
+// Room a patch left at the end of a row (`lancet::layout::edges::NO_SPRING`).
+const NO_SPRING: u32 = 0xffffffffu;
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> incidence_rows: array<u32>;
@@ -31,6 +33,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var f = vec3<f32>(0.0);
     for (var e = incidence_rows[i]; e < incidence_rows[i + 1u]; e = e + 1u) {
         let entry = incidence[e];
+        if (entry == NO_SPRING) {
+            break;
+        }
         let fs = forces[entry & ~B_END].xyz;
         if ((entry & B_END) != 0u) {
             f = f - fs;

@@ -14,7 +14,7 @@ pub mod reference;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::model::{stable_time_step, PackedModel, StabilityBound};
+use crate::model::{stable_time_step, ModelDiff, PackedModel, StabilityBound};
 
 /// Time integration scheme.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -74,6 +74,26 @@ pub trait Engine: Send {
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
     /// writes, once): the numerator of the memory-bandwidth floor.
     fn memory(&self) -> EngineMemory;
+    /// Apply a change to the model in place, between steps (`model` is the model after
+    /// `diff`), and say what it cost; `Ok(None)` where the engine cannot patch itself and must
+    /// be rebuilt (the CPU engines, which [`Simulation::apply`] rebuilds with their state).
+    fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<Option<PatchCost>> {
+        let _ = (model, diff);
+        Ok(None)
+    }
+}
+
+/// What applying a model change cost an engine.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PatchCost {
+    /// Bytes of layout data written to the device (all of it for a rebuilt engine).
+    pub uploaded_bytes: u64,
+    /// Bytes of layout data in all (a full upload would write this much).
+    pub layout_bytes: u64,
+    /// Node states moved or cleared.
+    pub state_moves: usize,
+    /// Whether buffers were reallocated (or the engine rebuilt) and uploaded whole.
+    pub reallocated: bool,
 }
 
 /// What an engine keeps in memory and moves per step.
@@ -262,6 +282,57 @@ impl Simulation {
             .sum();
         self.start_energy = e.total();
         self.energy_scale = e.kinetic.abs() + e.elastic.abs() + gravity_scale + strain_floor;
+    }
+
+    /// Apply a change to the model between steps (what a cut produces): the GPU engine patches
+    /// its layout and uploads only what changed; the CPU engines are rebuilt with their state
+    /// carried over. New nodes start with the state of the node they copy, or at rest. The
+    /// stable time step is recomputed; a change that puts `dt` above it is refused (unless
+    /// `allow_unstable`). A refused change (an invalid diff, an unstable step) leaves the model
+    /// and engine as they were; a device failure while patching leaves the engine unusable.
+    pub fn apply(&mut self, diff: &ModelDiff) -> Result<PatchCost> {
+        let mut next = self.model.clone();
+        next.apply(diff)?;
+        let bound = stable_time_step(&next);
+        if self.config.dt > bound.dt && !self.config.allow_unstable {
+            return Err(Error::UnstableTimeStep {
+                dt: self.config.dt,
+                bound: bound.dt,
+                node: bound.node,
+            });
+        }
+        let cost = match self.engine.patch(&next, diff)? {
+            Some(cost) => cost,
+            None => {
+                let (mut x, mut v) = self.engine.state();
+                for a in &diff.added_nodes {
+                    let (p, u) = match a.state_from {
+                        Some(s) => {
+                            let s = s as usize;
+                            let offset = [0, 1, 2].map(|c| x[s][c] - self.model.rest[s][c]);
+                            ([0, 1, 2].map(|c| a.rest[c] + offset[c]), v[s])
+                        }
+                        None => (a.rest, [0.0; 3]),
+                    };
+                    x.push(p);
+                    v.push(u);
+                }
+                let (mut engine, _, _) = make_engine(&next, self.kind, self.config)?;
+                engine.set_state(&x, &v);
+                let memory = engine.memory();
+                self.engine = engine;
+                PatchCost {
+                    uploaded_bytes: memory.stats.total,
+                    layout_bytes: memory.stats.total,
+                    state_moves: diff.added_nodes.len(),
+                    reallocated: true,
+                }
+            }
+        };
+        self.model = next;
+        self.bound = bound;
+        self.reset_energy_reference();
+        Ok(cost)
     }
 
     /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.

@@ -3,10 +3,13 @@
 //! per node gathers its springs and integrates itself, so no two invocations write the same
 //! node. The price is padding: every node pays for the widest one.
 
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
 use crate::engine::Integrator;
 use crate::error::{Error, Result};
-use crate::model::PackedModel;
+use crate::model::{ModelDiff, PackedModel};
 
 /// Per-node data shared by the node-centric layouts, in the layout's node order.
 #[derive(Debug, Clone, PartialEq)]
@@ -21,17 +24,81 @@ impl NodeArrays {
         let inv_mass = order
             .order
             .iter()
-            .map(|&old| {
-                let old = old as usize;
-                if model.fixed[old] {
-                    0.0
-                } else {
-                    (1.0 / model.mass[old]) as f32
-                }
-            })
+            .map(|&old| inv_mass_of(model, old))
             .collect();
         NodeArrays { inv_mass }
     }
+}
+
+/// Inverse mass of model node `node` as the layouts store it: 0 for fixed nodes and for
+/// [`NodeOrder::HOLE`] (an unused layout index).
+pub(crate) fn inv_mass_of(model: &PackedModel, node: u32) -> f32 {
+    if node == NodeOrder::HOLE || model.fixed[node as usize] {
+        0.0
+    } else {
+        (1.0 / model.mass[node as usize]) as f32
+    }
+}
+
+/// The neighbours (model indices) of every node `diff` touches, in the model after the diff:
+/// `current(node)` gives a node's neighbours before it (empty for added nodes).
+pub(crate) fn touched_neighbours(
+    diff: &ModelDiff,
+    nodes_before: usize,
+    mut current: impl FnMut(u32) -> Vec<u32>,
+) -> BTreeMap<u32, Vec<u32>> {
+    let mut removed: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+    for &[a, b] in &diff.removed_springs {
+        removed.entry(a).or_default().insert(b);
+        removed.entry(b).or_default().insert(a);
+    }
+    let mut added: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+    for s in &diff.added_springs {
+        let [a, b] = s.nodes;
+        added.entry(a).or_default().push(b);
+        added.entry(b).or_default().push(a);
+    }
+    diff.touched_nodes(nodes_before)
+        .into_iter()
+        .map(|t| {
+            let mut list = if (t as usize) < nodes_before {
+                current(t)
+            } else {
+                Vec::new()
+            };
+            if let Some(r) = removed.get(&t) {
+                list.retain(|x| !r.contains(x));
+            }
+            if let Some(a) = added.get(&t) {
+                list.extend(a);
+            }
+            (t, list)
+        })
+        .collect()
+}
+
+/// The slots of model node `node` with neighbours `neighbours` (model indices), pointing at
+/// their layout indices `rank`, sorted by layout index as every packing sorts them.
+pub(crate) fn row_slots(
+    model: &PackedModel,
+    node: u32,
+    neighbours: &[u32],
+    rank: &[u32],
+) -> Result<Vec<Slot>> {
+    let mut row = neighbours
+        .iter()
+        .map(|&nb| {
+            let s = model.spring_index(node, nb).ok_or_else(|| {
+                Error::Model(format!(
+                    "the layout joins nodes {node} and {nb} but the model has no such spring; \
+                     the diff does not match the model it was applied to"
+                ))
+            })?;
+            Ok(Slot::of(model, &model.springs[s], node, rank[nb as usize]))
+        })
+        .collect::<Result<Vec<Slot>>>()?;
+    row.sort_by_key(|s| s.other);
+    Ok(row)
 }
 
 /// Springs packed into `K` slots per node.
@@ -144,6 +211,75 @@ impl ConnectivityLayout {
             second_next[i] = s;
         }
         (next, second_next)
+    }
+}
+
+impl ConnectivityLayout {
+    /// Apply `diff` (already applied to `model`, the model after the change): added nodes get
+    /// the next layout indices and `capacity` empty slots each, the rows of touched nodes are
+    /// rewritten. Only when a row outgrows `capacity` is the table repacked, with the capacity
+    /// grown to the next size class ([`row_size_class`]). The result equals
+    /// `ConnectivityLayout::new(model, self.order.clone(), Some(self.capacity))`.
+    pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
+        let before = self.node_count();
+        if model.node_count() != before + diff.added_nodes.len() {
+            return Err(Error::Model(format!(
+                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
+                 apply the diff to the model first, once",
+                diff.added_nodes.len(),
+                model.node_count()
+            )));
+        }
+        let k = self.capacity as usize;
+        let mut patch = LayoutPatch::default();
+        for (i, a) in diff.added_nodes.iter().enumerate() {
+            let node = (before + i) as u32;
+            self.order.order.push(node);
+            self.order.rank.push(node);
+            self.slots.extend(std::iter::repeat_n(Slot::empty(), k));
+            self.nodes.inv_mass.push(0.0);
+            patch.moves.push(StateMove {
+                to: node,
+                from: a.state_from.map(|s| self.order.rank[s as usize]),
+            });
+        }
+        let (order, slots) = (&self.order, &self.slots);
+        let lists = touched_neighbours(diff, before, |t| {
+            let row = order.rank[t as usize] as usize;
+            slots[row * k..(row + 1) * k]
+                .iter()
+                .take_while(|s| s.other != Slot::EMPTY)
+                .map(|s| order.order[s.other as usize])
+                .collect()
+        });
+        for &t in lists.keys() {
+            let row = self.order.rank[t as usize] as usize;
+            self.nodes.inv_mass[row] = inv_mass_of(model, t);
+        }
+        let widest = lists.values().map(|l| l.len() as u32).max().unwrap_or(0);
+        if widest > self.capacity {
+            let grown = row_size_class(widest);
+            *self = ConnectivityLayout::new(model, self.order.clone(), Some(grown))?;
+            patch.repacked = true;
+            patch.mark_all(LayoutArray::Slots, self.slots.len() as u64 * 32);
+            patch.mark_all(LayoutArray::InvMass, self.nodes.inv_mass.len() as u64 * 4);
+            patch.rest_fixed(model, diff, &self.order.rank);
+            patch.normalize();
+            return Ok(patch);
+        }
+        for (&t, list) in &lists {
+            let row = self.order.rank[t as usize] as usize;
+            let new = row_slots(model, t, list, &self.order.rank)?;
+            let dst = &mut self.slots[row * k..(row + 1) * k];
+            dst.fill(Slot::empty());
+            dst[..new.len()].copy_from_slice(&new);
+        }
+        let rows: Vec<u32> = lists.keys().map(|&t| self.order.rank[t as usize]).collect();
+        patch.mark(LayoutArray::Slots, rows.iter().copied(), k as u64, 32);
+        patch.mark(LayoutArray::InvMass, rows, 1, 4);
+        patch.rest_fixed(model, diff, &self.order.rank);
+        patch.normalize();
+        Ok(patch)
     }
 }
 

@@ -24,9 +24,14 @@ use serde::{Deserialize, Serialize};
 use super::connectivity::{
     integrate, spring_force, state_buffers, state_traffic, velocity, NodeArrays, StepParams,
 };
+use std::collections::BTreeSet;
+
+use super::connectivity::inv_mass_of;
+use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder};
 use crate::engine::Integrator;
-use crate::model::PackedModel;
+use crate::error::{Error, Result};
+use crate::model::{ModelDiff, PackedModel};
 
 /// One spring. Mirrors `struct EdgeSpring` in `shaders/springs_edges.wgsl` (32 bytes).
 #[repr(C)]
@@ -156,6 +161,10 @@ impl FixedPoint {
 /// Marks an incidence entry where the node is the spring's `b` end (the force acts reversed).
 pub const B_END: u32 = 1 << 31;
 
+/// An unused incidence entry: room a patch left at the end of a row. A row's entries come
+/// first, then only these; the gather stops at the first.
+pub const NO_SPRING: u32 = u32::MAX;
+
 /// Springs as records plus the node-to-spring incidence table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EdgeLayout {
@@ -169,6 +178,8 @@ pub struct EdgeLayout {
     pub incidence: Vec<u32>,
     /// Per-node arrays.
     pub nodes: NodeArrays,
+    /// Records of removed springs (zero stiffness, both ends on one node), reused first.
+    free: BTreeSet<u32>,
 }
 
 impl EdgeLayout {
@@ -209,6 +220,7 @@ impl EdgeLayout {
             incidence_rows,
             incidence,
             nodes,
+            free: BTreeSet::new(),
         }
     }
 
@@ -256,11 +268,31 @@ impl EdgeLayout {
 
     /// Largest number of springs at one node.
     pub fn max_valence(&self) -> u32 {
-        self.incidence_rows
-            .windows(2)
-            .map(|w| w[1] - w[0])
+        (0..self.node_count())
+            .map(|i| self.row(i).len() as u32)
             .max()
             .unwrap_or(0)
+    }
+
+    /// The used incidence entries of node `i` (layout order).
+    pub fn row(&self, i: usize) -> &[u32] {
+        let (lo, hi) = (self.incidence_rows[i], self.incidence_rows[i + 1]);
+        let row = &self.incidence[lo as usize..hi as usize];
+        let used = row
+            .iter()
+            .position(|&e| e == NO_SPRING)
+            .unwrap_or(row.len());
+        &row[..used]
+    }
+
+    /// The other end (layout order) of incidence entry `e`.
+    fn other_end(&self, e: u32) -> u32 {
+        let s = &self.springs[(e & !B_END) as usize];
+        if e & B_END != 0 {
+            s.a
+        } else {
+            s.b
+        }
     }
 
     /// The fixed-point constants for this layout of `model` (see [`FixedPoint`]).
@@ -288,6 +320,204 @@ impl EdgeLayout {
         let (rows, incidence) = incidence_table(self.node_count(), &self.springs);
         self.incidence_rows = rows;
         self.incidence = incidence;
+        self.free = self
+            .springs
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.a == s.b)
+            .map(|(i, _)| i as u32)
+            .collect();
+    }
+
+    /// Apply `diff` (already applied to `model`, the model after the change). Added nodes get
+    /// the next layout indices and an incidence row with room (a multiple of four entries);
+    /// removed springs become dead records (zero stiffness, both ends on one node) that added
+    /// springs reuse before the array grows; incidence rows are edited in place, keeping
+    /// their entries sorted by the other end, as a fresh packing sorts them. Only when a row has
+    /// no room left is the incidence table repacked, every row with room.
+    ///
+    /// Each node then sums the same forces in the same order as in
+    /// `EdgeLayout::new(model, self.order.clone())`, so both step bit for bit alike (gather and
+    /// fixed point), though the records sit elsewhere.
+    pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
+        let before = self.node_count();
+        if model.node_count() != before + diff.added_nodes.len() {
+            return Err(Error::Model(format!(
+                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
+                 apply the diff to the model first, once",
+                diff.added_nodes.len(),
+                model.node_count()
+            )));
+        }
+        let mut patch = LayoutPatch::default();
+        let mut degree = vec![0u32; diff.added_nodes.len()];
+        for s in &diff.added_springs {
+            for end in s.nodes {
+                if end as usize >= before {
+                    degree[end as usize - before] += 1;
+                }
+            }
+        }
+        for (i, a) in diff.added_nodes.iter().enumerate() {
+            let node = (before + i) as u32;
+            self.order.order.push(node);
+            self.order.rank.push(node);
+            self.nodes.inv_mass.push(0.0);
+            let end = *self.incidence_rows.last().expect("n + 1 row starts");
+            let room = row_size_class(degree[i]);
+            self.incidence_rows.push(end + room);
+            self.incidence
+                .extend(std::iter::repeat_n(NO_SPRING, room as usize));
+            patch.moves.push(StateMove {
+                to: node,
+                from: a.state_from.map(|s| self.order.rank[s as usize]),
+            });
+        }
+        if !diff.added_nodes.is_empty() {
+            patch.mark(
+                LayoutArray::IncidenceRows,
+                before as u32 + 1..self.incidence_rows.len() as u32,
+                1,
+                4,
+            );
+            let from = self.incidence_rows[before];
+            patch.mark(
+                LayoutArray::Incidence,
+                from..self.incidence.len() as u32,
+                1,
+                4,
+            );
+        }
+        let mut records: BTreeSet<u32> = BTreeSet::new();
+        let mut rows: BTreeSet<u32> = BTreeSet::new();
+        let mut overfull = false;
+        for &[a, b] in &diff.removed_springs {
+            let (ra, rb) = (self.order.rank[a as usize], self.order.rank[b as usize]);
+            let s = self.find(ra, rb).ok_or_else(|| no_spring(a, b))?;
+            self.unlink(ra, s);
+            self.unlink(rb, s);
+            self.springs[s as usize] = EdgeSpring {
+                a: ra,
+                b: ra,
+                ..Zeroable::zeroed()
+            };
+            self.free.insert(s);
+            records.insert(s);
+            rows.extend([ra, rb]);
+        }
+        for s in &diff.added_springs {
+            let record = self.record(model, s.nodes[0], s.nodes[1])?;
+            let idx = match self.free.pop_first() {
+                Some(i) => i,
+                None => {
+                    self.springs.push(record);
+                    self.springs.len() as u32 - 1
+                }
+            };
+            self.springs[idx as usize] = record;
+            records.insert(idx);
+            for (node, flag) in [(record.a, 0), (record.b, B_END)] {
+                overfull |= !self.link(node, idx | flag);
+                rows.insert(node);
+            }
+        }
+        for s in &diff.changed_springs {
+            let [a, b] = s.nodes;
+            let (ra, rb) = (self.order.rank[a as usize], self.order.rank[b as usize]);
+            let idx = self.find(ra, rb).ok_or_else(|| no_spring(a, b))?;
+            self.springs[idx as usize] = self.record(model, a, b)?;
+            records.insert(idx);
+        }
+        for t in diff.touched_nodes(before) {
+            let r = self.order.rank[t as usize];
+            self.nodes.inv_mass[r as usize] = inv_mass_of(model, t);
+            patch.mark(LayoutArray::InvMass, [r], 1, 4);
+        }
+        patch.mark(LayoutArray::EdgeSprings, records, 1, 32);
+        if overfull {
+            let (rows, incidence) = sorted_incidence(self.node_count(), &self.springs);
+            self.incidence_rows = rows;
+            self.incidence = incidence;
+            patch.repacked = true;
+            patch.mark_all(
+                LayoutArray::IncidenceRows,
+                self.incidence_rows.len() as u64 * 4,
+            );
+            patch.mark_all(LayoutArray::Incidence, self.incidence.len() as u64 * 4);
+        } else {
+            for r in rows {
+                let (lo, hi) = (
+                    self.incidence_rows[r as usize],
+                    self.incidence_rows[r as usize + 1],
+                );
+                patch.mark(LayoutArray::Incidence, lo..hi, 1, 4);
+            }
+        }
+        patch.rest_fixed(model, diff, &self.order.rank);
+        patch.normalize();
+        Ok(patch)
+    }
+
+    /// The record of the spring between model nodes `a` and `b` in `model`, ends in layout
+    /// order `a < b`.
+    fn record(&self, model: &PackedModel, a: u32, b: u32) -> Result<EdgeSpring> {
+        let s = model.spring_index(a, b).ok_or_else(|| no_spring(a, b))?;
+        let s = &model.springs[s];
+        let (ra, rb) = (self.order.rank[a as usize], self.order.rank[b as usize]);
+        let (from, lo, hi) = if ra < rb { (a, ra, rb) } else { (b, rb, ra) };
+        let slot = super::Slot::of(model, s, from, hi);
+        Ok(EdgeSpring {
+            edge: slot.edge,
+            rest: slot.rest,
+            k: slot.k,
+            c: slot.c,
+            a: lo,
+            b: hi,
+        })
+    }
+
+    /// The record joining layout nodes `ra` and `rb`, found in `ra`'s row.
+    fn find(&self, ra: u32, rb: u32) -> Option<u32> {
+        self.row(ra as usize)
+            .iter()
+            .find(|&&e| self.other_end(e) == rb)
+            .map(|&e| e & !B_END)
+    }
+
+    /// Remove record `s` from node `r`'s row, closing the gap.
+    fn unlink(&mut self, r: u32, s: u32) {
+        let (lo, hi) = (
+            self.incidence_rows[r as usize] as usize,
+            self.incidence_rows[r as usize + 1] as usize,
+        );
+        let row = &mut self.incidence[lo..hi];
+        if let Some(p) = row.iter().position(|&e| e & !B_END == s && e != NO_SPRING) {
+            row.copy_within(p + 1.., p);
+            row[row.len() - 1] = NO_SPRING;
+        }
+    }
+
+    /// Insert entry `e` into node `r`'s row at its place by other end; false if the row is
+    /// full (the caller repacks).
+    fn link(&mut self, r: u32, e: u32) -> bool {
+        let used = self.row(r as usize).len();
+        let (lo, hi) = (
+            self.incidence_rows[r as usize] as usize,
+            self.incidence_rows[r as usize + 1] as usize,
+        );
+        if used == hi - lo {
+            return false;
+        }
+        let other = self.other_end(e);
+        let at = self
+            .row(r as usize)
+            .iter()
+            .position(|&x| self.other_end(x) > other)
+            .unwrap_or(used);
+        let row = &mut self.incidence[lo..hi];
+        row.copy_within(at..used, at + 1);
+        row[at] = e;
+        true
     }
 
     /// The spring pass on the CPU, as `shaders/springs_edges.wgsl` computes it: the force each
@@ -328,8 +558,7 @@ impl EdgeLayout {
         (0..self.node_count())
             .map(|i| {
                 let mut f = [0.0f32; 3];
-                let (lo, hi) = (self.incidence_rows[i], self.incidence_rows[i + 1]);
-                for &e in &self.incidence[lo as usize..hi as usize] {
+                for &e in self.row(i) {
                     let fs = forces[(e & !B_END) as usize];
                     if e & B_END != 0 {
                         for c in 0..3 {
@@ -480,6 +709,39 @@ impl EdgeLayout {
         let forces = self.spring_forces_cpu(p, cur, second);
         self.gather_cpu(p, &forces, cur, second)
     }
+}
+
+/// The error for a spring the layout does not have.
+fn no_spring(a: u32, b: u32) -> Error {
+    Error::Model(format!(
+        "there is no spring {a}-{b} in the layout or the model; the diff does not match the \
+         model it was applied to"
+    ))
+}
+
+/// The incidence table of a spring pool (dead records skipped), each row sorted by the other
+/// end and with room to a multiple of four entries ([`row_size_class`]), [`NO_SPRING`] after
+/// the entries.
+fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
+    let mut lists: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
+    for (idx, s) in springs.iter().enumerate() {
+        if s.a == s.b {
+            continue;
+        }
+        lists[s.a as usize].push((s.b, idx as u32));
+        lists[s.b as usize].push((s.a, idx as u32 | B_END));
+    }
+    let mut rows = Vec::with_capacity(n + 1);
+    let mut incidence = Vec::new();
+    rows.push(0);
+    for mut list in lists {
+        list.sort_unstable();
+        let room = row_size_class(list.len() as u32) as usize;
+        incidence.extend(list.iter().map(|&(_, e)| e));
+        incidence.extend(std::iter::repeat_n(NO_SPRING, room - list.len()));
+        rows.push(incidence.len() as u32);
+    }
+    (rows, incidence)
 }
 
 /// The node-to-spring incidence table of `springs` over `n` nodes: row starts and entries (spring

@@ -13,6 +13,7 @@
 
 pub mod connectivity;
 pub mod edges;
+pub mod patch;
 pub mod rcm;
 pub mod valence;
 
@@ -104,13 +105,29 @@ pub struct NodeOrder {
 }
 
 impl NodeOrder {
-    /// Build from `order[new] = old`.
+    /// Marks a layout index that holds no node (room left in a valence bucket).
+    pub const HOLE: u32 = u32::MAX;
+
+    /// Build from `order[new] = old`; entries may be [`NodeOrder::HOLE`], and the model nodes
+    /// are those that appear.
     pub fn from_order(order: Vec<u32>) -> Self {
-        let mut rank = vec![0u32; order.len()];
+        let nodes = order.iter().filter(|&&o| o != Self::HOLE).count();
+        let mut rank = vec![0u32; nodes];
         for (new, &old) in order.iter().enumerate() {
-            rank[old as usize] = new as u32;
+            if old != Self::HOLE {
+                rank[old as usize] = new as u32;
+            }
         }
         NodeOrder { order, rank }
+    }
+
+    /// Layout index and model index of every node, skipping holes.
+    pub fn pairs(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.order
+            .iter()
+            .enumerate()
+            .filter(|(_, &old)| old != Self::HOLE)
+            .map(|(new, &old)| (new, old as usize))
     }
 
     /// The model's own order.
@@ -187,5 +204,97 @@ impl MemoryStats {
     /// Padding as a percentage of the total.
     pub fn padding_percent(&self) -> f64 {
         100.0 * self.padding as f64 / self.total.max(1) as f64
+    }
+}
+
+/// A model packed in one of the layouts: what an engine keeps to patch it after edits.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PackedLayout {
+    /// Fixed slots per node.
+    Connectivity(connectivity::ConnectivityLayout),
+    /// Per-valence tables.
+    Valence(valence::ValenceLayout),
+    /// Spring records and incidence table.
+    Edges(edges::EdgeLayout),
+}
+
+impl PackedLayout {
+    /// Pack `model` in `kind`, starting from node order `order` (valence regroups it).
+    pub fn pack(model: &PackedModel, kind: LayoutKind, order: NodeOrder) -> crate::Result<Self> {
+        Ok(match kind {
+            LayoutKind::Connectivity => {
+                Self::Connectivity(connectivity::ConnectivityLayout::new(model, order, None)?)
+            }
+            LayoutKind::Valence => Self::Valence(valence::ValenceLayout::new(model, &order)),
+            LayoutKind::Edges => Self::Edges(edges::EdgeLayout::new(model, order)),
+        })
+    }
+
+    /// Which layout this is.
+    pub fn kind(&self) -> LayoutKind {
+        match self {
+            Self::Connectivity(_) => LayoutKind::Connectivity,
+            Self::Valence(_) => LayoutKind::Valence,
+            Self::Edges(_) => LayoutKind::Edges,
+        }
+    }
+
+    /// The node renumbering.
+    pub fn order(&self) -> &NodeOrder {
+        match self {
+            Self::Connectivity(c) => &c.order,
+            Self::Valence(v) => &v.order,
+            Self::Edges(e) => &e.order,
+        }
+    }
+
+    /// Layout indices, holes included: the length of every per-node device array.
+    pub fn node_slots(&self) -> usize {
+        self.order().order.len()
+    }
+
+    /// Apply `diff`, already applied to `model`; see each layout's `patch`.
+    pub fn patch(
+        &mut self,
+        model: &PackedModel,
+        diff: &crate::model::ModelDiff,
+    ) -> crate::Result<patch::LayoutPatch> {
+        match self {
+            Self::Connectivity(c) => c.patch(model, diff),
+            Self::Valence(v) => v.patch(model, diff),
+            Self::Edges(e) => e.patch(model, diff),
+        }
+    }
+
+    /// The bytes of one of the arrays this layout uploads (empty if it has no such array).
+    pub fn array(&self, array: patch::LayoutArray) -> &[u8] {
+        use patch::LayoutArray as A;
+        match (self, array) {
+            (Self::Connectivity(c), A::Slots) => bytemuck::cast_slice(&c.slots),
+            (Self::Connectivity(c), A::InvMass) => bytemuck::cast_slice(&c.nodes.inv_mass),
+            (Self::Valence(v), A::Slots) => bytemuck::cast_slice(&v.slots),
+            (Self::Valence(v), A::InvMass) => bytemuck::cast_slice(&v.nodes.inv_mass),
+            (Self::Valence(v), A::Buckets) => bytemuck::cast_slice(&v.buckets),
+            (Self::Edges(e), A::EdgeSprings) => bytemuck::cast_slice(&e.springs),
+            (Self::Edges(e), A::IncidenceRows) => bytemuck::cast_slice(&e.incidence_rows),
+            (Self::Edges(e), A::Incidence) => bytemuck::cast_slice(&e.incidence),
+            (Self::Edges(e), A::InvMass) => bytemuck::cast_slice(&e.nodes.inv_mass),
+            _ => &[],
+        }
+    }
+
+    /// One step on the CPU exactly as the layout's GPU passes take it (the gather variant for
+    /// edges); see [`connectivity::ConnectivityLayout::step_cpu`].
+    pub fn step_cpu(
+        &self,
+        p: &connectivity::StepParams,
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+        match self {
+            Self::Connectivity(c) => c.step_cpu(p, cur, second),
+            Self::Valence(v) => v.step_cpu(p, cur, second),
+            Self::Edges(e) => e.step_cpu(p, cur, second),
+        }
     }
 }

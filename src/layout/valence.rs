@@ -5,10 +5,27 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::connectivity::{node_update, state_buffers, state_traffic, NodeArrays, StepParams};
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::connectivity::{
+    inv_mass_of, node_update, row_slots, state_buffers, state_traffic, touched_neighbours,
+    NodeArrays, StepParams,
+};
+use super::patch::{LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
 use crate::engine::Integrator;
-use crate::model::PackedModel;
+use crate::error::{Error, Result};
+use crate::model::{ModelDiff, PackedModel};
+
+/// Springs at each node of `model`.
+fn valences(model: &PackedModel) -> Vec<u32> {
+    let mut valence = vec![0u32; model.node_count()];
+    for s in &model.springs {
+        valence[s.nodes[0] as usize] += 1;
+        valence[s.nodes[1] as usize] += 1;
+    }
+    valence
+}
 
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
@@ -28,28 +45,33 @@ pub struct Bucket {
 const _: () = assert!(std::mem::size_of::<Bucket>() == 16);
 
 /// Springs packed into per-valence tables.
+///
+/// After incremental patches a valence may have several buckets (the first ones from the
+/// packing, later ones appended at the end with room to spare), and a bucket may hold holes
+/// ([`NodeOrder::HOLE`] layout indices with no springs and zero inverse mass, which the pass
+/// skips). Each bucket is one dispatch over `count` nodes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ValenceLayout {
-    /// Node renumbering: `order.order[layout] = model`, `order.rank[model] = layout`.
+    /// Node renumbering: `order.order[layout] = model` (or a hole), `order.rank[model] = layout`.
     pub order: NodeOrder,
-    /// Buckets in increasing valence.
+    /// Buckets in increasing `first`: by valence from the packing, then those patches added.
     pub buckets: Vec<Bucket>,
-    /// All tables, back to back; exactly two slots per spring.
+    /// Nodes each bucket has room for (`>= count`); its layout indices and slot table extend
+    /// that far.
+    pub room: Vec<u32>,
+    /// All tables, back to back; exactly two slots per spring until patches leave room.
     pub slots: Vec<Slot>,
     /// Per-node arrays, layout order.
     pub nodes: NodeArrays,
+    /// Holes inside dispatched ranges, by valence, to refill first.
+    free: BTreeMap<u32, BTreeSet<u32>>,
 }
 
 impl ValenceLayout {
     /// Pack `model`, grouping nodes by valence and keeping `base` order (for locality) within
     /// each bucket.
     pub fn new(model: &PackedModel, base: &NodeOrder) -> Self {
-        let n = model.node_count();
-        let mut valence = vec![0u32; n];
-        for s in &model.springs {
-            valence[s.nodes[0] as usize] += 1;
-            valence[s.nodes[1] as usize] += 1;
-        }
+        let valence = valences(model);
         // Stable sort of the base order by valence: buckets keep the locality within them.
         let mut order = base.order.clone();
         order.sort_by_key(|&old| valence[old as usize]);
@@ -69,35 +91,274 @@ impl ValenceLayout {
             }
             offset += v;
         }
-        // A node's table starts at its bucket's offset plus its rank in the bucket times the
-        // width, which is also the running sum of valences before it.
-        let mut start = vec![0u32; n];
-        let mut run = 0u32;
-        for (new, &old) in order.order.iter().enumerate() {
-            start[new] = run;
-            run += valence[old as usize];
-        }
-        let mut slots = vec![Slot::empty(); run as usize];
-        let mut fill = vec![0u32; n];
-        for s in &model.springs {
-            for (from, to) in [(s.nodes[0], s.nodes[1]), (s.nodes[1], s.nodes[0])] {
-                let row = order.rank[from as usize] as usize;
-                slots[(start[row] + fill[row]) as usize] =
-                    Slot::of(model, s, from, order.rank[to as usize]);
-                fill[row] += 1;
+        let room = buckets.iter().map(|b| b.count).collect();
+        Self::arranged(model, order, buckets, room)
+            .expect("buckets made from the model's own valences")
+    }
+
+    /// Pack `model` in a given arrangement: node order (with holes), buckets and their room.
+    /// Every node must sit in a bucket of its valence, inside the bucket's `count`. This is the
+    /// from-scratch packing that a patched layout equals.
+    pub fn arranged(
+        model: &PackedModel,
+        order: NodeOrder,
+        buckets: Vec<Bucket>,
+        room: Vec<u32>,
+    ) -> Result<Self> {
+        let valence = valences(model);
+        let (graph_rows, graph_cols) = super::spring_graph(model);
+        let slot_count = buckets
+            .iter()
+            .zip(&room)
+            .map(|(b, &r)| b.offset + r * b.valence)
+            .max()
+            .unwrap_or(0);
+        let mut slots = vec![Slot::empty(); slot_count as usize];
+        let mut free: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+        let mut placed = 0usize;
+        for (b, &r) in buckets.iter().zip(&room) {
+            if b.count > r {
+                return Err(Error::Model(format!(
+                    "a valence bucket dispatches {} nodes but has room for {r}",
+                    b.count
+                )));
+            }
+            for local in 0..r {
+                let idx = b.first + local;
+                let node = order
+                    .order
+                    .get(idx as usize)
+                    .copied()
+                    .unwrap_or(NodeOrder::HOLE);
+                if node == NodeOrder::HOLE {
+                    if local < b.count {
+                        free.entry(b.valence).or_default().insert(idx);
+                    }
+                    continue;
+                }
+                if valence[node as usize] != b.valence || local >= b.count {
+                    return Err(Error::Model(format!(
+                        "node {node} (valence {}) sits at layout index {idx}, which is not a \
+                         dispatched place of a valence-{} bucket",
+                        valence[node as usize], b.valence
+                    )));
+                }
+                placed += 1;
+                let (lo, hi) = (graph_rows[node as usize], graph_rows[node as usize + 1]);
+                let row = row_slots(
+                    model,
+                    node,
+                    &graph_cols[lo as usize..hi as usize],
+                    &order.rank,
+                )?;
+                let at = (b.offset + local * b.valence) as usize;
+                slots[at..at + row.len()].copy_from_slice(&row);
             }
         }
-        for (new, &old) in order.order.iter().enumerate() {
-            let (a, v) = (start[new] as usize, valence[old as usize] as usize);
-            slots[a..a + v].sort_by_key(|s| s.other);
+        if placed != model.node_count() {
+            return Err(Error::Model(format!(
+                "the arrangement places {placed} of the model's {} nodes",
+                model.node_count()
+            )));
         }
         let nodes = NodeArrays::new(model, &order);
-        ValenceLayout {
+        Ok(ValenceLayout {
             order,
             buckets,
+            room,
             slots,
             nodes,
+            free,
+        })
+    }
+
+    /// Apply `diff` (already applied to `model`, the model after the change). A node whose
+    /// valence changes moves to a bucket of its new valence: into a hole, into room at the end
+    /// of a bucket, or into a new bucket appended with room for more (a size class of a
+    /// sixteenth of that valence's nodes, at least 32); no other node moves, the rows pointing at a moved
+    /// node are rewritten, and its state moves with it. The result equals
+    /// [`ValenceLayout::arranged`] of `model` in the patched arrangement.
+    pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
+        let before = self.order.rank.len();
+        if model.node_count() != before + diff.added_nodes.len() {
+            return Err(Error::Model(format!(
+                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
+                 apply the diff to the model first, once",
+                diff.added_nodes.len(),
+                model.node_count()
+            )));
         }
+        let old_rank = self.order.rank.clone();
+        let lists = touched_neighbours(diff, before, |t| self.neighbours(t));
+        // Untouched neighbours of touched nodes: their rows are rewritten if a node they point
+        // at moves, so their neighbour lists are read now, in the order before the patch.
+        let mut others: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+        for list in lists.values() {
+            for &nb in list {
+                if !lists.contains_key(&nb) && !others.contains_key(&nb) {
+                    others.insert(nb, self.neighbours(nb));
+                }
+            }
+        }
+        let mut patch = LayoutPatch::default();
+        let buckets_before = self.buckets.len();
+        let mut moves: BTreeMap<u32, Option<u32>> = BTreeMap::new();
+        let mut moved: Vec<u32> = Vec::new();
+        let mut rows: BTreeSet<u32> = BTreeSet::new();
+        let mut buckets_changed = false;
+        self.order.rank.resize(model.node_count(), NodeOrder::HOLE);
+        for (&t, list) in &lists {
+            let v = list.len() as u32;
+            let new_node = t as usize >= before;
+            let stays = !new_node && {
+                let idx = self.order.rank[t as usize];
+                self.buckets[self.bucket_of(idx)].valence == v
+            };
+            if stays {
+                rows.insert(self.order.rank[t as usize]);
+                continue;
+            }
+            let from = if new_node {
+                diff.added_nodes[t as usize - before]
+                    .state_from
+                    .map(|s| old_rank[s as usize])
+            } else {
+                let idx = self.order.rank[t as usize];
+                self.vacate(idx);
+                rows.insert(idx);
+                moves.entry(idx).or_insert(None);
+                Some(idx)
+            };
+            let (idx, table_changed) = self.place(v, model.node_count());
+            buckets_changed |= table_changed;
+            self.order.order[idx as usize] = t;
+            self.order.rank[t as usize] = idx;
+            moves.insert(idx, from);
+            rows.insert(idx);
+            moved.push(t);
+        }
+        // Rewrite the rows of touched nodes and of neighbours that point at a moved node.
+        let mut write: BTreeMap<u32, &Vec<u32>> = lists.iter().map(|(&t, l)| (t, l)).collect();
+        for &t in &moved {
+            for nb in &lists[&t] {
+                if let Some(l) = others.get(nb) {
+                    write.insert(*nb, l);
+                }
+            }
+        }
+        for (&t, list) in &write {
+            let idx = self.order.rank[t as usize];
+            let b = self.buckets[self.bucket_of(idx)];
+            let row = row_slots(model, t, list, &self.order.rank)?;
+            let at = (b.offset + (idx - b.first) * b.valence) as usize;
+            self.slots[at..at + row.len()].copy_from_slice(&row);
+            self.nodes.inv_mass[idx as usize] = inv_mass_of(model, t);
+            rows.insert(idx);
+        }
+        for &idx in &rows {
+            let b = self.buckets[self.bucket_of(idx)];
+            let at = b.offset + (idx - b.first) * b.valence;
+            patch.mark(LayoutArray::Slots, at..at + b.valence, 1, 32);
+        }
+        patch.mark(LayoutArray::InvMass, rows.iter().copied(), 1, 4);
+        // Appended buckets go up whole (empty slots, zero masses), so the device mirrors the
+        // arrays everywhere, not only where nodes were placed.
+        for (b, &room) in self.buckets.iter().zip(&self.room).skip(buckets_before) {
+            patch.mark(
+                LayoutArray::Slots,
+                b.offset..b.offset + room * b.valence,
+                1,
+                32,
+            );
+            patch.mark(LayoutArray::InvMass, b.first..b.first + room, 1, 4);
+        }
+        if buckets_changed {
+            patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
+        }
+        patch.moves = moves
+            .into_iter()
+            .map(|(to, from)| StateMove { to, from })
+            .collect();
+        patch.rest_fixed(model, diff, &self.order.rank);
+        patch.normalize();
+        Ok(patch)
+    }
+
+    /// Neighbours (model indices) of model node `t`, from its row.
+    fn neighbours(&self, t: u32) -> Vec<u32> {
+        let idx = self.order.rank[t as usize];
+        let b = self.buckets[self.bucket_of(idx)];
+        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        self.slots[at..at + b.valence as usize]
+            .iter()
+            .take_while(|s| s.other != Slot::EMPTY)
+            .map(|s| self.order.order[s.other as usize])
+            .collect()
+    }
+
+    /// The bucket holding layout index `idx`.
+    fn bucket_of(&self, idx: u32) -> usize {
+        self.buckets.partition_point(|b| b.first <= idx) - 1
+    }
+
+    /// Turn layout index `idx` into a hole: no node, no springs, no mass.
+    fn vacate(&mut self, idx: u32) {
+        let b = self.buckets[self.bucket_of(idx)];
+        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        self.slots[at..at + b.valence as usize].fill(Slot::empty());
+        self.nodes.inv_mass[idx as usize] = 0.0;
+        self.order.order[idx as usize] = NodeOrder::HOLE;
+        self.free.entry(b.valence).or_default().insert(idx);
+    }
+
+    /// A free layout index in a bucket of valence `v`, and whether the bucket table changed (a
+    /// count grew or a bucket was appended).
+    fn place(&mut self, v: u32, nodes: usize) -> (u32, bool) {
+        if let Some(holes) = self.free.get_mut(&v) {
+            let idx = holes.pop_first();
+            if holes.is_empty() {
+                self.free.remove(&v);
+            }
+            if let Some(idx) = idx {
+                return (idx, false);
+            }
+        }
+        if let Some(i) = (0..self.buckets.len())
+            .rev()
+            .find(|&i| self.buckets[i].valence == v && self.buckets[i].count < self.room[i])
+        {
+            let b = &mut self.buckets[i];
+            b.count += 1;
+            return (b.first + b.count - 1, true);
+        }
+        let same: u32 = self
+            .buckets
+            .iter()
+            .filter(|b| b.valence == v)
+            .map(|b| b.count)
+            .sum();
+        let room = (same / 16)
+            .max(32)
+            .next_power_of_two()
+            .min(nodes.max(32) as u32);
+        let first = self.order.order.len() as u32;
+        let offset = self.slots.len() as u32;
+        self.order
+            .order
+            .extend(std::iter::repeat_n(NodeOrder::HOLE, room as usize));
+        self.nodes
+            .inv_mass
+            .extend(std::iter::repeat_n(0.0, room as usize));
+        self.slots
+            .extend(std::iter::repeat_n(Slot::empty(), (room * v) as usize));
+        self.buckets.push(Bucket {
+            valence: v,
+            first,
+            count: 1,
+            offset,
+        });
+        self.room.push(room);
+        (first, true)
     }
 
     /// Number of nodes.

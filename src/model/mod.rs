@@ -7,6 +7,7 @@
 //! dense [`PackedModel`] made by [`SpringModel::pack`].
 
 pub mod constraints;
+pub mod diff;
 pub mod material;
 pub mod stability;
 
@@ -19,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::mesh::{NodeKey, TetKey, TetMesh, TET_EDGES};
 
 pub use constraints::FixedSelector;
+pub use diff::{AddedNode, ModelDiff, NodeChange};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
 pub use stability::{stable_time_step, StabilityBound};
 
@@ -453,6 +455,14 @@ impl PackedModel {
                 stiffness: k,
                 damping: c,
             });
+        }
+        // Engines and diffs rely on springs sorted by end pair (`PackedModel::spring_index`).
+        packed.sort_by_key(|s| s.nodes);
+        if let Some(w) = packed.windows(2).find(|w| w[0].nodes == w[1].nodes) {
+            let [a, b] = w[0].nodes;
+            return Err(Error::Model(format!(
+                "spring {a}-{b} is given twice; give each spring once"
+            )));
         }
         Ok(PackedModel {
             node_keys: vec![NodeKey::default(); n],

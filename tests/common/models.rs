@@ -86,3 +86,135 @@ pub fn random_state(model: &PackedModel, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64;
     }
     (x, v)
 }
+
+/// A cut-like random change of `model`: some springs removed (as across a cut plane), a few
+/// nodes split (a copy takes half the mass and some of the springs, starting from the
+/// original's state), some springs re-parameterised, a few new springs (raising valences) and a
+/// node freed or fixed.
+pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
+    use lancet::model::PackedSpring;
+    use lancet::model::{AddedNode, ModelDiff, NodeChange};
+    use std::collections::BTreeSet;
+    let mut rng = Rng(seed ^ 0x9e37_79b9_7f4a_7c15);
+    let n = model.node_count();
+    let pick = |rng: &mut Rng, len: usize| ((rng.next() * len as f64) as usize).min(len - 1);
+    let mut diff = ModelDiff::default();
+    let mut gone: BTreeSet<[u32; 2]> = BTreeSet::new();
+    for _ in 0..1 + pick(&mut rng, 6) {
+        let s = model.springs[pick(&mut rng, model.springs.len())].nodes;
+        if gone.insert(s) {
+            diff.removed_springs.push(s);
+        }
+    }
+    let mut mass = model.mass.clone();
+    for _ in 0..pick(&mut rng, 4) {
+        let orig = pick(&mut rng, n) as u32;
+        let copy = (n + diff.added_nodes.len()) as u32;
+        let half = mass[orig as usize] / 2.0;
+        mass[orig as usize] = half;
+        diff.added_nodes.push(AddedNode {
+            key: model.node_keys[orig as usize],
+            rest: model.rest[orig as usize],
+            mass: half,
+            fixed: model.fixed[orig as usize],
+            state_from: Some(orig),
+        });
+        diff.changed_nodes.retain(|c| c.node != orig);
+        diff.changed_nodes.push(NodeChange {
+            node: orig,
+            mass: half,
+            fixed: model.fixed[orig as usize],
+        });
+        // Every other spring of the original moves to the copy.
+        let springs: Vec<&PackedSpring> = model
+            .springs
+            .iter()
+            .filter(|s| s.nodes.contains(&orig) && !gone.contains(&s.nodes))
+            .collect();
+        for s in springs.into_iter().step_by(2) {
+            let other = if s.nodes[0] == orig {
+                s.nodes[1]
+            } else {
+                s.nodes[0]
+            };
+            gone.insert(s.nodes);
+            diff.removed_springs.push(s.nodes);
+            diff.added_springs.push(PackedSpring {
+                nodes: [other.min(copy), other.max(copy)],
+                ..*s
+            });
+        }
+    }
+    for s in &model.springs {
+        if !gone.contains(&s.nodes) && rng.next() < 0.03 {
+            diff.changed_springs.push(PackedSpring {
+                stiffness: s.stiffness * (0.5 + rng.next()),
+                damping: s.damping * (0.5 + rng.next()),
+                ..*s
+            });
+        }
+    }
+    // New springs from a node to nodes two hops away: valences rise past the widest row.
+    for _ in 0..pick(&mut rng, 3) {
+        let a = pick(&mut rng, n) as u32;
+        let near: BTreeSet<u32> = model
+            .springs
+            .iter()
+            .filter(|s| s.nodes.contains(&a))
+            .map(|s| {
+                if s.nodes[0] == a {
+                    s.nodes[1]
+                } else {
+                    s.nodes[0]
+                }
+            })
+            .collect();
+        let two: Vec<u32> = model
+            .springs
+            .iter()
+            .filter(|s| near.contains(&s.nodes[0]) || near.contains(&s.nodes[1]))
+            .flat_map(|s| s.nodes)
+            .filter(|b| *b != a && !near.contains(b))
+            .collect();
+        for &b in two.iter().take(1 + pick(&mut rng, 6)) {
+            let key = [a.min(b), a.max(b)];
+            if gone.contains(&key) || diff.added_springs.iter().any(|s| s.nodes == key) {
+                continue;
+            }
+            let d: f64 = (0..3)
+                .map(|c| (model.rest[a as usize][c] - model.rest[b as usize][c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            diff.added_springs.push(PackedSpring {
+                nodes: key,
+                rest_length: d,
+                stiffness: 100.0 * (0.5 + rng.next()),
+                damping: 0.01,
+            });
+        }
+    }
+    let t = pick(&mut rng, n) as u32;
+    if !diff.changed_nodes.iter().any(|c| c.node == t) {
+        diff.changed_nodes.push(NodeChange {
+            node: t,
+            mass: mass[t as usize],
+            fixed: !model.fixed[t as usize],
+        });
+    }
+    diff
+}
+
+/// `state` (layout order before a patch) after the patch's state moves, `slots` entries long:
+/// what the device must hold after [`lancet::layout::patch::StateMove`]s.
+pub fn moved_state(
+    state: &[[f32; 4]],
+    moves: &[lancet::layout::patch::StateMove],
+    slots: usize,
+) -> Vec<[f32; 4]> {
+    let mut out = state.to_vec();
+    out.resize(slots, [0.0; 4]);
+    for m in moves {
+        out[m.to as usize] = m.from.map_or([0.0; 4], |f| state[f as usize]);
+    }
+    out
+}

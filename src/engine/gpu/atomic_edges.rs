@@ -6,10 +6,12 @@
 
 use wgpu::util::DeviceExt;
 
+use super::buffers::{self, Sizing};
 use super::springs_edges::upload;
-use super::{buffers, GpuContext, NodeState};
+use super::{GpuContext, NodeState};
 use crate::error::{Error, Result};
-use crate::layout::edges::{Accumulation, EdgeLayout, EdgeSpring, FixedPoint};
+use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};
+use crate::layout::patch::LayoutArray;
 
 const ACCUMULATE_FIXED: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
@@ -36,7 +38,8 @@ pub struct AtomicEdgePasses {
     passes: super::springs_edges::SpringThenNode,
     /// The overflow flag of the fixed-point variant (16 bytes; nonzero once a force saturated).
     overflow: Option<wgpu::Buffer>,
-    _buffers: Vec<wgpu::Buffer>,
+    /// Springs, inverse masses, accumulators, fixed-point constants, overflow flag.
+    buffers: [wgpu::Buffer; 5],
 }
 
 impl AtomicEdgePasses {
@@ -50,6 +53,7 @@ impl AtomicEdgePasses {
         fp: FixedPoint,
         uniform: &wgpu::Buffer,
         state: &NodeState,
+        sizing: Sizing,
     ) -> Result<Self> {
         let fixed = match accumulation {
             Accumulation::AtomicFixed => true,
@@ -75,9 +79,10 @@ impl AtomicEdgePasses {
             }
         };
         let d = &ctx.device;
-        let springs = upload::<EdgeSpring>(ctx, "edge springs", &layout.springs)?;
-        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass)?;
-        let acc_bytes = (layout.node_count().max(1) * 12) as u64;
+        let springs = upload(ctx, "edge springs", &layout.springs, sizing)?;
+        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass, sizing)?;
+        // Three accumulators for every node the mass buffer has room for.
+        let acc_bytes = inv_mass.size() / 4 * 12;
         buffers::check_binding(ctx, "accumulators", acc_bytes)?;
         // Created zeroed; the node pass leaves them zero after every step.
         let acc = d.create_buffer(&wgpu::BufferDescriptor {
@@ -89,7 +94,7 @@ impl AtomicEdgePasses {
         let fx = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("fixed-point constants"),
             contents: bytemuck::bytes_of(&fp),
-            usage: wgpu::BufferUsages::UNIFORM,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let overflow = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("overflow flag"),
@@ -214,8 +219,24 @@ impl AtomicEdgePasses {
                 bind_groups,
             },
             overflow: fixed.then(|| overflow.clone()),
-            _buffers: vec![springs, inv_mass, acc, fx, overflow],
+            buffers: [springs, inv_mass, acc, fx, overflow],
         })
+    }
+
+    /// The device buffer of a layout array, if this pass holds it.
+    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match array {
+            LayoutArray::EdgeSprings => Some(&self.buffers[0]),
+            LayoutArray::InvMass => Some(&self.buffers[1]),
+            _ => None,
+        }
+    }
+
+    /// Replace the fixed-point constants (after a patch raised the largest valence past what
+    /// they were made for).
+    pub fn set_fixed_point(&self, ctx: &GpuContext, fp: &FixedPoint) {
+        ctx.queue
+            .write_buffer(&self.buffers[3], 0, bytemuck::bytes_of(fp));
     }
 
     /// Record one step in phase `phase`: the accumulating spring pass, then the node pass.

@@ -111,6 +111,60 @@ pub fn check_binding(ctx: &GpuContext, what: &str, bytes: u64) -> Result<()> {
     Ok(())
 }
 
+/// How much room a buffer gets beyond its data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sizing {
+    /// Exactly the data (the first upload: memory as the layout reports it).
+    Exact,
+    /// The next power of two (after a patch outgrew a buffer: room for the next edits).
+    SizeClass,
+}
+
+impl Sizing {
+    /// Bytes to allocate for `bytes` of data on `ctx`: at least one element of the largest
+    /// struct bound (32 bytes), since an empty binding is invalid; a size class never past the
+    /// binding limit.
+    pub fn size(self, ctx: &GpuContext, bytes: u64) -> u64 {
+        let bytes = bytes.max(32);
+        match self {
+            Sizing::Exact => bytes,
+            Sizing::SizeClass => {
+                let max = ctx
+                    .limits
+                    .max_storage_buffer_binding_size
+                    .min(ctx.limits.max_buffer_size);
+                bytes.next_power_of_two().min(max).max(bytes)
+            }
+        }
+    }
+}
+
+/// A storage buffer holding `data` (which may be empty: bindings never are), sized by
+/// `sizing`, writable by queue writes so patches can update it in place.
+pub fn storage_buffer(
+    ctx: &GpuContext,
+    label: &str,
+    data: &[u8],
+    sizing: Sizing,
+) -> Result<wgpu::Buffer> {
+    let size = sizing.size(ctx, data.len() as u64).next_multiple_of(4);
+    check_binding(ctx, label, size)?;
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    // New buffers are zeroed; the data (a whole number of 4-byte words) lands before the next
+    // submission.
+    if !data.is_empty() {
+        ctx.queue.write_buffer(&buffer, 0, data);
+    }
+    Ok(buffer)
+}
+
 /// Copy `src` into a mappable buffer and read it back as vec4s.
 pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> {
     let d = &ctx.device;

@@ -17,17 +17,17 @@ pub mod springs_edges;
 pub mod springs_valence;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 pub use context::GpuContext;
 
-use super::{Engine, EngineMemory, Integrator, SimConfig};
+use super::{Engine, EngineMemory, Integrator, PatchCost, SimConfig};
 use crate::error::Result;
-use crate::layout::connectivity::{ConnectivityLayout, StepParams};
-use crate::layout::edges::{Accumulation, EdgeLayout};
-use crate::layout::valence::ValenceLayout;
-use crate::layout::{LayoutKind, NodeOrder};
-use crate::model::PackedModel;
+use crate::layout::connectivity::StepParams;
+use crate::layout::edges::{Accumulation, FixedPoint};
+use crate::layout::patch::{LayoutArray, StateMove};
+use crate::layout::{LayoutKind, NodeOrder, PackedLayout};
+use crate::model::{ModelDiff, PackedModel};
+use buffers::Sizing;
 
 /// Per-step constants; mirrors `struct Params` in `shaders/common.wgsl` (64 bytes).
 #[repr(C)]
@@ -77,8 +77,8 @@ pub struct PhaseBindings<'a> {
 }
 
 impl NodeState {
-    fn new(ctx: &GpuContext, n: usize, integrator: Integrator) -> Result<Self> {
-        let bytes = (n.max(1) * 16) as u64;
+    fn new(ctx: &GpuContext, n: usize, integrator: Integrator, sizing: Sizing) -> Result<Self> {
+        let bytes = sizing.size(ctx, (n.max(1) * 16) as u64);
         buffers::check_binding(ctx, "node state", bytes)?;
         let make = |label: &str, size: u64| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -99,6 +99,71 @@ impl NodeState {
             x: (0..nx).map(|_| make("displacements", bytes)).collect(),
             v: (0..nv).map(|_| make("velocities", vbytes)).collect(),
         })
+    }
+
+    /// Nodes the buffers have room for.
+    pub fn capacity(&self) -> usize {
+        (self.x[0].size() / 16) as usize
+    }
+
+    /// Every buffer that holds per-node state (the Verlet velocity placeholder excluded).
+    fn buffers(&self) -> Vec<&wgpu::Buffer> {
+        match self.integrator {
+            Integrator::Verlet => self.x.iter().collect(),
+            Integrator::SymplecticEuler => self.x.iter().chain(&self.v).collect(),
+        }
+    }
+
+    /// New buffers with room for `n` nodes (a size class), holding this state.
+    fn grown(&self, ctx: &GpuContext, n: usize) -> Result<Self> {
+        let next = NodeState::new(ctx, n, self.integrator, Sizing::SizeClass)?;
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("grow node state"),
+            });
+        for (old, new) in self.buffers().into_iter().zip(next.buffers()) {
+            enc.copy_buffer_to_buffer(old, 0, new, 0, old.size());
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(next)
+    }
+
+    /// Apply state moves: every buffer gets `state[to] = old[from]` (zero without a source),
+    /// all sources read before any destination is written, entirely on the device.
+    fn apply_moves(&self, ctx: &GpuContext, moves: &[StateMove]) {
+        if moves.is_empty() {
+            return;
+        }
+        let bufs = self.buffers();
+        let m = moves.len() as u64;
+        // Created zeroed: the entries of moves without a source stay zero.
+        let temp = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("state moves"),
+            size: m * 16 * bufs.len() as u64,
+            usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("state moves"),
+            });
+        for (b, buf) in bufs.iter().enumerate() {
+            for (k, mv) in moves.iter().enumerate() {
+                if let Some(from) = mv.from {
+                    let at = (b as u64 * m + k as u64) * 16;
+                    enc.copy_buffer_to_buffer(buf, from as u64 * 16, &temp, at, 16);
+                }
+            }
+        }
+        for (b, buf) in bufs.iter().enumerate() {
+            for (k, mv) in moves.iter().enumerate() {
+                let at = (b as u64 * m + k as u64) * 16;
+                enc.copy_buffer_to_buffer(&temp, at, buf, mv.to as u64 * 16, 16);
+            }
+        }
+        ctx.queue.submit([enc.finish()]);
     }
 
     /// Number of rotation phases.
@@ -129,47 +194,35 @@ impl NodeState {
 enum Passes {
     Connectivity(springs_connectivity::ConnectivityPass),
     Valence(springs_valence::ValencePass),
-    /// With the spring pass's workgroup counts.
-    Edges(springs_edges::EdgePasses, (u32, u32)),
-    /// Atomic accumulation, with the spring pass's workgroup counts.
-    AtomicEdges(atomic_edges::AtomicEdgePasses, (u32, u32)),
+    Edges(springs_edges::EdgePasses),
+    AtomicEdges(atomic_edges::AtomicEdgePasses),
 }
 
-/// Mass-spring engine on a wgpu device.
-pub struct GpuEngine {
-    ctx: GpuContext,
-    layout: LayoutKind,
-    accumulation: Accumulation,
-    order: NodeOrder,
-    rest: Vec<[f64; 3]>,
-    fixed: Vec<bool>,
-    dt: f64,
-    state: NodeState,
-    passes: Passes,
-    _uniform: wgpu::Buffer,
-    phase: usize,
-    groups: (u32, u32),
-    memory: EngineMemory,
-}
-
-impl GpuEngine {
-    /// Open the preferred adapter and upload `model` in `layout`.
-    pub fn new(model: &PackedModel, config: SimConfig, layout: LayoutKind) -> Result<Self> {
-        Self::with_context(GpuContext::new()?, model, config, layout)
+impl Passes {
+    /// The device buffer of a layout array.
+    fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match self {
+            Passes::Connectivity(p) => p.gather.buffer(array),
+            Passes::Valence(p) => p.gather.buffer(array),
+            Passes::Edges(p) => p.buffer(array),
+            Passes::AtomicEdges(p) => p.buffer(array),
+        }
     }
+}
 
-    /// Upload `model` in `layout` on an open device.
-    pub fn with_context(
-        ctx: GpuContext,
-        model: &PackedModel,
-        config: SimConfig,
-        layout: LayoutKind,
-    ) -> Result<Self> {
-        let n = model.node_count();
-        let locality = NodeOrder::locality(model);
-        let m = model.springs.len() as u32;
+/// How dispatches cover the nodes and springs: invocations per row of the two-dimensional
+/// grid, and the workgroup counts of the node and spring passes.
+#[derive(Debug, Clone, Copy)]
+struct Dispatch {
+    row: u32,
+    nodes: (u32, u32),
+    springs: (u32, u32),
+}
+
+impl Dispatch {
+    fn new(ctx: &GpuContext, n: u32, m: u32) -> Self {
         // One row width serves both the node and the spring dispatches.
-        let groups = dispatch_size(&ctx, (n as u32).max(m));
+        let groups = dispatch_size(ctx, n.max(m));
         let row = groups.0 * WORKGROUP;
         let fold = |count: u32| {
             (
@@ -177,24 +230,68 @@ impl GpuEngine {
                 count.div_ceil(row).max(1),
             )
         };
-        let params = step_params(model, config);
-        // The packing decides the node order (valence regroups nodes) and the slot width.
-        enum Packed {
-            Connectivity(ConnectivityLayout),
-            Valence(ValenceLayout),
-            Edges(EdgeLayout),
+        Dispatch {
+            row,
+            nodes: fold(n),
+            springs: fold(m),
         }
-        let packed = match layout {
-            LayoutKind::Connectivity => {
-                Packed::Connectivity(ConnectivityLayout::new(model, locality, None)?)
-            }
-            LayoutKind::Valence => Packed::Valence(ValenceLayout::new(model, &locality)),
-            LayoutKind::Edges => Packed::Edges(EdgeLayout::new(model, locality)),
-        };
-        let width = match &packed {
-            Packed::Connectivity(c) => c.capacity,
-            _ => 0,
-        };
+    }
+}
+
+/// Mass-spring engine on a wgpu device.
+pub struct GpuEngine {
+    ctx: GpuContext,
+    config: SimConfig,
+    layout: PackedLayout,
+    rest: Vec<[f64; 3]>,
+    fixed: Vec<bool>,
+    state: NodeState,
+    passes: Passes,
+    uniform: wgpu::Buffer,
+    uniform_data: StepUniform,
+    phase: usize,
+    dispatch: Dispatch,
+    /// Fixed-point constants (used by the atomic fixed-point variant only).
+    fixed_point: FixedPoint,
+    memory: EngineMemory,
+}
+
+/// The arrays each layout uploads.
+const ARRAYS: [LayoutArray; 6] = [
+    LayoutArray::Slots,
+    LayoutArray::InvMass,
+    LayoutArray::Buckets,
+    LayoutArray::EdgeSprings,
+    LayoutArray::IncidenceRows,
+    LayoutArray::Incidence,
+];
+
+impl GpuEngine {
+    /// Open the preferred adapter and upload `model` in `layout`.
+    pub fn new(model: &PackedModel, config: SimConfig, layout: LayoutKind) -> Result<Self> {
+        Self::with_context(GpuContext::new()?, model, config, layout)
+    }
+
+    /// Upload `model` in `layout` on an open device, nodes in locality (RCM) order.
+    pub fn with_context(
+        ctx: GpuContext,
+        model: &PackedModel,
+        config: SimConfig,
+        layout: LayoutKind,
+    ) -> Result<Self> {
+        let packed = PackedLayout::pack(model, layout, NodeOrder::locality(model))?;
+        Self::with_layout(ctx, model, config, packed)
+    }
+
+    /// Upload `model` packed as `layout` (which must be a packing of `model`) on an open
+    /// device: for programs that arrange the layout themselves.
+    pub fn with_layout(
+        ctx: GpuContext,
+        model: &PackedModel,
+        config: SimConfig,
+        layout: PackedLayout,
+    ) -> Result<Self> {
+        let params = step_params(model, config);
         let uniform_data = StepUniform {
             h: params.h,
             h2: params.h * params.h,
@@ -202,92 +299,179 @@ impl GpuEngine {
             alpha: params.alpha,
             gravity: params.gravity,
             integrator: (config.integrator == Integrator::SymplecticEuler) as u32,
-            n: n as u32,
-            width,
+            n: 0,
+            width: 0,
             damped: params.damped as u32,
-            row,
-            springs: m,
+            row: 0,
+            springs: 0,
             pad: [0; 3],
         };
-        let uniform = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("step constants"),
-                contents: bytemuck::bytes_of(&uniform_data),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let state = NodeState::new(&ctx, n, config.integrator)?;
-        let (order, passes, (stats, bytes_per_step)) = match packed {
-            Packed::Connectivity(c) => (
-                c.order.clone(),
-                Passes::Connectivity(springs_connectivity::ConnectivityPass::new(
-                    &ctx, &c, &uniform, &state,
-                )?),
-                c.memory(config.integrator),
-            ),
-            Packed::Valence(v) => (
-                v.order.clone(),
-                Passes::Valence(springs_valence::ValencePass::new(
-                    &ctx,
-                    &v,
-                    &uniform,
-                    &state,
-                    uniform_data.row,
-                )?),
-                v.memory(config.integrator, springs_valence::bucket_stride(&ctx)),
-            ),
-            Packed::Edges(e) => (
-                e.order.clone(),
-                match config.accumulation {
-                    Accumulation::Gather => Passes::Edges(
-                        springs_edges::EdgePasses::new(&ctx, &e, &uniform, &state)?,
-                        fold(m),
-                    ),
-                    atomic => Passes::AtomicEdges(
-                        atomic_edges::AtomicEdgePasses::new(
-                            &ctx,
-                            &e,
-                            atomic,
-                            e.fixed_point(model),
-                            &uniform,
-                            &state,
-                        )?,
-                        fold(m),
-                    ),
-                },
-                e.memory(config.integrator, config.accumulation),
-            ),
+        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("step constants"),
+            size: std::mem::size_of::<StepUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let state = NodeState::new(&ctx, layout.node_slots(), config.integrator, Sizing::Exact)?;
+        let fixed_point = match &layout {
+            PackedLayout::Edges(e) => e.fixed_point(model),
+            _ => FixedPoint::new(1.0, 1),
         };
+        let dispatch = Dispatch::new(&ctx, layout.node_slots() as u32, spring_records(&layout));
+        let uniform_data = constants(uniform_data, &layout, dispatch);
+        ctx.queue
+            .write_buffer(&uniform, 0, bytemuck::bytes_of(&uniform_data));
+        let passes = build_passes(
+            &ctx,
+            &layout,
+            config,
+            &uniform,
+            &state,
+            dispatch.row,
+            fixed_point,
+            Sizing::Exact,
+        )?;
+        let memory = layout_memory(&ctx, &layout, config);
         Ok(GpuEngine {
             ctx,
+            config,
             layout,
-            accumulation: config.accumulation,
-            order,
             rest: model.rest.clone(),
             fixed: model.fixed.clone(),
-            dt: config.dt,
             state,
             passes,
-            _uniform: uniform,
+            uniform,
+            uniform_data,
             phase: 0,
-            groups: fold(n as u32),
-            memory: EngineMemory {
-                stats,
-                bytes_per_step,
-            },
+            dispatch,
+            fixed_point,
+            memory,
         })
+    }
+
+    /// Apply a change to the model between steps: `diff` has already been applied to `model`
+    /// (the model after it, see [`PackedModel::apply`]). The layout is patched on the CPU and
+    /// only its dirty byte ranges are written to the device; node state moves on the device
+    /// (new nodes start from the state of the node they copy, or at rest). A buffer that
+    /// outgrows its room is reallocated by size class and uploaded whole.
+    ///
+    /// On an error (a diff that does not match the model) the engine is left inconsistent:
+    /// build a new one.
+    pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<PatchCost> {
+        let patch = self.layout.patch(model, diff)?;
+        self.rest = model.rest.clone();
+        self.fixed = model.fixed.clone();
+        let slots = self.layout.node_slots();
+        let mut realloc = patch.repacked;
+        if slots > self.state.capacity() {
+            self.state = self.state.grown(&self.ctx, slots)?;
+            realloc = true;
+        }
+        for a in ARRAYS {
+            let bytes = self.layout.array(a).len() as u64;
+            if let Some(buf) = self.passes.buffer(a) {
+                realloc |= bytes > buf.size();
+            }
+        }
+        if let (PackedLayout::Edges(e), Accumulation::AtomicFixed) =
+            (&self.layout, self.config.accumulation)
+        {
+            let fp = e.fixed_point(model);
+            // Re-quantize only when the larger valence could wrap an accumulator: keeping the
+            // constants keeps the step bit-identical to before the patch otherwise.
+            if fp.limit < self.fixed_point.limit {
+                self.fixed_point = fp;
+                if let Passes::AtomicEdges(p) = &self.passes {
+                    p.set_fixed_point(&self.ctx, &fp);
+                }
+            }
+        }
+        self.dispatch = Dispatch::new(&self.ctx, slots as u32, spring_records(&self.layout));
+        self.uniform_data = constants(self.uniform_data, &self.layout, self.dispatch);
+        self.ctx
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.uniform_data));
+        let mut uploaded = 0u64;
+        if !realloc {
+            for d in &patch.dirty {
+                let Some(buf) = self.passes.buffer(d.array) else {
+                    continue;
+                };
+                let data =
+                    &self.layout.array(d.array)[d.bytes.start as usize..d.bytes.end as usize];
+                self.ctx.queue.write_buffer(buf, d.bytes.start, data);
+                uploaded += data.len() as u64;
+            }
+            if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&mut self.passes, &self.layout)
+            {
+                if patch.dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
+                    if p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row) {
+                        uploaded += v.buckets.len() as u64 * 16;
+                    } else {
+                        realloc = true;
+                    }
+                }
+            }
+        }
+        let layout_bytes: u64 = ARRAYS
+            .iter()
+            .map(|&a| self.layout.array(a).len() as u64)
+            .sum();
+        if realloc {
+            self.passes = build_passes(
+                &self.ctx,
+                &self.layout,
+                self.config,
+                &self.uniform,
+                &self.state,
+                self.dispatch.row,
+                self.fixed_point,
+                Sizing::SizeClass,
+            )?;
+            uploaded = layout_bytes;
+        }
+        self.state.apply_moves(&self.ctx, &patch.moves);
+        self.memory = layout_memory(&self.ctx, &self.layout, self.config);
+        Ok(PatchCost {
+            uploaded_bytes: uploaded,
+            layout_bytes,
+            state_moves: patch.moves.len(),
+            reallocated: realloc,
+        })
+    }
+
+    /// The packed layout as it is on the device.
+    pub fn layout(&self) -> &PackedLayout {
+        &self.layout
+    }
+
+    /// The step constants the shaders see.
+    pub fn step_params(&self) -> StepParams {
+        let u = &self.uniform_data;
+        StepParams {
+            h: u.h,
+            gravity: u.gravity,
+            alpha: u.alpha,
+            integrator: self.config.integrator,
+            damped: u.damped != 0,
+        }
+    }
+
+    /// The fixed-point constants of the atomic fixed-point edge variant.
+    pub fn fixed_point(&self) -> FixedPoint {
+        self.fixed_point
     }
 
     /// "gpu-connectivity on <adapter>"; the edge layout with atomics names its variant
     /// ("gpu-edges-atomicfixed on ...").
     pub fn describe(&self) -> String {
-        let variant = match (&self.passes, self.accumulation) {
+        let variant = match (&self.passes, self.config.accumulation) {
             (Passes::AtomicEdges(..), a) => format!("-{a:?}").to_lowercase(),
             _ => String::new(),
         };
         format!(
             "gpu-{}{variant} on {}",
-            format!("{:?}", self.layout).to_lowercase(),
+            format!("{:?}", self.layout.kind()).to_lowercase(),
             self.ctx.describe()
         )
     }
@@ -296,40 +480,62 @@ impl GpuEngine {
     /// [`Accumulation::AtomicFixed`]) since setup; false for every other layout and variant.
     pub fn fixed_point_overflowed(&self) -> Result<bool> {
         match &self.passes {
-            Passes::AtomicEdges(p, _) => p.overflowed(&self.ctx),
+            Passes::AtomicEdges(p) => p.overflowed(&self.ctx),
             _ => Ok(false),
         }
     }
 
-    /// Current displacements and second state (previous displacements or velocities), layout
-    /// order.
-    fn read_state(&self) -> Result<StatePair> {
+    /// The raw device state in layout order (holes included): current displacements and the
+    /// second state (previous displacements for Verlet, velocities for symplectic Euler).
+    pub fn raw_state(&self) -> Result<StatePair> {
         let b = self.state.bindings(self.phase);
-        Ok((
-            buffers::read_vec4(&self.ctx, b.cur)?,
-            buffers::read_vec4(&self.ctx, b.second_in)?,
-        ))
+        let n = self.layout.node_slots();
+        let mut cur = buffers::read_vec4(&self.ctx, b.cur)?;
+        let mut second = buffers::read_vec4(&self.ctx, b.second_in)?;
+        cur.truncate(n);
+        second.truncate(n);
+        Ok((cur, second))
+    }
+
+    /// Overwrite the raw device state (layout order, as [`GpuEngine::raw_state`] gives it).
+    pub fn set_raw_state(&mut self, cur: &[[f32; 4]], second: &[[f32; 4]]) -> Result<()> {
+        let n = self.layout.node_slots();
+        if cur.len() != n || second.len() != n {
+            return Err(crate::Error::Model(format!(
+                "raw state of {} and {} entries for a layout of {n} node slots",
+                cur.len(),
+                second.len()
+            )));
+        }
+        let b = self.state.bindings(self.phase);
+        self.ctx
+            .queue
+            .write_buffer(b.cur, 0, bytemuck::cast_slice(cur));
+        self.ctx
+            .queue
+            .write_buffer(b.second_in, 0, bytemuck::cast_slice(second));
+        Ok(())
     }
 
     /// Model-order positions and velocities from the device state; NaN if the device failed,
     /// which the simulation's divergence check then reports.
     fn state_f64(&self) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
         let n = self.rest.len();
-        let (cur, second) = match self.read_state() {
+        let (cur, second) = match self.raw_state() {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("lancet: reading the GPU state failed: {e}");
                 return (vec![[f64::NAN; 3]; n], vec![[f64::NAN; 3]; n]);
             }
         };
+        let dt = self.config.dt;
         let mut x = vec![[0.0; 3]; n];
         let mut v = vec![[0.0; 3]; n];
-        for (new, &old) in self.order.order.iter().enumerate() {
-            let old = old as usize;
+        for (new, old) in self.layout.order().pairs() {
             for c in 0..3 {
                 x[old][c] = self.rest[old][c] + cur[new][c] as f64;
                 v[old][c] = match self.state.integrator {
-                    Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / self.dt,
+                    Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / dt,
                     Integrator::SymplecticEuler => second[new][c] as f64,
                 };
             }
@@ -339,6 +545,79 @@ impl GpuEngine {
         }
         (x, v)
     }
+}
+
+/// Records the spring passes cover (edge layout; 0 for the node-centric layouts).
+fn spring_records(layout: &PackedLayout) -> u32 {
+    match layout {
+        PackedLayout::Edges(e) => e.springs.len() as u32,
+        _ => 0,
+    }
+}
+
+/// `base` with the sizes of `layout` and `dispatch` filled in.
+fn constants(base: StepUniform, layout: &PackedLayout, dispatch: Dispatch) -> StepUniform {
+    StepUniform {
+        n: layout.node_slots() as u32,
+        width: match layout {
+            PackedLayout::Connectivity(c) => c.capacity,
+            _ => 0,
+        },
+        row: dispatch.row,
+        springs: spring_records(layout),
+        ..base
+    }
+}
+
+/// Device memory of `layout` with its node state, and the bytes a step moves.
+fn layout_memory(ctx: &GpuContext, layout: &PackedLayout, config: SimConfig) -> EngineMemory {
+    let (stats, bytes_per_step) = match layout {
+        PackedLayout::Connectivity(c) => c.memory(config.integrator),
+        PackedLayout::Valence(v) => {
+            v.memory(config.integrator, springs_valence::bucket_stride(ctx))
+        }
+        PackedLayout::Edges(e) => e.memory(config.integrator, config.accumulation),
+    };
+    EngineMemory {
+        stats,
+        bytes_per_step,
+    }
+}
+
+/// Upload `layout` and build its passes.
+#[allow(clippy::too_many_arguments)]
+fn build_passes(
+    ctx: &GpuContext,
+    layout: &PackedLayout,
+    config: SimConfig,
+    uniform: &wgpu::Buffer,
+    state: &NodeState,
+    row: u32,
+    fixed_point: FixedPoint,
+    sizing: Sizing,
+) -> Result<Passes> {
+    Ok(match layout {
+        PackedLayout::Connectivity(c) => Passes::Connectivity(
+            springs_connectivity::ConnectivityPass::new(ctx, c, uniform, state, sizing)?,
+        ),
+        PackedLayout::Valence(v) => Passes::Valence(springs_valence::ValencePass::new(
+            ctx, v, uniform, state, row, sizing,
+        )?),
+        PackedLayout::Edges(e) => match config.accumulation {
+            Accumulation::Gather => Passes::Edges(springs_edges::EdgePasses::new(
+                ctx, e, uniform, state, sizing,
+            )?),
+            atomic => Passes::AtomicEdges(atomic_edges::AtomicEdgePasses::new(
+                ctx,
+                e,
+                atomic,
+                fixed_point,
+                uniform,
+                state,
+                sizing,
+            )?),
+        },
+    })
 }
 
 /// Workgroup counts covering `n` invocations, folded into two dimensions when one would exceed
@@ -379,15 +658,12 @@ impl Engine for GpuEngine {
                 timestamp_writes: None,
             });
             for _ in 0..steps {
+                let d = self.dispatch;
                 match &self.passes {
-                    Passes::Connectivity(p) => p.record(&mut pass, self.phase, self.groups),
+                    Passes::Connectivity(p) => p.record(&mut pass, self.phase, d.nodes),
                     Passes::Valence(p) => p.record(&mut pass, self.phase),
-                    Passes::Edges(p, spring_groups) => {
-                        p.record(&mut pass, self.phase, *spring_groups, self.groups)
-                    }
-                    Passes::AtomicEdges(p, spring_groups) => {
-                        p.record(&mut pass, self.phase, *spring_groups, self.groups)
-                    }
+                    Passes::Edges(p) => p.record(&mut pass, self.phase, d.springs, d.nodes),
+                    Passes::AtomicEdges(p) => p.record(&mut pass, self.phase, d.springs, d.nodes),
                 }
                 self.phase = (self.phase + 1) % self.state.phases();
             }
@@ -412,11 +688,11 @@ impl Engine for GpuEngine {
     }
 
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
-        let n = self.rest.len();
+        let n = self.layout.node_slots();
+        let dt = self.config.dt;
         let mut cur = vec![[0.0f32; 4]; n];
         let mut second = vec![[0.0f32; 4]; n];
-        for (new, &old) in self.order.order.iter().enumerate() {
-            let old = old as usize;
+        for (new, old) in self.layout.order().pairs() {
             if self.fixed[old] {
                 continue;
             }
@@ -424,7 +700,7 @@ impl Engine for GpuEngine {
                 let u = positions[old][c] - self.rest[old][c];
                 cur[new][c] = u as f32;
                 second[new][c] = match self.state.integrator {
-                    Integrator::Verlet => (u - velocities[old][c] * self.dt) as f32,
+                    Integrator::Verlet => (u - velocities[old][c] * dt) as f32,
                     Integrator::SymplecticEuler => velocities[old][c] as f32,
                 };
             }
@@ -444,5 +720,9 @@ impl Engine for GpuEngine {
 
     fn name(&self) -> String {
         self.describe()
+    }
+
+    fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<Option<PatchCost>> {
+        GpuEngine::patch(self, model, diff).map(Some)
     }
 }

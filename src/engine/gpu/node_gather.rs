@@ -1,10 +1,10 @@
 //! What the node-centric passes (connectivity, valence) share: the slot and mass buffers and the
 //! group-0 bindings of `shaders/node_gather.wgsl`, one bind group per rotation phase.
 
-use wgpu::util::DeviceExt;
-
-use super::{buffers, GpuContext, NodeState};
+use super::buffers::{self, Sizing};
+use super::{GpuContext, NodeState};
 use crate::error::Result;
+use crate::layout::patch::LayoutArray;
 use crate::layout::Slot;
 
 /// Group 0 of a node-centric pass.
@@ -13,8 +13,8 @@ pub struct NodeGather {
     pub layout: wgpu::BindGroupLayout,
     /// One bind group per rotation phase of the node state.
     pub bind_groups: Vec<wgpu::BindGroup>,
-    _slots: wgpu::Buffer,
-    _inv_mass: wgpu::Buffer,
+    slots: wgpu::Buffer,
+    inv_mass: wgpu::Buffer,
 }
 
 impl NodeGather {
@@ -26,22 +26,16 @@ impl NodeGather {
         inv_mass: &[f32],
         uniform: &wgpu::Buffer,
         state: &NodeState,
+        sizing: Sizing,
     ) -> Result<Self> {
         let d = &ctx.device;
-        buffers::check_binding(ctx, "slots", std::mem::size_of_val(slots) as u64)?;
-        // An empty binding is invalid; a mesh without springs still gets one (unused) slot.
-        let one = [Slot::empty()];
-        let slot_data = if slots.is_empty() { &one[..] } else { slots };
-        let slots = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::cast_slice(slot_data),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        });
-        let inv_mass = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("inverse masses"),
-            contents: bytemuck::cast_slice(inv_mass),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        });
+        let slots = buffers::storage_buffer(ctx, "slots", bytemuck::cast_slice(slots), sizing)?;
+        let inv_mass = buffers::storage_buffer(
+            ctx,
+            "inverse masses",
+            bytemuck::cast_slice(inv_mass),
+            sizing,
+        )?;
         // slots, masses, second state, current (read); next, second out (written).
         let layout = buffers::pass_layout(ctx, label, &[true, true, true, true, false, false]);
         let bind_groups = (0..state.phases())
@@ -65,8 +59,17 @@ impl NodeGather {
         Ok(NodeGather {
             layout,
             bind_groups,
-            _slots: slots,
-            _inv_mass: inv_mass,
+            slots,
+            inv_mass,
         })
+    }
+
+    /// The device buffer of a layout array, if this pass holds it.
+    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match array {
+            LayoutArray::Slots => Some(&self.slots),
+            LayoutArray::InvMass => Some(&self.inv_mass),
+            _ => None,
+        }
     }
 }

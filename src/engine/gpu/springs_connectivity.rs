@@ -2,8 +2,9 @@
 //! bind-group layout are made once, and one bind group per phase of the state rotation, so a
 //! step only records a dispatch.
 
+use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
-use super::{buffers, GpuContext, NodeState};
+use super::{GpuContext, NodeState};
 use crate::error::Result;
 use crate::layout::connectivity::ConnectivityLayout;
 
@@ -17,7 +18,8 @@ const SOURCE: &str = concat!(
 /// The pass with its device data.
 pub struct ConnectivityPass {
     pipeline: wgpu::ComputePipeline,
-    gather: NodeGather,
+    /// The slot and mass buffers with their bind groups.
+    pub gather: NodeGather,
 }
 
 impl ConnectivityPass {
@@ -27,6 +29,7 @@ impl ConnectivityPass {
         layout: &ConnectivityLayout,
         uniform: &wgpu::Buffer,
         state: &NodeState,
+        sizing: Sizing,
     ) -> Result<Self> {
         let gather = NodeGather::new(
             ctx,
@@ -35,6 +38,7 @@ impl ConnectivityPass {
             &layout.nodes.inv_mass,
             uniform,
             state,
+            sizing,
         )?;
         let pipeline =
             buffers::compute_pipeline(ctx, "springs_connectivity", SOURCE, &[&gather.layout])?;

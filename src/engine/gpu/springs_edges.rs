@@ -2,11 +2,11 @@
 //! `shaders/gather_edges.wgsl` (each node sums its springs' forces and integrates). Both
 //! pipelines, their bind-group layouts and one bind group per rotation phase are made once.
 
-use wgpu::util::DeviceExt;
-
-use super::{buffers, GpuContext, NodeState};
+use super::buffers::{self, Sizing};
+use super::{GpuContext, NodeState};
 use crate::error::Result;
-use crate::layout::edges::{EdgeLayout, EdgeSpring};
+use crate::layout::edges::EdgeLayout;
+use crate::layout::patch::LayoutArray;
 
 const SPRINGS: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
@@ -21,7 +21,8 @@ const GATHER: &str = concat!(
 /// The two passes with their device data.
 pub struct EdgePasses {
     passes: SpringThenNode,
-    _buffers: Vec<wgpu::Buffer>,
+    /// Springs, incidence rows, incidence, inverse masses, forces.
+    buffers: [wgpu::Buffer; 5],
 }
 
 /// A pass over springs followed by a pass over nodes, each with one bind group per rotation
@@ -54,23 +55,14 @@ impl SpringThenNode {
     }
 }
 
-/// A read-only storage buffer holding `data` (at least one element, as empty bindings are
-/// invalid).
-pub(crate) fn upload<T: bytemuck::Pod + bytemuck::Zeroable>(
+/// A storage buffer holding `data`, sized by `sizing`.
+pub(crate) fn upload<T: bytemuck::Pod>(
     ctx: &GpuContext,
     label: &str,
     data: &[T],
+    sizing: Sizing,
 ) -> Result<wgpu::Buffer> {
-    buffers::check_binding(ctx, label, std::mem::size_of_val(data) as u64)?;
-    let one = [T::zeroed()];
-    let data = if data.is_empty() { &one[..] } else { data };
-    Ok(ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::cast_slice(data),
-            usage: wgpu::BufferUsages::STORAGE,
-        }))
+    buffers::storage_buffer(ctx, label, bytemuck::cast_slice(data), sizing)
 }
 
 impl EdgePasses {
@@ -80,13 +72,16 @@ impl EdgePasses {
         layout: &EdgeLayout,
         uniform: &wgpu::Buffer,
         state: &NodeState,
+        sizing: Sizing,
     ) -> Result<Self> {
         let d = &ctx.device;
-        let springs = upload::<EdgeSpring>(ctx, "edge springs", &layout.springs)?;
-        let rows = upload(ctx, "incidence rows", &layout.incidence_rows)?;
-        let incidence = upload(ctx, "incidence", &layout.incidence)?;
-        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass)?;
-        let force_bytes = (layout.springs.len().max(1) * 16) as u64;
+        let springs = upload(ctx, "edge springs", &layout.springs, sizing)?;
+        let rows = upload(ctx, "incidence rows", &layout.incidence_rows, sizing)?;
+        let incidence = upload(ctx, "incidence", &layout.incidence, sizing)?;
+        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass, sizing)?;
+        // One force per record the spring buffer can hold, so patches that fill its room
+        // need no new force buffer.
+        let force_bytes = springs.size() / 32 * 16;
         buffers::check_binding(ctx, "spring forces", force_bytes)?;
         let forces = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("spring forces"),
@@ -139,8 +134,20 @@ impl EdgePasses {
                 nodes: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
                 bind_groups,
             },
-            _buffers: vec![springs, rows, incidence, inv_mass, forces],
+            buffers: [springs, rows, incidence, inv_mass, forces],
         })
+    }
+
+    /// The device buffer of a layout array, if this pass holds it.
+    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        let [springs, rows, incidence, inv_mass, _] = &self.buffers;
+        match array {
+            LayoutArray::EdgeSprings => Some(springs),
+            LayoutArray::IncidenceRows => Some(rows),
+            LayoutArray::Incidence => Some(incidence),
+            LayoutArray::InvMass => Some(inv_mass),
+            _ => None,
+        }
     }
 
     /// Record one step in phase `phase`: the spring pass, then the node gather.

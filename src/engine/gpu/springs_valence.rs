@@ -2,10 +2,9 @@
 //! group 1 holds the bucket table in a uniform buffer, one entry per dynamic offset, so each
 //! bucket is one dispatch with nothing rebuilt per step.
 
-use wgpu::util::DeviceExt;
-
+use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
-use super::{buffers, GpuContext, NodeState, WORKGROUP};
+use super::{GpuContext, NodeState, WORKGROUP};
 use crate::error::Result;
 use crate::layout::valence::{Bucket, ValenceLayout};
 
@@ -19,9 +18,10 @@ const SOURCE: &str = concat!(
 /// The pass with its device data.
 pub struct ValencePass {
     pipeline: wgpu::ComputePipeline,
-    gather: NodeGather,
+    /// The slot and mass buffers with their bind groups.
+    pub gather: NodeGather,
     buckets: wgpu::BindGroup,
-    _table: wgpu::Buffer,
+    table: wgpu::Buffer,
     /// Per bucket: its dynamic offset and its workgroup counts.
     dispatches: Vec<(u32, (u32, u32))>,
 }
@@ -40,6 +40,7 @@ impl ValencePass {
         uniform: &wgpu::Buffer,
         state: &NodeState,
         row: u32,
+        sizing: Sizing,
     ) -> Result<Self> {
         let d = &ctx.device;
         let gather = NodeGather::new(
@@ -49,17 +50,18 @@ impl ValencePass {
             &layout.nodes.inv_mass,
             uniform,
             state,
+            sizing,
         )?;
         let stride = bucket_stride(ctx);
-        let mut table = vec![0u8; (layout.buckets.len().max(1) as u64 * stride) as usize];
-        for (b, bucket) in layout.buckets.iter().enumerate() {
-            let at = b * stride as usize;
-            table[at..at + 16].copy_from_slice(bytemuck::bytes_of(bucket));
-        }
-        let table = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let entries = match sizing {
+            Sizing::Exact => layout.buckets.len().max(1),
+            Sizing::SizeClass => layout.buckets.len().max(1).next_power_of_two(),
+        };
+        let table = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("valence buckets"),
-            contents: &table,
-            usage: wgpu::BufferUsages::UNIFORM,
+            size: entries as u64 * stride,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
         });
         let bucket_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("valence bucket"),
@@ -92,9 +94,34 @@ impl ValencePass {
             SOURCE,
             &[&gather.layout, &bucket_layout],
         )?;
+        let mut pass = ValencePass {
+            pipeline,
+            gather,
+            buckets,
+            table,
+            dispatches: Vec::new(),
+        };
+        pass.set_buckets(ctx, &layout.buckets, row);
+        Ok(pass)
+    }
+
+    /// Write the bucket table and recompute the dispatches (after a patch moved nodes between
+    /// buckets). False, with nothing written, if the table has no room for that many buckets.
+    pub fn set_buckets(&mut self, ctx: &GpuContext, buckets: &[Bucket], row: u32) -> bool {
+        let stride = bucket_stride(ctx);
+        if buckets.len() as u64 * stride > self.table.size() {
+            return false;
+        }
+        let mut table = vec![0u8; (buckets.len() as u64 * stride) as usize];
+        for (b, bucket) in buckets.iter().enumerate() {
+            let at = b * stride as usize;
+            table[at..at + 16].copy_from_slice(bytemuck::bytes_of(bucket));
+        }
+        if !table.is_empty() {
+            ctx.queue.write_buffer(&self.table, 0, &table);
+        }
         let per_row = (row / WORKGROUP).max(1);
-        let dispatches = layout
-            .buckets
+        self.dispatches = buckets
             .iter()
             .enumerate()
             .filter(|(_, b)| b.count > 0)
@@ -104,13 +131,7 @@ impl ValencePass {
                 ((i as u64 * stride) as u32, size)
             })
             .collect();
-        Ok(ValencePass {
-            pipeline,
-            gather,
-            buckets,
-            _table: table,
-            dispatches,
-        })
+        true
     }
 
     /// Record one step in phase `phase` of the state rotation: one dispatch per bucket.

@@ -1,0 +1,154 @@
+//! What an incremental edit of a layout hands to the device: the byte ranges of each array that
+//! changed, and how node state moves between layout indices.
+//!
+//! Every layout's `patch(model_after, diff)` edits its CPU arrays in place so that they equal
+//! a from-scratch packing of the changed model in the same arrangement (same node order, same
+//! capacities), and returns a [`LayoutPatch`]. The GPU engine writes only the dirty ranges; an
+//! array that outgrew its device buffer is reallocated by size class and uploaded whole.
+
+use std::ops::Range;
+
+/// The arrays a layout uploads, by role.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LayoutArray {
+    /// Node-centric slot table (connectivity, valence).
+    Slots,
+    /// Inverse masses, one `f32` per node.
+    InvMass,
+    /// Valence bucket table.
+    Buckets,
+    /// Edge-layout spring records.
+    EdgeSprings,
+    /// Edge-layout incidence row starts.
+    IncidenceRows,
+    /// Edge-layout incidence entries.
+    Incidence,
+}
+
+/// A changed byte range of one array.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Dirty {
+    /// Which array.
+    pub array: LayoutArray,
+    /// Byte range within it.
+    pub bytes: Range<u64>,
+}
+
+/// A write of node state: `state[to] = old_state[from]`, or zero where `from` is `None`. All
+/// moves of a patch read the state as it was before the patch, so they may permute nodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StateMove {
+    /// Destination layout index.
+    pub to: u32,
+    /// Source layout index (in the order before the patch), or `None` to start at rest.
+    pub from: Option<u32>,
+}
+
+/// The result of patching a layout.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct LayoutPatch {
+    /// Changed byte ranges, ascending per array, not overlapping.
+    pub dirty: Vec<Dirty>,
+    /// Node state to move or clear, one entry per destination.
+    pub moves: Vec<StateMove>,
+    /// Whether the layout was repacked whole (a slot or incidence row outgrew its capacity);
+    /// every array is then dirty from start to end.
+    pub repacked: bool,
+}
+
+impl LayoutPatch {
+    /// Bytes in all dirty ranges.
+    pub fn dirty_bytes(&self) -> u64 {
+        self.dirty.iter().map(|d| d.bytes.end - d.bytes.start).sum()
+    }
+
+    /// Mark elements `items` (each `span` elements of `elem` bytes, e.g. whole rows) of `array`
+    /// dirty, merging runs of neighbouring items into one range.
+    pub(crate) fn mark(
+        &mut self,
+        array: LayoutArray,
+        items: impl IntoIterator<Item = u32>,
+        span: u64,
+        elem: u64,
+    ) {
+        let mut items: Vec<u32> = items.into_iter().collect();
+        items.sort_unstable();
+        items.dedup();
+        let bytes = span * elem;
+        let mut run: Option<Range<u64>> = None;
+        for i in items {
+            let r = i as u64 * bytes..(i as u64 + 1) * bytes;
+            run = match run {
+                Some(cur) if cur.end == r.start => Some(cur.start..r.end),
+                Some(cur) => {
+                    self.push(array, cur);
+                    Some(r)
+                }
+                None => Some(r),
+            };
+        }
+        if let Some(cur) = run {
+            self.push(array, cur);
+        }
+    }
+
+    /// Mark a whole array of `bytes` bytes dirty.
+    pub(crate) fn mark_all(&mut self, array: LayoutArray, bytes: u64) {
+        self.dirty.retain(|d| d.array != array);
+        if bytes > 0 {
+            self.dirty.push(Dirty {
+                array,
+                bytes: 0..bytes,
+            });
+        }
+    }
+
+    fn push(&mut self, array: LayoutArray, bytes: Range<u64>) {
+        if bytes.end > bytes.start {
+            self.dirty.push(Dirty { array, bytes });
+        }
+    }
+
+    /// Clear the state of every node the diff touches that is fixed afterwards: a node that
+    /// becomes fixed sits at rest from now on, and its neighbours must see it there at the next
+    /// step, not where it was. Overrides any move to the same place.
+    pub(crate) fn rest_fixed(
+        &mut self,
+        model: &crate::model::PackedModel,
+        diff: &crate::model::ModelDiff,
+        rank: &[u32],
+    ) {
+        let before = model.node_count() - diff.added_nodes.len();
+        for t in diff.touched_nodes(before) {
+            if model.fixed[t as usize] {
+                let to = rank[t as usize];
+                self.moves.retain(|m| m.to != to);
+                self.moves.push(StateMove { to, from: None });
+            }
+        }
+    }
+
+    /// Sort the ranges by array and start and merge overlapping or touching ones.
+    pub(crate) fn normalize(&mut self) {
+        self.dirty
+            .sort_by_key(|d| (d.array, d.bytes.start, d.bytes.end));
+        let mut out: Vec<Dirty> = Vec::with_capacity(self.dirty.len());
+        for d in self.dirty.drain(..) {
+            match out.last_mut() {
+                Some(last) if last.array == d.array && d.bytes.start <= last.bytes.end => {
+                    last.bytes.end = last.bytes.end.max(d.bytes.end);
+                }
+                _ => out.push(d),
+            }
+        }
+        self.dirty = out;
+        self.moves.sort_by_key(|m| m.to);
+        self.moves.dedup_by_key(|m| m.to);
+    }
+}
+
+/// Slots per row after growing to hold `needed`: the next multiple of four (128 bytes of slots),
+/// so a row that outgrows its capacity by one does not force another repack at the next cut.
+pub fn row_size_class(needed: u32) -> u32 {
+    needed.max(1).div_ceil(4) * 4
+}

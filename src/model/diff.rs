@@ -1,0 +1,198 @@
+//! A change to a packed model: what a cut produces between two steps. Nodes are only ever
+//! appended (dense indices of existing nodes never change, so every layout keeps its numbering);
+//! springs are removed, added or re-parameterised by their end pair.
+//!
+//! [`PackedModel::apply`] turns a model into the model after the change; the layouts turn the
+//! same diff into dirty byte ranges (`crate::layout`), so the device only receives what changed.
+
+use std::collections::HashSet;
+
+use super::{PackedModel, PackedSpring};
+use crate::error::{Error, Result};
+use crate::mesh::NodeKey;
+
+/// A node appended to the model: it gets the next dense index.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AddedNode {
+    /// The mesh node behind it (default key where there is no mesh).
+    pub key: NodeKey,
+    /// Rest position, m.
+    pub rest: [f64; 3],
+    /// Lumped mass, kg.
+    pub mass: f64,
+    /// Held at its rest position.
+    pub fixed: bool,
+    /// An existing node whose current state (displacement and velocity) the new node starts
+    /// with: a node split by a cut starts where the original is. `None` starts it at rest.
+    pub state_from: Option<u32>,
+}
+
+/// New mass or fixed flag of an existing node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeChange {
+    /// Dense index.
+    pub node: u32,
+    /// Lumped mass, kg.
+    pub mass: f64,
+    /// Held at its rest position.
+    pub fixed: bool,
+}
+
+/// A change to a [`PackedModel`]. Removals are applied before additions, so a spring can be
+/// removed and added again (with new parameters) in one diff; `changed_springs` is the direct
+/// way to do that.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModelDiff {
+    /// Nodes appended, in order: the first gets index `node_count()`.
+    pub added_nodes: Vec<AddedNode>,
+    /// Mass or fixed-flag changes of existing (or just added) nodes.
+    pub changed_nodes: Vec<NodeChange>,
+    /// Springs removed, by their end pair (either order).
+    pub removed_springs: Vec<[u32; 2]>,
+    /// Springs added (ends may be new nodes).
+    pub added_springs: Vec<PackedSpring>,
+    /// Springs whose rest length, stiffness or damping change, found by their end pair.
+    pub changed_springs: Vec<PackedSpring>,
+}
+
+impl ModelDiff {
+    /// Whether the diff changes nothing.
+    pub fn is_empty(&self) -> bool {
+        self.added_nodes.is_empty()
+            && self.changed_nodes.is_empty()
+            && self.removed_springs.is_empty()
+            && self.added_springs.is_empty()
+            && self.changed_springs.is_empty()
+    }
+
+    /// Every node whose springs, mass or fixed flag change (including added nodes), ascending.
+    pub fn touched_nodes(&self, nodes_before: usize) -> Vec<u32> {
+        let mut t: Vec<u32> = (0..self.added_nodes.len())
+            .map(|i| (nodes_before + i) as u32)
+            .chain(self.changed_nodes.iter().map(|c| c.node))
+            .chain(self.removed_springs.iter().flatten().copied())
+            .chain(self.added_springs.iter().flat_map(|s| s.nodes))
+            .chain(self.changed_springs.iter().flat_map(|s| s.nodes))
+            .collect();
+        t.sort_unstable();
+        t.dedup();
+        t
+    }
+}
+
+/// An end pair in canonical (ascending) order.
+pub(crate) fn pair(a: u32, b: u32) -> [u32; 2] {
+    [a.min(b), a.max(b)]
+}
+
+impl PackedModel {
+    /// Index of the spring between `a` and `b` (either order) in [`PackedModel::springs`],
+    /// which is kept sorted by end pair.
+    pub fn spring_index(&self, a: u32, b: u32) -> Option<usize> {
+        let key = pair(a, b);
+        self.springs.binary_search_by_key(&key, |s| s.nodes).ok()
+    }
+
+    /// Apply `diff`. Springs stay sorted by end pair, so the result equals a model packed from
+    /// scratch with the same content. On error (a spring that does not exist, a duplicate, an
+    /// index out of range) the model is left unchanged.
+    pub fn apply(&mut self, diff: &ModelDiff) -> Result<()> {
+        let n = self.node_count() + diff.added_nodes.len();
+        let check_node = |i: u32, what: &str| -> Result<()> {
+            if (i as usize) < n {
+                Ok(())
+            } else {
+                Err(Error::Model(format!(
+                    "{what} names node {i}, but the model has {n} nodes after the change"
+                )))
+            }
+        };
+        for a in &diff.added_nodes {
+            if let Some(s) = a.state_from {
+                if s as usize >= self.node_count() {
+                    return Err(Error::Model(format!(
+                        "an added node copies the state of node {s}, which does not exist yet"
+                    )));
+                }
+            }
+            if !(a.mass > 0.0 && a.mass.is_finite()) {
+                return Err(Error::Model(format!(
+                    "an added node has mass {}; give a positive mass",
+                    a.mass
+                )));
+            }
+        }
+        for c in &diff.changed_nodes {
+            check_node(c.node, "a node change")?;
+            if !(c.mass > 0.0 && c.mass.is_finite()) {
+                return Err(Error::Model(format!(
+                    "node {} would get mass {}; give a positive mass",
+                    c.node, c.mass
+                )));
+            }
+        }
+        let mut removed = HashSet::new();
+        for &[a, b] in &diff.removed_springs {
+            if self.spring_index(a, b).is_none() || !removed.insert(pair(a, b)) {
+                return Err(Error::Model(format!(
+                    "cannot remove spring {a}-{b}: there is no such spring (or it is removed twice)"
+                )));
+            }
+        }
+        let mut added = HashSet::new();
+        for s in &diff.added_springs {
+            let [a, b] = s.nodes;
+            check_node(a, "an added spring")?;
+            check_node(b, "an added spring")?;
+            let key = pair(a, b);
+            let exists = self.spring_index(a, b).is_some() && !removed.contains(&key);
+            if a == b || exists || !added.insert(key) {
+                return Err(Error::Model(format!(
+                    "cannot add spring {a}-{b}: its ends must be two distinct nodes not already \
+                     joined by a spring"
+                )));
+            }
+        }
+        for s in &diff.changed_springs {
+            let [a, b] = s.nodes;
+            let key = pair(a, b);
+            let present = (self.spring_index(a, b).is_some() && !removed.contains(&key))
+                || added.contains(&key);
+            if !present {
+                return Err(Error::Model(format!(
+                    "cannot change spring {a}-{b}: there is no such spring after the removals"
+                )));
+            }
+        }
+        // Validated: nothing below can fail.
+        for a in &diff.added_nodes {
+            self.node_keys.push(a.key);
+            self.rest.push(a.rest);
+            self.mass.push(a.mass);
+            self.fixed.push(a.fixed);
+        }
+        for c in &diff.changed_nodes {
+            self.mass[c.node as usize] = c.mass;
+            self.fixed[c.node as usize] = c.fixed;
+        }
+        if !removed.is_empty() {
+            self.springs.retain(|s| !removed.contains(&s.nodes));
+        }
+        for s in &diff.added_springs {
+            let s = PackedSpring {
+                nodes: pair(s.nodes[0], s.nodes[1]),
+                ..*s
+            };
+            let at = self.springs.partition_point(|t| t.nodes < s.nodes);
+            self.springs.insert(at, s);
+        }
+        for s in &diff.changed_springs {
+            let i = self
+                .spring_index(s.nodes[0], s.nodes[1])
+                .expect("checked above");
+            let nodes = self.springs[i].nodes;
+            self.springs[i] = PackedSpring { nodes, ..*s };
+        }
+        Ok(())
+    }
+}

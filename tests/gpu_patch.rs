@@ -1,0 +1,177 @@
+//! Incremental patches on the device: after cut-like random edits, each layout's engine holds
+//! exactly the patched arrays and moved state (it steps bit for bit like the CPU twin of the
+//! patched layout), and steps bit for bit like an engine built from scratch on the changed model
+//! in the same arrangement, while uploading only a part of the layout.
+
+mod common;
+#[path = "common/models.rs"]
+mod models;
+
+use lancet::engine::gpu::GpuEngine;
+use lancet::engine::{Engine, Integrator, SimConfig};
+use lancet::layout::connectivity::ConnectivityLayout;
+use lancet::layout::edges::{Accumulation, EdgeLayout};
+use lancet::layout::valence::ValenceLayout;
+use lancet::layout::{LayoutKind, PackedLayout};
+use lancet::model::PackedModel;
+use models::{moved_state, random_diff, random_model, random_state};
+use rstest::rstest;
+
+type Raw = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
+fn bits(v: &[[f32; 4]]) -> Vec<[u32; 4]> {
+    v.iter().map(|x| x.map(f32::to_bits)).collect()
+}
+
+/// `steps` steps of the patched layout's CPU twin from raw state (layout order).
+fn twin(engine: &GpuEngine, accumulation: Accumulation, raw: Raw, steps: usize) -> Raw {
+    let p = engine.step_params();
+    let (mut cur, mut second) = raw;
+    for _ in 0..steps {
+        let (next, s) = match engine.layout() {
+            PackedLayout::Edges(e) => {
+                e.step_variant_cpu(accumulation, &p, &engine.fixed_point(), &cur, &second)
+            }
+            other => other.step_cpu(&p, &cur, &second),
+        };
+        match p.integrator {
+            Integrator::Verlet => second = std::mem::replace(&mut cur, next),
+            Integrator::SymplecticEuler => (cur, second) = (next, s),
+        }
+    }
+    (cur, second)
+}
+
+/// The patched layout packed from scratch in the same arrangement.
+fn fresh(model: &PackedModel, patched: &PackedLayout) -> PackedLayout {
+    match patched {
+        PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
+            ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
+        ),
+        PackedLayout::Valence(v) => PackedLayout::Valence(
+            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
+                .unwrap(),
+        ),
+        PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
+    }
+}
+
+#[rstest]
+#[case::connectivity(LayoutKind::Connectivity, Accumulation::Gather, Integrator::Verlet)]
+#[case::connectivity_euler(
+    LayoutKind::Connectivity,
+    Accumulation::Gather,
+    Integrator::SymplecticEuler
+)]
+#[case::valence(LayoutKind::Valence, Accumulation::Gather, Integrator::Verlet)]
+#[case::valence_euler(LayoutKind::Valence, Accumulation::Gather, Integrator::SymplecticEuler)]
+#[case::edges(LayoutKind::Edges, Accumulation::Gather, Integrator::Verlet)]
+#[case::edges_fixed_point(LayoutKind::Edges, Accumulation::AtomicFixed, Integrator::Verlet)]
+fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
+    #[case] kind: LayoutKind,
+    #[case] accumulation: Accumulation,
+    #[case] integrator: Integrator,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(41, true);
+    let mut config = SimConfig::new(2e-5);
+    config.integrator = integrator;
+    config.accumulation = accumulation;
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let (x, v) = random_state(&model, 41);
+    engine.set_state(&x, &v);
+    engine.step(7);
+    let mut partial = false;
+    for round in 0..4 {
+        let diff = random_diff(&model, 100 + round);
+        let mut next = model.clone();
+        next.apply(&diff).unwrap();
+        let report = engine.patch(&next, &diff).unwrap();
+        model = next;
+        partial |= !report.reallocated && report.uploaded_bytes < report.layout_bytes;
+        assert!(report.uploaded_bytes <= report.layout_bytes);
+        // The state the device must now hold, from the layout's own moves.
+        let want = engine.raw_state().unwrap();
+        let expect_twin = twin(&engine, accumulation, want.clone(), 13);
+        engine.step(13);
+        let got = engine.raw_state().unwrap();
+        assert_eq!(
+            bits(&got.0),
+            bits(&expect_twin.0),
+            "round {round}: device and CPU twin of the patched layout differ"
+        );
+        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}");
+        // An engine built from scratch in the same arrangement, from the same state.
+        if accumulation != Accumulation::AtomicFixed {
+            let ctx = common::gpu().unwrap();
+            let mut rebuilt =
+                GpuEngine::with_layout(ctx, &model, config, fresh(&model, engine.layout()))
+                    .unwrap();
+            rebuilt.set_raw_state(&want.0, &want.1).unwrap();
+            rebuilt.step(13);
+            let r = rebuilt.raw_state().unwrap();
+            assert_eq!(
+                bits(&r.0),
+                bits(&got.0),
+                "round {round}: patched != rebuilt"
+            );
+        }
+        assert!(got.0.iter().flatten().all(|x| x.is_finite()));
+    }
+    assert!(
+        partial,
+        "at least one patch uploaded only part of the layout"
+    );
+}
+
+#[rstest]
+fn state_moves_on_the_device_follow_the_nodes(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let model = random_model(43, false);
+    let config = SimConfig::new(2e-5);
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let (x, v) = random_state(&model, 43);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    let before = engine.raw_state().unwrap();
+    let diff = random_diff(&model, 77);
+    let mut next = model.clone();
+    next.apply(&diff).unwrap();
+    let mut cpu = engine.layout().clone();
+    let patch = cpu.patch(&next, &diff).unwrap();
+    engine.patch(&next, &diff).unwrap();
+    let after = engine.raw_state().unwrap();
+    let slots = cpu.node_slots();
+    assert_eq!(
+        bits(&after.0),
+        bits(&moved_state(&before.0, &patch.moves, slots))
+    );
+    assert_eq!(
+        bits(&after.1),
+        bits(&moved_state(&before.1, &patch.moves, slots))
+    );
+    // Positions read back in model order: old nodes where they were, copies on their source.
+    let x0 = engine.positions();
+    let old = {
+        let mut e = GpuEngine::with_context(common::gpu().unwrap(), &model, config, kind).unwrap();
+        e.set_raw_state(&before.0, &before.1).unwrap();
+        e.positions()
+    };
+    for (i, p) in old.iter().enumerate() {
+        if model.fixed[i] == next.fixed[i] {
+            assert_eq!(x0[i], *p, "node {i} moved");
+        }
+    }
+    for (k, a) in diff.added_nodes.iter().enumerate() {
+        let src = a.state_from.unwrap() as usize;
+        if !next.fixed[src] && !a.fixed {
+            assert_eq!(
+                x0[model.node_count() + k],
+                old[src],
+                "copy {k} of node {src}"
+            );
+        }
+    }
+}

@@ -1,0 +1,331 @@
+//! Incremental patches of the three layouts after cut-like random edits: the patched layout
+//! equals a from-scratch packing of the changed model in the same arrangement, every byte that
+//! changed lies in a reported dirty range, node state follows its node, and stepping the patched
+//! layout equals stepping a rebuilt one bit for bit.
+
+#[path = "common/models.rs"]
+mod models;
+
+use lancet::engine::gpu::step_params;
+use lancet::engine::{Integrator, SimConfig};
+use lancet::layout::connectivity::ConnectivityLayout;
+use lancet::layout::edges::{Accumulation, EdgeLayout};
+use lancet::layout::patch::{LayoutArray, LayoutPatch};
+use lancet::layout::valence::ValenceLayout;
+use lancet::layout::{LayoutKind, NodeOrder, PackedLayout};
+use lancet::model::{ModelDiff, PackedModel, PackedSpring};
+use models::{moved_state, random_diff, random_model, Rng};
+use rstest::rstest;
+
+const ARRAYS: [LayoutArray; 6] = [
+    LayoutArray::Slots,
+    LayoutArray::InvMass,
+    LayoutArray::Buckets,
+    LayoutArray::EdgeSprings,
+    LayoutArray::IncidenceRows,
+    LayoutArray::Incidence,
+];
+
+/// The model after `diff`.
+fn applied(model: &PackedModel, diff: &ModelDiff) -> PackedModel {
+    let mut m = model.clone();
+    m.apply(diff).expect("a consistent random diff");
+    m
+}
+
+/// Every byte that differs between `before` and `after` (or is new) lies in a dirty range.
+fn assert_dirty_covers(before: &PackedLayout, after: &PackedLayout, patch: &LayoutPatch) {
+    for a in ARRAYS {
+        let (old, new) = (before.array(a), after.array(a));
+        let dirty: Vec<_> = patch.dirty.iter().filter(|d| d.array == a).collect();
+        for (i, &byte) in new.iter().enumerate() {
+            let changed = old.get(i) != Some(&byte);
+            let covered = dirty.iter().any(|d| d.bytes.contains(&(i as u64)));
+            assert!(
+                !changed || covered,
+                "{a:?} byte {i} changed but is not in a dirty range {dirty:?}"
+            );
+        }
+    }
+}
+
+/// The patched layout packed from scratch in the same arrangement.
+fn fresh(model: &PackedModel, patched: &PackedLayout) -> PackedLayout {
+    match patched {
+        PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
+            ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
+        ),
+        PackedLayout::Valence(v) => PackedLayout::Valence(
+            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
+                .unwrap(),
+        ),
+        PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
+    }
+}
+
+#[rstest]
+fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
+    #[values(1, 2, 3, 4, 5, 6, 7, 8)] seed: u64,
+) {
+    let mut model = random_model(seed, true);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    for round in 0..4 {
+        let diff = random_diff(&model, seed * 31 + round);
+        let next = applied(&model, &diff);
+        let before = layout.clone();
+        let patch = layout.patch(&next, &diff).unwrap();
+        // Not assert_eq: the Debug output of a layout is thousands of lines.
+        assert!(
+            layout == fresh(&next, &layout),
+            "round {round}: differs from a fresh packing"
+        );
+        assert_dirty_covers(&before, &layout, &patch);
+        model = next;
+    }
+}
+
+#[rstest]
+fn state_moves_keep_every_node_its_own_state(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+    #[values(11, 12, 13, 14)] seed: u64,
+) {
+    let model = random_model(seed, false);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    let mut rng = Rng(seed);
+    let state: Vec<[f32; 4]> = (0..layout.node_slots())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 0.0])
+        .collect();
+    let old = layout.order().clone();
+    let diff = random_diff(&model, seed);
+    let next = applied(&model, &diff);
+    let patch = layout.patch(&next, &diff).unwrap();
+    let moved = moved_state(&state, &patch.moves, layout.node_slots());
+    let new = layout.order();
+    let touched = diff.touched_nodes(model.node_count());
+    for t in 0..next.node_count() {
+        let want = if next.fixed[t] && touched.contains(&(t as u32)) {
+            // Fixed by the change: at rest from now on.
+            [0.0; 4]
+        } else if t < model.node_count() {
+            state[old.rank[t] as usize]
+        } else {
+            let src = diff.added_nodes[t - model.node_count()].state_from.unwrap();
+            state[old.rank[src as usize] as usize]
+        };
+        assert_eq!(moved[new.rank[t] as usize], want, "node {t}");
+    }
+}
+
+/// `steps` Verlet steps of a layout's CPU twin in `accumulation` from raw state.
+fn twin_steps(
+    layout: &EdgeLayout,
+    model: &PackedModel,
+    accumulation: Accumulation,
+    fp: &lancet::layout::edges::FixedPoint,
+    mut cur: Vec<[f32; 4]>,
+    mut prev: Vec<[f32; 4]>,
+    steps: usize,
+) -> Vec<[f32; 4]> {
+    let config = SimConfig::new(2e-5);
+    let p = step_params(model, config);
+    assert_eq!(p.integrator, Integrator::Verlet);
+    for _ in 0..steps {
+        let (next, _) = layout.step_variant_cpu(accumulation, &p, fp, &cur, &prev);
+        prev = std::mem::replace(&mut cur, next);
+    }
+    cur
+}
+
+#[rstest]
+fn patched_edges_step_bitwise_like_a_rebuild(
+    #[values(Accumulation::Gather, Accumulation::AtomicFixed)] accumulation: Accumulation,
+    #[values(21, 22, 23, 24, 25, 26)] seed: u64,
+) {
+    let mut model = random_model(seed, true);
+    let order = NodeOrder::locality(&model);
+    let mut layout = EdgeLayout::new(&model, order);
+    let fp = layout.fixed_point(&model);
+    let mut rng = Rng(seed);
+    let mut cur: Vec<[f32; 4]> = Vec::new();
+    let mut prev: Vec<[f32; 4]> = Vec::new();
+    for t in 0..model.node_count() {
+        let free = !model.fixed[layout.order.order[t] as usize];
+        let mut u = [0.0f32; 4];
+        for x in u.iter_mut().take(3) {
+            *x = if free {
+                ((rng.next() - 0.5) * 1e-4) as f32
+            } else {
+                0.0
+            };
+        }
+        cur.push(u);
+        prev.push([u[0] * 0.99, u[1] * 0.99, u[2] * 0.99, 0.0]);
+    }
+    for round in 0..3 {
+        let diff = random_diff(&model, seed * 7 + round);
+        let next = applied(&model, &diff);
+        let before = PackedLayout::Edges(layout.clone());
+        let patch = layout.patch(&next, &diff).unwrap();
+        assert_dirty_covers(&before, &PackedLayout::Edges(layout.clone()), &patch);
+        cur = moved_state(&cur, &patch.moves, layout.node_count());
+        prev = moved_state(&prev, &patch.moves, layout.node_count());
+        model = next;
+        let rebuilt = EdgeLayout::new(&model, layout.order.clone());
+        let a = twin_steps(
+            &layout,
+            &model,
+            accumulation,
+            &fp,
+            cur.clone(),
+            prev.clone(),
+            25,
+        );
+        let b = twin_steps(
+            &rebuilt,
+            &model,
+            accumulation,
+            &fp,
+            cur.clone(),
+            prev.clone(),
+            25,
+        );
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)),
+            "round {round}: patched and rebuilt edge layouts step differently"
+        );
+        assert!(a.iter().flatten().any(|&x| x != 0.0), "the state moved");
+    }
+}
+
+#[test]
+fn a_small_cut_dirties_a_small_part_of_each_layout() {
+    // A 12^3-cell box (2,197 nodes): big enough that the room a valence bucket is appended
+    // with (64 nodes) is small beside it, as on real meshes.
+    let mesh = lancet::mesh::generate::BoxGrid::cube_cells([12; 3], 0.01)
+        .build()
+        .unwrap();
+    let model = lancet::model::SpringModel::build(
+        &mesh,
+        &lancet::model::ModelConfig::new(lancet::model::Material::elastic(5e3, 0.25, 1000.0)),
+    )
+    .unwrap()
+    .pack(&mesh)
+    .unwrap();
+    // Remove three springs of one node: a few rows change.
+    let node = model.springs[40].nodes[0];
+    let diff = ModelDiff {
+        removed_springs: model
+            .springs
+            .iter()
+            .filter(|s| s.nodes.contains(&node))
+            .take(3)
+            .map(|s| s.nodes)
+            .collect(),
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &diff);
+    for kind in [
+        LayoutKind::Connectivity,
+        LayoutKind::Valence,
+        LayoutKind::Edges,
+    ] {
+        let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+        let total: u64 = ARRAYS.iter().map(|&a| layout.array(a).len() as u64).sum();
+        let patch = layout.patch(&next, &diff).unwrap();
+        assert!(!patch.repacked, "{kind:?}");
+        // Four nodes' rows out of 2,197; for valence also the rows pointing at the moved
+        // nodes and the buckets appended for them, room included.
+        assert!(
+            patch.dirty_bytes() * 12 < total,
+            "{kind:?}: {} of {total} bytes dirty",
+            patch.dirty_bytes()
+        );
+    }
+}
+
+#[test]
+fn a_row_that_outgrows_its_capacity_repacks_by_size_class() {
+    let model = random_model(3, false);
+    let mut c = ConnectivityLayout::new(&model, NodeOrder::locality(&model), None).unwrap();
+    let k = c.capacity;
+    // Join node 0 to every node it is not yet joined to, until it has k + 1 springs.
+    let mut diff = ModelDiff::default();
+    let mut valence = model
+        .springs
+        .iter()
+        .filter(|s| s.nodes.contains(&0))
+        .count() as u32;
+    for b in 1..model.node_count() as u32 {
+        if valence > k {
+            break;
+        }
+        if model.spring_index(0, b).is_none() {
+            diff.added_springs.push(PackedSpring {
+                nodes: [0, b],
+                rest_length: 0.01,
+                stiffness: 10.0,
+                damping: 0.0,
+            });
+            valence += 1;
+        }
+    }
+    let next = applied(&model, &diff);
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(patch.repacked);
+    assert!(
+        c.capacity > k && c.capacity % 4 == 0,
+        "{k} -> {}",
+        c.capacity
+    );
+    assert_eq!(
+        c,
+        ConnectivityLayout::new(&next, c.order.clone(), Some(c.capacity)).unwrap()
+    );
+}
+
+#[test]
+fn a_diff_that_does_not_fit_the_model_is_refused_and_leaves_it_unchanged() {
+    let model = random_model(2, false);
+    let mut m = model.clone();
+    let bad = ModelDiff {
+        removed_springs: vec![[0, 1], [0, 1]],
+        ..ModelDiff::default()
+    };
+    let err = m.apply(&bad).unwrap_err().to_string();
+    assert!(err.contains("0-1"), "{err}");
+    assert_eq!(m, model);
+    let dup = ModelDiff {
+        added_springs: vec![model.springs[0]],
+        ..ModelDiff::default()
+    };
+    assert!(m.apply(&dup).is_err());
+    assert_eq!(m, model);
+    // A layout given a model the diff was not applied to says so.
+    let mut layout =
+        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let grow = random_diff(&model, 9);
+    if !grow.added_nodes.is_empty() {
+        assert!(layout.patch(&model, &grow).is_err());
+    }
+}
+
+#[test]
+fn applying_a_diff_keeps_springs_sorted_and_findable() {
+    let mut model = random_model(4, true);
+    for round in 0..5 {
+        let diff = random_diff(&model, round);
+        model.apply(&diff).unwrap();
+        assert!(model.springs.windows(2).all(|w| w[0].nodes < w[1].nodes));
+        for s in &diff.added_springs {
+            let i = model.spring_index(s.nodes[1], s.nodes[0]).unwrap();
+            assert_eq!(model.springs[i].stiffness, s.stiffness);
+        }
+        for s in &diff.removed_springs {
+            let re_added = diff.added_springs.iter().any(|a| a.nodes == s.map(|x| x));
+            assert!(re_added || model.spring_index(s[0], s[1]).is_none());
+        }
+    }
+}
