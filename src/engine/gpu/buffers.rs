@@ -167,17 +167,26 @@ pub fn storage_buffer(
 
 /// Copy `src` into a mappable buffer and read it back as vec4s.
 pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> {
+    Ok(bytemuck::pod_collect_to_vec(&read_bytes(
+        ctx,
+        src,
+        src.size(),
+    )?))
+}
+
+/// Read back the first `size` bytes of `src` (a multiple of 4).
+pub fn read_bytes(ctx: &GpuContext, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
     let d = &ctx.device;
     let staging = d.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
-        size: src.size(),
+        size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
         label: Some("readback"),
     });
-    enc.copy_buffer_to_buffer(src, 0, &staging, 0, src.size());
+    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
     let index = ctx.queue.submit([enc.finish()]);
     let (tx, rx) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, .., move |r| {
@@ -196,5 +205,5 @@ pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> 
         .map_err(|e| Error::Gpu(format!("reading the mapped buffer: {e}")))?
         .to_vec();
     staging.unmap();
-    Ok(bytemuck::pod_collect_to_vec(&bytes))
+    Ok(bytes)
 }

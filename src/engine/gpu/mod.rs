@@ -11,6 +11,7 @@
 pub mod atomic_edges;
 pub mod buffers;
 pub mod context;
+pub mod health;
 pub mod node_gather;
 pub mod springs_connectivity;
 pub mod springs_edges;
@@ -20,7 +21,7 @@ use bytemuck::{Pod, Zeroable};
 
 pub use context::GpuContext;
 
-use super::{Engine, EngineMemory, Integrator, PatchCost, SimConfig};
+use super::{Engine, EngineMemory, Health, Integrator, PatchCost, SimConfig};
 use crate::error::Result;
 use crate::layout::connectivity::StepParams;
 use crate::layout::edges::{Accumulation, FixedPoint};
@@ -247,6 +248,7 @@ pub struct GpuEngine {
     fixed: Vec<bool>,
     state: NodeState,
     passes: Passes,
+    health: health::HealthPass,
     uniform: wgpu::Buffer,
     uniform_data: StepUniform,
     phase: usize,
@@ -332,6 +334,7 @@ impl GpuEngine {
             Sizing::Exact,
         )?;
         let memory = layout_memory(&ctx, &layout, config);
+        let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         Ok(GpuEngine {
             ctx,
             config,
@@ -340,6 +343,7 @@ impl GpuEngine {
             fixed: model.fixed.clone(),
             state,
             passes,
+            health,
             uniform,
             uniform_data,
             phase: 0,
@@ -430,6 +434,14 @@ impl GpuEngine {
             )?;
             uploaded = layout_bytes;
         }
+        // Rebound to the new buffers, and sized for the node dispatch.
+        self.health = health_pass(
+            &self.ctx,
+            &self.passes,
+            &self.uniform,
+            &self.state,
+            self.dispatch,
+        )?;
         self.state.apply_moves(&self.ctx, &patch.moves);
         self.memory = layout_memory(&self.ctx, &self.layout, self.config);
         Ok(PatchCost {
@@ -455,6 +467,17 @@ impl GpuEngine {
             integrator: self.config.integrator,
             damped: u.damped != 0,
         }
+    }
+
+    /// The device's divergence probe as read back (per-workgroup energies, first non-finite
+    /// layout index), for comparing with its twin [`health::health_cpu`].
+    pub fn health_partials(&self) -> Result<health::HealthPartials> {
+        self.health.run(&self.ctx, self.phase, self.dispatch.nodes)
+    }
+
+    /// Inverse masses in layout order, as uploaded.
+    pub fn inv_mass(&self) -> &[f32] {
+        bytemuck::cast_slice(self.layout.array(LayoutArray::InvMass))
     }
 
     /// The fixed-point constants of the atomic fixed-point edge variant.
@@ -545,6 +568,21 @@ impl GpuEngine {
         }
         (x, v)
     }
+}
+
+/// The divergence probe over the inverse masses of `passes` and `state`.
+fn health_pass(
+    ctx: &GpuContext,
+    passes: &Passes,
+    uniform: &wgpu::Buffer,
+    state: &NodeState,
+    dispatch: Dispatch,
+) -> Result<health::HealthPass> {
+    let inv_mass = passes
+        .buffer(LayoutArray::InvMass)
+        .expect("every layout uploads inverse masses");
+    let groups = dispatch.nodes.0 * dispatch.nodes.1;
+    health::HealthPass::new(ctx, inv_mass, uniform, state, groups)
 }
 
 /// Records the spring passes cover (edge layout; 0 for the node-centric layouts).
@@ -724,5 +762,22 @@ impl Engine for GpuEngine {
 
     fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<Option<PatchCost>> {
         GpuEngine::patch(self, model, diff).map(Some)
+    }
+
+    fn health(&self) -> Result<Option<Health>> {
+        let h = self
+            .health
+            .run(&self.ctx, self.phase, self.dispatch.nodes)?;
+        let (kinetic, gravity) = h.totals();
+        let order = &self.layout.order().order;
+        Ok(Some(Health {
+            non_finite: h
+                .first_bad
+                .map(|i| order[i as usize])
+                .filter(|&m| m != NodeOrder::HOLE)
+                .map(|m| m as usize),
+            kinetic,
+            gravity,
+        }))
     }
 }
