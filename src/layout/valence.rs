@@ -207,6 +207,16 @@ impl ValenceLayout {
         let mut rows: BTreeSet<u32> = BTreeSet::new();
         let mut buckets_changed = false;
         self.order.rank.resize(model.node_count(), NodeOrder::HOLE);
+        // How many nodes each valence receives, so that one appended bucket holds them all
+        // (every bucket is a dispatch per step).
+        let mut demand: BTreeMap<u32, u32> = BTreeMap::new();
+        for (&t, list) in &lists {
+            let v = list.len() as u32;
+            let new_node = t as usize >= before;
+            if new_node || self.buckets[self.bucket_of(self.order.rank[t as usize])].valence != v {
+                *demand.entry(v).or_default() += 1;
+            }
+        }
         for (&t, list) in &lists {
             let v = list.len() as u32;
             let new_node = t as usize >= before;
@@ -229,7 +239,9 @@ impl ValenceLayout {
                 moves.entry(idx).or_insert(None);
                 Some(idx)
             };
-            let (idx, table_changed) = self.place(v, model.node_count());
+            let want = demand.get_mut(&v).expect("counted above");
+            let (idx, table_changed) = self.place(v, *want, model.node_count());
+            *want -= 1;
             buckets_changed |= table_changed;
             self.order.order[idx as usize] = t;
             self.order.rank[t as usize] = idx;
@@ -312,8 +324,9 @@ impl ValenceLayout {
     }
 
     /// A free layout index in a bucket of valence `v`, and whether the bucket table changed (a
-    /// count grew or a bucket was appended).
-    fn place(&mut self, v: u32, nodes: usize) -> (u32, bool) {
+    /// count grew or a bucket was appended). `want` nodes (this one included) still need a
+    /// place of this valence in this patch: an appended bucket has room for them all.
+    fn place(&mut self, v: u32, want: u32, nodes: usize) -> (u32, bool) {
         if let Some(holes) = self.free.get_mut(&v) {
             let idx = holes.pop_first();
             if holes.is_empty() {
@@ -339,8 +352,10 @@ impl ValenceLayout {
             .sum();
         let room = (same / 16)
             .max(32)
+            .max(want)
             .next_power_of_two()
-            .min(nodes.max(32) as u32);
+            .min(nodes.max(32) as u32)
+            .max(want);
         let first = self.order.order.len() as u32;
         let offset = self.slots.len() as u32;
         self.order

@@ -114,8 +114,11 @@ pub fn check_binding(ctx: &GpuContext, what: &str, bytes: u64) -> Result<()> {
 /// How much room a buffer gets beyond its data.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sizing {
-    /// Exactly the data (the first upload: memory as the layout reports it).
+    /// Exactly the data.
     Exact,
+    /// The data and an eighth more: the first upload, so that the first cuts (a few percent
+    /// more nodes and springs) fit without reallocating.
+    Headroom,
     /// The next power of two (after a patch outgrew a buffer: room for the next edits).
     SizeClass,
 }
@@ -128,6 +131,7 @@ impl Sizing {
         let bytes = bytes.max(32);
         match self {
             Sizing::Exact => bytes,
+            Sizing::Headroom => (bytes + bytes / 8).next_multiple_of(16),
             Sizing::SizeClass => {
                 let max = ctx
                     .limits

@@ -100,7 +100,7 @@ impl HealthPass {
             ctx,
             "health partials",
             &vec![0u8; groups.max(1) as usize * 16],
-            Sizing::Exact,
+            Sizing::Headroom,
         )?;
         let first_bad = buffers::storage_buffer(ctx, "first bad node", &[0u8; 4], Sizing::Exact)?;
         let layout = buffers::pass_layout(ctx, "health", &[true, true, true, false, false]);
@@ -128,6 +128,11 @@ impl HealthPass {
             partials,
             first_bad,
         })
+    }
+
+    /// Whether the pass has room for a node dispatch of `groups` workgroups.
+    pub fn fits(&self, groups: (u32, u32)) -> bool {
+        (groups.0 * groups.1) as u64 * 16 <= self.partials.size()
     }
 
     /// Run the check on the state of `phase` over `groups` workgroups (the node dispatch) and

@@ -314,7 +314,12 @@ impl GpuEngine {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let state = NodeState::new(&ctx, layout.node_slots(), config.integrator, Sizing::Exact)?;
+        let state = NodeState::new(
+            &ctx,
+            layout.node_slots(),
+            config.integrator,
+            Sizing::Headroom,
+        )?;
         let fixed_point = match &layout {
             PackedLayout::Edges(e) => e.fixed_point(model),
             _ => FixedPoint::new(1.0, 1),
@@ -331,7 +336,7 @@ impl GpuEngine {
             &state,
             dispatch.row,
             fixed_point,
-            Sizing::Exact,
+            Sizing::Headroom,
         )?;
         let memory = layout_memory(&ctx, &layout, config);
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
@@ -434,14 +439,16 @@ impl GpuEngine {
             )?;
             uploaded = layout_bytes;
         }
-        // Rebound to the new buffers, and sized for the node dispatch.
-        self.health = health_pass(
-            &self.ctx,
-            &self.passes,
-            &self.uniform,
-            &self.state,
-            self.dispatch,
-        )?;
+        // Rebound to new buffers, or grown with the node dispatch.
+        if realloc || !self.health.fits(self.dispatch.nodes) {
+            self.health = health_pass(
+                &self.ctx,
+                &self.passes,
+                &self.uniform,
+                &self.state,
+                self.dispatch,
+            )?;
+        }
         self.state.apply_moves(&self.ctx, &patch.moves);
         self.memory = layout_memory(&self.ctx, &self.layout, self.config);
         Ok(PatchCost {

@@ -55,6 +55,8 @@ impl ValencePass {
         let stride = bucket_stride(ctx);
         let entries = match sizing {
             Sizing::Exact => layout.buckets.len().max(1),
+            // Room for the buckets the first cuts append.
+            Sizing::Headroom => layout.buckets.len() + 16,
             Sizing::SizeClass => layout.buckets.len().max(1).next_power_of_two(),
         };
         let table = d.create_buffer(&wgpu::BufferDescriptor {
