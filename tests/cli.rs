@@ -285,3 +285,129 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
         assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
     }
 }
+
+/// Whether the preferred adapter has float32 atomics (the `atomic-float` accumulation).
+fn has_float_atomics(ctx: &lancet::engine::gpu::GpuContext) -> bool {
+    ctx.device
+        .features()
+        .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC)
+}
+
+#[test]
+fn bench_gives_one_edges_row_per_accumulation_variant() {
+    let Some(ctx) = common::gpu() else { return };
+    let float_ok = has_float_atomics(&ctx);
+    drop(ctx);
+    let out = lancet(&[
+        "bench",
+        "--cube",
+        "4",
+        "--steps",
+        "40",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "gather,atomic-fixed,atomic-float",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().unwrap();
+    let skipped = v["skipped"].as_array().unwrap();
+    for (variant, name) in [
+        ("gather", "gpu-edges on"),
+        ("atomic-fixed", "gpu-edges-atomicfixed on"),
+        ("atomic-float", "gpu-edges-atomicfloat on"),
+    ] {
+        let matching: Vec<_> = rows
+            .iter()
+            .filter(|r| r["accumulation"] == variant)
+            .collect();
+        if variant == "atomic-float" && !float_ok {
+            // No row, and a note that says why.
+            assert!(matching.is_empty(), "{v}");
+            assert!(
+                skipped
+                    .iter()
+                    .any(|s| s.as_str().unwrap().contains("SHADER_FLOAT32_ATOMIC")),
+                "{v}"
+            );
+            continue;
+        }
+        assert_eq!(matching.len(), 1, "{variant}: {v}");
+        let r = matching[0];
+        assert_eq!(r["layout"], "edges");
+        assert!(r["engine"].as_str().unwrap().starts_with(name), "{r}");
+        assert!(r["ms_per_step"].as_f64().unwrap() > 0.0);
+        assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+    }
+    assert_eq!(rows.len() + skipped.len(), 3, "{v}");
+}
+
+#[test]
+fn run_with_each_accumulation_agrees_with_gather_on_the_default_scene() {
+    let Some(ctx) = common::gpu() else { return };
+    let float_ok = has_float_atomics(&ctx);
+    drop(ctx);
+    let run = |accumulation: &str| {
+        lancet(&[
+            "run",
+            "--engine",
+            "gpu",
+            "--layout",
+            "edges",
+            "--accumulation",
+            accumulation,
+            "--json",
+            "--no-output",
+        ])
+    };
+    let gather = run("gather");
+    assert!(
+        gather.status.success(),
+        "{}",
+        String::from_utf8_lossy(&gather.stderr)
+    );
+    let g = json_of(&gather);
+    for variant in ["atomic-fixed", "atomic-float"] {
+        let out = run(variant);
+        if variant == "atomic-float" && !float_ok {
+            assert_eq!(out.status.code(), Some(2));
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(err.contains("float32 atomics"), "{err}");
+            continue;
+        }
+        assert!(
+            out.status.success(),
+            "{variant}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v = json_of(&out);
+        let tag = variant.replace('-', "");
+        assert!(
+            v["engine"]
+                .as_str()
+                .unwrap()
+                .contains(&format!("-{tag} on")),
+            "{v}"
+        );
+        // The same physics in float32 after 6000 steps: the fixed-point rounding (a force
+        // quantum of 2^-scale N per spring and step) moves the tip by about 1e-4 of its sag,
+        // float atomics by their summation order only; 1e-3 leaves room for both.
+        // The volume change, not the ratio near 1, is what the tolerance is relative to.
+        for (key, offset) in [("max_displacement", 0.0), ("volume_ratio", 1.0)] {
+            let a = v[key].as_f64().unwrap() - offset;
+            let b = g[key].as_f64().unwrap() - offset;
+            assert!(
+                (a - b).abs() <= 1e-3 * b.abs(),
+                "{variant} {key}: {a} against gather {b}"
+            );
+        }
+    }
+}

@@ -166,7 +166,7 @@ impl GpuEngine {
         layout: LayoutKind,
     ) -> Result<Self> {
         let n = model.node_count();
-        let locality = NodeOrder::locality(model);
+        let locality = config.node_order.order(model);
         let m = model.springs.len() as u32;
         // One row width serves both the node and the spring dispatches.
         let groups = dispatch_size(&ctx, (n as u32).max(m));
