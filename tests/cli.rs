@@ -411,3 +411,157 @@ fn run_with_each_accumulation_agrees_with_gather_on_the_default_scene() {
         }
     }
 }
+
+/// `lancet` with the GPU hidden: only the Vulkan backend searched (so that wgpu's OpenGL
+/// fallback on llvmpipe is not picked up), and the Vulkan loader pointed at no driver.
+fn lancet_without_gpu(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(args)
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_ICD_FILENAMES", "/nonexistent")
+        .env("VK_DRIVER_FILES", "/nonexistent")
+        .output()
+        .expect("the lancet binary runs")
+}
+
+#[test]
+fn without_a_gpu_auto_runs_on_the_cpu_and_says_why() {
+    let out = lancet_without_gpu(&["run", "--engine", "auto", "--no-output"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("engine: cpu-fast-f32"), "{stdout}");
+    let note = stdout
+        .lines()
+        .find(|l| l.starts_with("note: "))
+        .unwrap_or_else(|| panic!("no note in:\n{stdout}"));
+    assert!(
+        note.contains("no usable GPU")
+            && note.contains("no GPU adapter found")
+            && note.contains("WGPU_BACKEND=\"vulkan\"")
+            && note.contains("running the fast CPU engine"),
+        "{note}"
+    );
+    // The same in the JSON summary.
+    let out = lancet_without_gpu(&["run", "--engine", "auto", "--steps", "20", "--json"]);
+    let v = json_of(&out);
+    assert_eq!(v["engine"], "cpu-fast-f32");
+    assert!(v["engine_note"]
+        .as_str()
+        .is_some_and(|n| n.contains("no usable GPU")));
+}
+
+#[test]
+fn without_a_gpu_engine_gpu_exits_2_saying_what_to_install() {
+    let out = lancet_without_gpu(&["run", "--engine", "gpu", "--no-output"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_else(|| panic!("no error line in:\n{err}"));
+    assert!(
+        line.contains("no GPU adapter found")
+            && line.contains("WGPU_BACKEND")
+            && line.contains("mesa-vulkan-drivers")
+            && line.contains("--engine cpu"),
+        "{line}"
+    );
+}
+
+#[test]
+fn unknown_wgpu_backend_is_a_clear_error() {
+    let out = Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(["run", "--engine", "gpu", "--no-output"])
+        .env("WGPU_BACKEND", "glide")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("WGPU_BACKEND=\"glide\" names no backend"),
+        "{err}"
+    );
+}
+
+/// wgpu's OpenGL backend on llvmpipe runs compute but has no float atomics: there, bench skips
+/// the atomic-float row with a note and run refuses it with exit code 2. Skipped where no GL
+/// adapter exists.
+#[test]
+fn atomic_float_without_float_atomics_is_skipped_in_bench_and_refused_in_run() {
+    let with_gl = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_lancet"))
+            .args(args)
+            .env("WGPU_BACKEND", "gl")
+            .output()
+            .unwrap()
+    };
+    let out = with_gl(&[
+        "bench",
+        "--cube",
+        "3",
+        "--steps",
+        "20",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "gather,atomic-float",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    if err.contains("no GPU adapter found") {
+        eprintln!("skipped: no OpenGL adapter ({err})");
+        return;
+    }
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().unwrap();
+    assert!(
+        rows.iter()
+            .any(|r| r["accumulation"] == "gather" && r["engine"].as_str().unwrap().contains("Gl")),
+        "{v}"
+    );
+    let float_row = rows.iter().any(|r| r["accumulation"] == "atomic-float");
+    let run = with_gl(&[
+        "run",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "atomic-float",
+        "--steps",
+        "20",
+        "--no-output",
+    ]);
+    if float_row {
+        eprintln!("this OpenGL adapter has float atomics; the refusal is not exercised");
+        assert_ne!(run.status.code(), Some(2));
+        return;
+    }
+    let skipped = v["skipped"].as_array().unwrap();
+    assert_eq!(skipped.len(), 1, "{v}");
+    assert!(
+        skipped[0]
+            .as_str()
+            .unwrap()
+            .contains("needs float32 atomics"),
+        "{v}"
+    );
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("needs float32 atomics") && err.contains("--accumulation atomic-fixed"),
+        "{err}"
+    );
+}

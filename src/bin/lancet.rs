@@ -58,8 +58,9 @@ enum Command {
     /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
     /// achieved bandwidth against this machine's measured floor, error against the reference.
     Bench {
-        /// Cube meshes of N^3 cells, six tets each (repeatable).
-        #[arg(long = "cube", default_values = ["10", "26"])]
+        /// Cube meshes of N^3 cells, six tets each (repeatable; cubes 10 and 26 when neither
+        /// --cube nor --mesh is given).
+        #[arg(long = "cube")]
         cubes: Vec<usize>,
         /// Mesh files (repeatable).
         #[arg(long)]
@@ -409,6 +410,12 @@ fn bench(
     json: bool,
 ) -> lancet::Result<ExitCode> {
     use lancet::report::{bandwidth, bench};
+    // With no mesh named, the two default cubes (about 1,300 and 20,000 nodes).
+    let cubes = if cubes.is_empty() && files.is_empty() {
+        &[10, 26][..]
+    } else {
+        cubes
+    };
     let mut meshes: Vec<bench::BenchMesh> =
         cubes.iter().map(|&n| bench::BenchMesh::Cube(n)).collect();
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
