@@ -283,6 +283,10 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
         assert!((achieved - bytes as f64 / (ms * 1e-3)).abs() <= 1e-6 * achieved);
         assert!(r["floor_ratio"].as_f64().unwrap() > 0.0);
         assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+        // Timestamp queries time the GPU engine only.
+        if !r["engine"].as_str().unwrap().starts_with("gpu-") {
+            assert!(r["gpu_ms_per_step"].is_null(), "{r}");
+        }
     }
 }
 
@@ -297,6 +301,10 @@ fn has_float_atomics(ctx: &lancet::engine::gpu::GpuContext) -> bool {
 fn bench_gives_one_edges_row_per_accumulation_variant() {
     let Some(ctx) = common::gpu() else { return };
     let float_ok = has_float_atomics(&ctx);
+    let timestamps = ctx
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY);
     drop(ctx);
     let out = lancet(&[
         "bench",
@@ -346,6 +354,15 @@ fn bench_gives_one_edges_row_per_accumulation_variant() {
         assert!(r["engine"].as_str().unwrap().starts_with(name), "{r}");
         assert!(r["ms_per_step"].as_f64().unwrap() > 0.0);
         assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+        // Device time per chunk is inside the chunk's wall time (which adds submission and
+        // the wait), so its median cannot exceed the wall-time median; 5% for clock skew.
+        if timestamps {
+            let gpu = r["gpu_ms_per_step"].as_f64().unwrap();
+            let wall = r["ms_per_step"].as_f64().unwrap();
+            assert!(gpu > 0.0 && gpu <= 1.05 * wall, "{r}");
+        } else {
+            assert!(r["gpu_ms_per_step"].is_null(), "{r}");
+        }
     }
     assert_eq!(rows.len() + skipped.len(), 3, "{v}");
 }

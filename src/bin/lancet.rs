@@ -442,7 +442,7 @@ fn bench(
         println!("gpu device: {d}");
     }
     println!(
-        "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9} {:>6} {:>9} {:>10} {:>8} {:>7} {:>9}",
+        "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9} {:>6} {:>9} {:>8} {:>10} {:>8} {:>7} {:>9}",
         "mesh",
         "nodes",
         "springs",
@@ -451,6 +451,7 @@ fn bench(
         "mem (MB)",
         "pad %",
         "ms/step",
+        "gpu ms",
         "Mspring/s",
         "GB/s",
         "floor %",
@@ -470,7 +471,7 @@ fn bench(
         }
         let mesh = r.mesh.rsplit('/').next().unwrap_or(&r.mesh);
         println!(
-            "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9.2} {:>6.1} {:>9.3} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
+            "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9.2} {:>6.1} {:>9.3} {:>8} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
             mesh,
             r.nodes,
             r.springs,
@@ -479,6 +480,7 @@ fn bench(
             r.memory_bytes as f64 / 1e6,
             r.padding_percent,
             r.ms_per_step,
+            r.gpu_ms_per_step.map_or("-".into(), |g| format!("{g:.3}")),
             r.spring_evals_per_s / 1e6,
             r.achieved_bytes_per_s / 1e9,
             100.0 * r.floor_ratio,

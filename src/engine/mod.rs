@@ -69,6 +69,11 @@ pub trait Engine: Send {
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
     /// Block until submitted work has finished (GPU engines; CPU engines finish in `step`).
     fn wait(&mut self) {}
+    /// Seconds the device itself spent on the last `step` call, measured with timestamp
+    /// queries (after [`Engine::wait`]); `None` for CPU engines and devices without them.
+    fn last_device_seconds(&self) -> Option<f64> {
+        None
+    }
     /// The engine's name, with its device where it has one.
     fn name(&self) -> String;
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
@@ -355,6 +360,12 @@ impl Simulation {
         self.engine.step(steps);
         self.engine.wait();
         self.steps += steps as u64;
+    }
+
+    /// Device time of the last [`Simulation::step_unchecked`] call, s, where the engine can
+    /// measure it (the GPU engine on an adapter with timestamp queries).
+    pub fn last_device_seconds(&self) -> Option<f64> {
+        self.engine.last_device_seconds()
     }
 
     /// The engine's name as reported in summaries (with its device for the GPU).

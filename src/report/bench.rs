@@ -106,6 +106,9 @@ pub struct BenchRow {
     pub bytes_per_step: u64,
     /// Median wall time per step, ms.
     pub ms_per_step: f64,
+    /// Median device time per step from timestamp queries, ms: the GPU engine on adapters
+    /// with `TIMESTAMP_QUERY`; none otherwise.
+    pub gpu_ms_per_step: Option<f64>,
     /// Springs evaluated per second (each spring counted once per step).
     pub spring_evals_per_s: f64,
     /// `bytes_per_step / time per step`.
@@ -262,14 +265,24 @@ pub fn run_bench(
             sim.step_unchecked(opts.chunk.min(10) as u32);
             sim.set_state(&model.rest, &vec![[0.0; 3]; model.node_count()])?;
             let mut times = Vec::new();
+            let mut device_times = Vec::new();
             let mut done = 0;
             while done < total {
                 let n = opts.chunk.min(total - done);
                 let t = Instant::now();
                 sim.step_unchecked(n as u32);
                 times.push(t.elapsed().as_secs_f64() / n as f64);
+                // Read after the wall time is taken: the readback is not part of a step.
+                if let Some(s) = sim.last_device_seconds() {
+                    device_times.push(s / n as f64);
+                }
                 done += n;
             }
+            // Only when every chunk was timed, so the median is over the same chunks.
+            let gpu_ms_per_step = (device_times.len() == times.len()).then(|| {
+                device_times.sort_by(f64::total_cmp);
+                device_times[device_times.len() / 2] * 1e3
+            });
             sim.check()?;
             times.sort_by(f64::total_cmp);
             let per_step = times[times.len() / 2];
@@ -293,6 +306,7 @@ pub fn run_bench(
                 padding_percent: memory.stats.padding_percent(),
                 bytes_per_step: memory.bytes_per_step,
                 ms_per_step: per_step * 1e3,
+                gpu_ms_per_step,
                 spring_evals_per_s: model.springs.len() as f64 / per_step,
                 achieved_bytes_per_s: achieved,
                 bandwidth_bytes_per_s: bandwidth.bytes_per_s,

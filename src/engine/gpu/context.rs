@@ -74,9 +74,11 @@ impl GpuContext {
             })?;
         let info = adapter.get_info();
         let limits = adapter.limits();
-        // Float atomics serve only the edge layout's AtomicFloat variant; ask for them where the
-        // adapter has them, never require them.
-        let features = adapter.features() & wgpu::Features::SHADER_FLOAT32_ATOMIC;
+        // Float atomics serve only the edge layout's AtomicFloat variant, timestamps only the
+        // device timing in `lancet bench`; ask for them where the adapter has them, never
+        // require them.
+        let features = adapter.features()
+            & (wgpu::Features::SHADER_FLOAT32_ATOMIC | wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("lancet"),
             required_features: features,

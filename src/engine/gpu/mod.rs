@@ -15,6 +15,7 @@ pub mod node_gather;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod timing;
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
@@ -150,6 +151,8 @@ pub struct GpuEngine {
     phase: usize,
     groups: (u32, u32),
     memory: EngineMemory,
+    /// Device timing of the step pass, where the adapter has timestamp queries.
+    timer: Option<timing::PassTimer>,
 }
 
 impl GpuEngine {
@@ -258,7 +261,9 @@ impl GpuEngine {
                 e.memory(config.integrator, config.accumulation),
             ),
         };
+        let timer = timing::PassTimer::new(&ctx);
         Ok(GpuEngine {
+            timer,
             ctx,
             layout,
             accumulation: config.accumulation,
@@ -376,7 +381,7 @@ impl Engine for GpuEngine {
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("springs"),
-                timestamp_writes: None,
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
             });
             for _ in 0..steps {
                 match &self.passes {
@@ -392,7 +397,15 @@ impl Engine for GpuEngine {
                 self.phase = (self.phase + 1) % self.state.phases();
             }
         }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
         self.ctx.queue.submit([enc.finish()]);
+    }
+
+    fn last_device_seconds(&self) -> Option<f64> {
+        // A failed readback only loses the timing; the step itself is unaffected.
+        self.timer.as_ref()?.last_seconds(&self.ctx).ok().flatten()
     }
 
     fn wait(&mut self) {
