@@ -283,5 +283,302 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
         assert!((achieved - bytes as f64 / (ms * 1e-3)).abs() <= 1e-6 * achieved);
         assert!(r["floor_ratio"].as_f64().unwrap() > 0.0);
         assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+        // Timestamp queries time the GPU engine only.
+        if !r["engine"].as_str().unwrap().starts_with("gpu-") {
+            assert!(r["gpu_ms_per_step"].is_null(), "{r}");
+        }
     }
+}
+
+/// Whether the preferred adapter has float32 atomics (the `atomic-float` accumulation).
+fn has_float_atomics(ctx: &lancet::engine::gpu::GpuContext) -> bool {
+    ctx.device
+        .features()
+        .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC)
+}
+
+#[test]
+fn bench_gives_one_edges_row_per_accumulation_variant() {
+    let Some(ctx) = common::gpu() else { return };
+    let float_ok = has_float_atomics(&ctx);
+    let timestamps = ctx
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY);
+    drop(ctx);
+    let out = lancet(&[
+        "bench",
+        "--cube",
+        "4",
+        "--steps",
+        "40",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "gather,atomic-fixed,atomic-float",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().unwrap();
+    let skipped = v["skipped"].as_array().unwrap();
+    for (variant, name) in [
+        ("gather", "gpu-edges on"),
+        ("atomic-fixed", "gpu-edges-atomicfixed on"),
+        ("atomic-float", "gpu-edges-atomicfloat on"),
+    ] {
+        let matching: Vec<_> = rows
+            .iter()
+            .filter(|r| r["accumulation"] == variant)
+            .collect();
+        if variant == "atomic-float" && !float_ok {
+            // No row, and a note that says why.
+            assert!(matching.is_empty(), "{v}");
+            assert!(
+                skipped
+                    .iter()
+                    .any(|s| s.as_str().unwrap().contains("SHADER_FLOAT32_ATOMIC")),
+                "{v}"
+            );
+            continue;
+        }
+        assert_eq!(matching.len(), 1, "{variant}: {v}");
+        let r = matching[0];
+        assert_eq!(r["layout"], "edges");
+        assert!(r["engine"].as_str().unwrap().starts_with(name), "{r}");
+        assert!(r["ms_per_step"].as_f64().unwrap() > 0.0);
+        assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
+        // Device time per chunk is inside the chunk's wall time (which adds submission and
+        // the wait), so its median cannot exceed the wall-time median; 5% for clock skew.
+        if timestamps {
+            let gpu = r["gpu_ms_per_step"].as_f64().unwrap();
+            let wall = r["ms_per_step"].as_f64().unwrap();
+            assert!(gpu > 0.0 && gpu <= 1.05 * wall, "{r}");
+        } else {
+            assert!(r["gpu_ms_per_step"].is_null(), "{r}");
+        }
+    }
+    assert_eq!(rows.len() + skipped.len(), 3, "{v}");
+}
+
+#[test]
+fn run_with_each_accumulation_agrees_with_gather_on_the_default_scene() {
+    let Some(ctx) = common::gpu() else { return };
+    let float_ok = has_float_atomics(&ctx);
+    drop(ctx);
+    let run = |accumulation: &str| {
+        lancet(&[
+            "run",
+            "--engine",
+            "gpu",
+            "--layout",
+            "edges",
+            "--accumulation",
+            accumulation,
+            "--json",
+            "--no-output",
+        ])
+    };
+    let gather = run("gather");
+    assert!(
+        gather.status.success(),
+        "{}",
+        String::from_utf8_lossy(&gather.stderr)
+    );
+    let g = json_of(&gather);
+    for variant in ["atomic-fixed", "atomic-float"] {
+        let out = run(variant);
+        if variant == "atomic-float" && !float_ok {
+            assert_eq!(out.status.code(), Some(2));
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(err.contains("float32 atomics"), "{err}");
+            continue;
+        }
+        assert!(
+            out.status.success(),
+            "{variant}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v = json_of(&out);
+        let tag = variant.replace('-', "");
+        assert!(
+            v["engine"]
+                .as_str()
+                .unwrap()
+                .contains(&format!("-{tag} on")),
+            "{v}"
+        );
+        // The same physics in float32 after 6000 steps: the fixed-point rounding (a force
+        // quantum of 2^-scale N per spring and step) moves the tip by about 1e-4 of its sag,
+        // float atomics by their summation order only; 1e-3 leaves room for both.
+        // The volume change, not the ratio near 1, is what the tolerance is relative to.
+        for (key, offset) in [("max_displacement", 0.0), ("volume_ratio", 1.0)] {
+            let a = v[key].as_f64().unwrap() - offset;
+            let b = g[key].as_f64().unwrap() - offset;
+            assert!(
+                (a - b).abs() <= 1e-3 * b.abs(),
+                "{variant} {key}: {a} against gather {b}"
+            );
+        }
+    }
+}
+
+/// `lancet` with the GPU hidden: only the Vulkan backend searched (so that wgpu's OpenGL
+/// fallback on llvmpipe is not picked up), and the Vulkan loader pointed at no driver.
+fn lancet_without_gpu(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(args)
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_ICD_FILENAMES", "/nonexistent")
+        .env("VK_DRIVER_FILES", "/nonexistent")
+        .output()
+        .expect("the lancet binary runs")
+}
+
+#[test]
+fn without_a_gpu_auto_runs_on_the_cpu_and_says_why() {
+    let out = lancet_without_gpu(&["run", "--engine", "auto", "--no-output"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("engine: cpu-fast-f32"), "{stdout}");
+    let note = stdout
+        .lines()
+        .find(|l| l.starts_with("note: "))
+        .unwrap_or_else(|| panic!("no note in:\n{stdout}"));
+    assert!(
+        note.contains("no usable GPU")
+            && note.contains("no GPU adapter found")
+            && note.contains("WGPU_BACKEND=\"vulkan\"")
+            && note.contains("running the fast CPU engine"),
+        "{note}"
+    );
+    // The same in the JSON summary.
+    let out = lancet_without_gpu(&["run", "--engine", "auto", "--steps", "20", "--json"]);
+    let v = json_of(&out);
+    assert_eq!(v["engine"], "cpu-fast-f32");
+    assert!(v["engine_note"]
+        .as_str()
+        .is_some_and(|n| n.contains("no usable GPU")));
+}
+
+#[test]
+fn without_a_gpu_engine_gpu_exits_2_saying_what_to_install() {
+    let out = lancet_without_gpu(&["run", "--engine", "gpu", "--no-output"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_else(|| panic!("no error line in:\n{err}"));
+    assert!(
+        line.contains("no GPU adapter found")
+            && line.contains("WGPU_BACKEND")
+            && line.contains("mesa-vulkan-drivers")
+            && line.contains("--engine cpu"),
+        "{line}"
+    );
+}
+
+#[test]
+fn unknown_wgpu_backend_is_a_clear_error() {
+    let out = Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(["run", "--engine", "gpu", "--no-output"])
+        .env("WGPU_BACKEND", "glide")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("WGPU_BACKEND=\"glide\" names no backend"),
+        "{err}"
+    );
+}
+
+/// wgpu's OpenGL backend on llvmpipe runs compute but has no float atomics: there, bench skips
+/// the atomic-float row with a note and run refuses it with exit code 2. Skipped where no GL
+/// adapter exists.
+#[test]
+fn atomic_float_without_float_atomics_is_skipped_in_bench_and_refused_in_run() {
+    let with_gl = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_lancet"))
+            .args(args)
+            .env("WGPU_BACKEND", "gl")
+            .output()
+            .unwrap()
+    };
+    let out = with_gl(&[
+        "bench",
+        "--cube",
+        "3",
+        "--steps",
+        "20",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "gather,atomic-float",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    if err.contains("no GPU adapter found") {
+        eprintln!("skipped: no OpenGL adapter ({err})");
+        return;
+    }
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().unwrap();
+    assert!(
+        rows.iter()
+            .any(|r| r["accumulation"] == "gather" && r["engine"].as_str().unwrap().contains("Gl")),
+        "{v}"
+    );
+    let float_row = rows.iter().any(|r| r["accumulation"] == "atomic-float");
+    let run = with_gl(&[
+        "run",
+        "--engine",
+        "gpu",
+        "--layout",
+        "edges",
+        "--accumulation",
+        "atomic-float",
+        "--steps",
+        "20",
+        "--no-output",
+    ]);
+    if float_row {
+        eprintln!("this OpenGL adapter has float atomics; the refusal is not exercised");
+        assert_ne!(run.status.code(), Some(2));
+        return;
+    }
+    let skipped = v["skipped"].as_array().unwrap();
+    assert_eq!(skipped.len(), 1, "{v}");
+    assert!(
+        skipped[0]
+            .as_str()
+            .unwrap()
+            .contains("needs float32 atomics"),
+        "{v}"
+    );
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("needs float32 atomics") && err.contains("--accumulation atomic-fixed"),
+        "{err}"
+    );
 }

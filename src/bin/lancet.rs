@@ -10,7 +10,8 @@ use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use lancet::engine::EngineKind;
+use lancet::engine::{EngineKind, NodeOrdering};
+use lancet::layout::edges::Accumulation;
 use lancet::scene::{run_scene, RunOptions, RunSummary, Scene};
 
 #[derive(Parser)]
@@ -40,6 +41,10 @@ enum Command {
         /// GPU memory layout instead of the scene's.
         #[arg(long, value_enum)]
         layout: Option<LayoutArg>,
+        /// How the GPU edge layout accumulates spring forces, instead of the scene's
+        /// (`atomic-float` needs an adapter with float32 atomics).
+        #[arg(long, value_enum)]
+        accumulation: Option<AccumulationArg>,
         /// Number of steps instead of the scene's.
         #[arg(long)]
         steps: Option<u64>,
@@ -53,8 +58,9 @@ enum Command {
     /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
     /// achieved bandwidth against this machine's measured floor, error against the reference.
     Bench {
-        /// Cube meshes of N^3 cells, six tets each (repeatable).
-        #[arg(long = "cube", default_values = ["10", "26"])]
+        /// Cube meshes of N^3 cells, six tets each (repeatable; cubes 10 and 26 when neither
+        /// --cube nor --mesh is given).
+        #[arg(long = "cube")]
         cubes: Vec<usize>,
         /// Mesh files (repeatable).
         #[arg(long)]
@@ -65,6 +71,14 @@ enum Command {
         /// GPU layouts to compare, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
         layout: Vec<LayoutArg>,
+        /// Accumulation variants of the GPU edge layout, comma-separated (each gives its own
+        /// edges row; `atomic-float` is skipped with a note on adapters without float atomics).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["gather"])]
+        accumulation: Vec<AccumulationArg>,
+        /// Node orders for the fast CPU and GPU engines, comma-separated (`rcm` is what they
+        /// use by default; `identity` keeps the mesh's numbering; `random` is a seeded shuffle).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["rcm"])]
+        order: Vec<OrderArg>,
         /// Steps timed per engine.
         #[arg(long, default_value_t = 200)]
         steps: u64,
@@ -106,6 +120,49 @@ enum LayoutArg {
     Edges,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum AccumulationArg {
+    /// A node pass gathers each node's spring forces (deterministic, no atomics).
+    Gather,
+    /// Atomic adds in 32-bit fixed point (deterministic).
+    AtomicFixed,
+    /// Atomic float adds (needs SHADER_FLOAT32_ATOMIC; summation order varies).
+    AtomicFloat,
+}
+
+impl From<AccumulationArg> for Accumulation {
+    fn from(a: AccumulationArg) -> Self {
+        match a {
+            AccumulationArg::Gather => Accumulation::Gather,
+            AccumulationArg::AtomicFixed => Accumulation::AtomicFixed,
+            AccumulationArg::AtomicFloat => Accumulation::AtomicFloat,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum OrderArg {
+    /// Reverse Cuthill–McKee (the engines' default).
+    Rcm,
+    /// The mesh's own numbering.
+    Identity,
+    /// A random permutation (fixed seed, so runs compare).
+    Random,
+}
+
+/// Seed of `--order random`: fixed, so that two bench runs time the same permutation.
+const RANDOM_ORDER_SEED: u64 = 1;
+
+impl From<OrderArg> for NodeOrdering {
+    fn from(o: OrderArg) -> Self {
+        match o {
+            OrderArg::Rcm => NodeOrdering::Locality,
+            OrderArg::Identity => NodeOrdering::Identity,
+            OrderArg::Random => NodeOrdering::Random(RANDOM_ORDER_SEED),
+        }
+    }
+}
+
 impl From<LayoutArg> for lancet::layout::LayoutKind {
     fn from(l: LayoutArg) -> Self {
         match l {
@@ -135,6 +192,7 @@ fn main() -> ExitCode {
             json,
             engine,
             layout,
+            accumulation,
             steps,
             output,
             no_output,
@@ -142,6 +200,7 @@ fn main() -> ExitCode {
             let opts = RunOptions {
                 engine: engine.map(Into::into),
                 layout: layout.map(Into::into),
+                accumulation: accumulation.map(Into::into),
                 steps,
                 output_dir: output,
                 no_output,
@@ -154,9 +213,21 @@ fn main() -> ExitCode {
             mesh,
             engine,
             layout,
+            accumulation,
+            order,
             steps,
             json,
-        } => bench(&cubes, &mesh, &engine, &layout, steps, json),
+        } => {
+            let opts = lancet::report::bench::BenchOptions {
+                engines: engine.iter().map(|&e| e.into()).collect(),
+                layouts: layout.iter().map(|&l| l.into()).collect(),
+                accumulations: accumulation.iter().map(|&a| a.into()).collect(),
+                orders: order.iter().map(|&o| o.into()).collect(),
+                steps,
+                ..Default::default()
+            };
+            bench(&cubes, &mesh, &opts, json)
+        }
     };
     match result {
         Ok(code) => code,
@@ -335,29 +406,28 @@ fn print_table(summaries: &[RunSummary]) {
 fn bench(
     cubes: &[usize],
     files: &[PathBuf],
-    engines: &[EngineArg],
-    layouts: &[LayoutArg],
-    steps: u64,
+    opts: &lancet::report::bench::BenchOptions,
     json: bool,
 ) -> lancet::Result<ExitCode> {
     use lancet::report::{bandwidth, bench};
+    // With no mesh named, the two default cubes (about 1,300 and 20,000 nodes).
+    let cubes = if cubes.is_empty() && files.is_empty() {
+        &[10, 26][..]
+    } else {
+        cubes
+    };
     let mut meshes: Vec<bench::BenchMesh> =
         cubes.iter().map(|&n| bench::BenchMesh::Cube(n)).collect();
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
-    let opts = bench::BenchOptions {
-        engines: engines.iter().map(|&e| e.into()).collect(),
-        layouts: layouts.iter().map(|&l| l.into()).collect(),
-        steps,
-        ..Default::default()
-    };
     // 2^24 doubles per array (128 MiB): far beyond any cache, as STREAM requires.
     let bw = bandwidth::stream_triad(1 << 24, 5);
-    let rows = bench::run_bench(&meshes, &opts, &bw)?;
+    let report = bench::run_bench(&meshes, opts, &bw)?;
     if json {
-        let v = json!({ "bandwidth": bw, "rows": rows });
+        let v = json!({ "bandwidth": bw, "rows": report.rows, "skipped": report.skipped });
         println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         return Ok(ExitCode::SUCCESS);
     }
+    let rows = &report.rows;
     println!(
         "memory bandwidth (STREAM triad, {} threads): {:.1} GB/s",
         bw.threads,
@@ -372,35 +442,53 @@ fn bench(
         println!("gpu device: {d}");
     }
     println!(
-        "{:<14} {:>8} {:>9} {:<20} {:>9} {:>6} {:>9} {:>10} {:>8} {:>7} {:>9}",
+        "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9} {:>6} {:>9} {:>8} {:>10} {:>8} {:>7} {:>9}",
         "mesh",
         "nodes",
         "springs",
         "engine",
+        "order",
         "mem (MB)",
         "pad %",
         "ms/step",
+        "gpu ms",
         "Mspring/s",
         "GB/s",
         "floor %",
         "error"
     );
-    for r in &rows {
-        let engine = r.engine.split(" on ").next().unwrap_or(&r.engine);
+    for r in rows {
+        let mut engine = r
+            .engine
+            .split(" on ")
+            .next()
+            .unwrap_or(&r.engine)
+            .to_string();
+        // The engine name carries the atomic variants; say "gather" too, so that every edges
+        // row names its variant.
+        if r.accumulation.as_deref() == Some("gather") {
+            engine.push_str("-gather");
+        }
+        let mesh = r.mesh.rsplit('/').next().unwrap_or(&r.mesh);
         println!(
-            "{:<14} {:>8} {:>9} {:<20} {:>9.2} {:>6.1} {:>9.3} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
-            r.mesh,
+            "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9.2} {:>6.1} {:>9.3} {:>8} {:>10.1} {:>8.2} {:>7.1} {:>9.2e}",
+            mesh,
             r.nodes,
             r.springs,
             engine,
+            r.order.as_deref().unwrap_or("-"),
             r.memory_bytes as f64 / 1e6,
             r.padding_percent,
             r.ms_per_step,
+            r.gpu_ms_per_step.map_or("-".into(), |g| format!("{g:.3}")),
             r.spring_evals_per_s / 1e6,
             r.achieved_bytes_per_s / 1e9,
             100.0 * r.floor_ratio,
             r.error_vs_reference
         );
+    }
+    for s in &report.skipped {
+        println!("skipped: {s}");
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -91,7 +91,7 @@ impl FastEngine {
     /// Start at rest at the rest positions.
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
         let n = model.node_count();
-        let order = crate::layout::locality_order(model);
+        let order = config.node_order.order(model).order;
         let mut rank = vec![0u32; n];
         for (new, &old) in order.iter().enumerate() {
             rank[old as usize] = new as u32;

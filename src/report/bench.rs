@@ -8,8 +8,10 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::bandwidth::Bandwidth;
-use crate::engine::{EngineKind, Integrator, SimConfig, Simulation};
-use crate::error::Result;
+use crate::engine::{EngineKind, Integrator, NodeOrdering, SimConfig, Simulation};
+use crate::error::{Error, Result};
+use crate::layout::edges::Accumulation;
+use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;
 use crate::mesh::TetMesh;
 use crate::model::{stable_time_step, FixedSelector, Material, ModelConfig, PackedModel};
@@ -49,7 +51,12 @@ pub struct BenchOptions {
     /// Engines to compare.
     pub engines: Vec<EngineKind>,
     /// Layouts to run each GPU engine in.
-    pub layouts: Vec<crate::layout::LayoutKind>,
+    pub layouts: Vec<LayoutKind>,
+    /// Accumulation variants to run the GPU edge layout in (the other layouts have none).
+    pub accumulations: Vec<Accumulation>,
+    /// Node orders to run the fast CPU and the GPU engines in (the reference engine keeps the
+    /// model's order).
+    pub orders: Vec<NodeOrdering>,
     /// Steps timed per engine (after a warm-up).
     pub steps: u64,
     /// Steps per timed chunk; the median chunk gives the time per step.
@@ -62,7 +69,9 @@ impl Default for BenchOptions {
     fn default() -> Self {
         BenchOptions {
             engines: vec![EngineKind::Reference, EngineKind::Fast],
-            layouts: vec![crate::layout::LayoutKind::Connectivity],
+            layouts: vec![LayoutKind::Connectivity],
+            accumulations: vec![Accumulation::Gather],
+            orders: vec![NodeOrdering::Locality],
             steps: 200,
             chunk: 20,
             integrator: Integrator::Verlet,
@@ -79,8 +88,16 @@ pub struct BenchRow {
     pub nodes: usize,
     /// Springs.
     pub springs: usize,
-    /// Engine (and layout).
+    /// Engine (and layout), with its device for the GPU.
     pub engine: String,
+    /// GPU layout; none for the CPU engines.
+    pub layout: Option<String>,
+    /// Accumulation variant of the GPU edge layout ("gather", "atomic-fixed", "atomic-float");
+    /// none for the other layouts and engines.
+    pub accumulation: Option<String>,
+    /// Node order the engine packed its arrays in ("rcm", "identity", "random(seed)"); none
+    /// for the reference engine, which keeps the model's order.
+    pub order: Option<String>,
     /// Bytes the engine keeps.
     pub memory_bytes: u64,
     /// Padding share of that, per cent.
@@ -89,6 +106,9 @@ pub struct BenchRow {
     pub bytes_per_step: u64,
     /// Median wall time per step, ms.
     pub ms_per_step: f64,
+    /// Median device time per step from timestamp queries, ms: the GPU engine on adapters
+    /// with `TIMESTAMP_QUERY`; none otherwise.
+    pub gpu_ms_per_step: Option<f64>,
     /// Springs evaluated per second (each spring counted once per step).
     pub spring_evals_per_s: f64,
     /// `bytes_per_step / time per step`.
@@ -116,64 +136,177 @@ pub fn bench_model(mesh: &TetMesh) -> Result<PackedModel> {
     crate::model::SpringModel::build(mesh, &config)?.pack(mesh)
 }
 
+/// The rows of a benchmark and the combinations it could not run, with why.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    /// One row per mesh and engine variant that ran.
+    pub rows: Vec<BenchRow>,
+    /// "mesh, variant: reason" for each variant the device cannot run (atomic float
+    /// accumulation without `SHADER_FLOAT32_ATOMIC`).
+    pub skipped: Vec<String>,
+}
+
+/// One engine configuration of the matrix.
+#[derive(Debug, Clone, Copy)]
+struct Variant {
+    engine: EngineKind,
+    layout: Option<LayoutKind>,
+    accumulation: Option<Accumulation>,
+    order: Option<NodeOrdering>,
+}
+
+/// The CLI spelling of an accumulation variant.
+pub fn accumulation_name(a: Accumulation) -> &'static str {
+    match a {
+        Accumulation::Gather => "gather",
+        Accumulation::AtomicFixed => "atomic-fixed",
+        Accumulation::AtomicFloat => "atomic-float",
+    }
+}
+
+/// The matrix: the reference engine once; the fast engine once per order; GPU engines once
+/// per order and layout, and the edge layout once per accumulation variant.
+fn variants(opts: &BenchOptions) -> Vec<Variant> {
+    let mut out = Vec::new();
+    // An empty list means the default, so that a caller can leave a dimension out.
+    let orders = if opts.orders.is_empty() {
+        vec![NodeOrdering::Locality]
+    } else {
+        opts.orders.clone()
+    };
+    let accumulations = if opts.accumulations.is_empty() {
+        vec![Accumulation::Gather]
+    } else {
+        opts.accumulations.clone()
+    };
+    for &engine in &opts.engines {
+        match engine {
+            EngineKind::Reference => out.push(Variant {
+                engine,
+                layout: None,
+                accumulation: None,
+                order: None,
+            }),
+            EngineKind::Fast => out.extend(orders.iter().map(|&o| Variant {
+                engine,
+                layout: None,
+                accumulation: None,
+                order: Some(o),
+            })),
+            EngineKind::Gpu | EngineKind::Auto => {
+                for &layout in &opts.layouts {
+                    let accs: Vec<Option<Accumulation>> = if layout == LayoutKind::Edges {
+                        accumulations.iter().copied().map(Some).collect()
+                    } else {
+                        vec![None]
+                    };
+                    for accumulation in accs {
+                        out.extend(orders.iter().map(|&o| Variant {
+                            engine,
+                            layout: Some(layout),
+                            accumulation,
+                            order: Some(o),
+                        }));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Run the benchmark matrix.
 pub fn run_bench(
     meshes: &[BenchMesh],
     opts: &BenchOptions,
     bandwidth: &Bandwidth,
-) -> Result<Vec<BenchRow>> {
-    let mut rows = Vec::new();
+) -> Result<BenchReport> {
+    let mut report = BenchReport {
+        rows: Vec::new(),
+        skipped: Vec::new(),
+    };
     for m in meshes {
         let (name, mesh) = m.build()?;
         let model = bench_model(&mesh)?;
         let dt = 0.9 * stable_time_step(&model).dt;
-        let config = SimConfig {
+        let base = SimConfig {
             integrator: opts.integrator,
             ..SimConfig::new(dt)
         };
         let total = opts.steps.max(opts.chunk);
         // The reference state after the same number of steps, for the error column.
-        let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config)?;
+        let mut reference = Simulation::new(model.clone(), EngineKind::Reference, base)?;
         reference.run(total)?;
         let x_ref = reference.positions();
-        // GPU engines run once per layout; CPU engines have none.
-        let runs = opts.engines.iter().flat_map(|&e| {
-            let layouts = if matches!(e, EngineKind::Gpu | EngineKind::Auto) {
-                opts.layouts.clone()
-            } else {
-                vec![config.layout]
+        for v in variants(opts) {
+            let config = SimConfig {
+                layout: v.layout.unwrap_or(base.layout),
+                accumulation: v.accumulation.unwrap_or(base.accumulation),
+                node_order: v.order.unwrap_or(base.node_order),
+                ..base
             };
-            layouts.into_iter().map(move |l| (e, l))
-        });
-        for (engine, layout) in runs {
-            let config = SimConfig { layout, ..config };
-            let mut sim = Simulation::new(model.clone(), engine, config)?;
+            let mut sim = match Simulation::new(model.clone(), v.engine, config) {
+                Ok(sim) => sim,
+                // A variant the device lacks a feature for is skipped with the reason; the rest
+                // of the matrix still runs.
+                Err(Error::Unsupported(why))
+                    if v.accumulation == Some(Accumulation::AtomicFloat) =>
+                {
+                    report
+                        .skipped
+                        .push(format!("{name}, gpu-edges-atomic-float: {why}"));
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            // Auto without an adapter runs the CPU engine, which has no layout.
+            let on_gpu = sim.kind() == EngineKind::Gpu;
             // Warm-up: first touches of memory, thread pools, shader compilation.
             sim.step_unchecked(opts.chunk.min(10) as u32);
             sim.set_state(&model.rest, &vec![[0.0; 3]; model.node_count()])?;
             let mut times = Vec::new();
+            let mut device_times = Vec::new();
             let mut done = 0;
             while done < total {
                 let n = opts.chunk.min(total - done);
                 let t = Instant::now();
                 sim.step_unchecked(n as u32);
                 times.push(t.elapsed().as_secs_f64() / n as f64);
+                // Read after the wall time is taken: the readback is not part of a step.
+                if let Some(s) = sim.last_device_seconds() {
+                    device_times.push(s / n as f64);
+                }
                 done += n;
             }
+            // Only when every chunk was timed, so the median is over the same chunks.
+            let gpu_ms_per_step = (device_times.len() == times.len()).then(|| {
+                device_times.sort_by(f64::total_cmp);
+                device_times[device_times.len() / 2] * 1e3
+            });
             sim.check()?;
             times.sort_by(f64::total_cmp);
             let per_step = times[times.len() / 2];
             let memory = sim.memory();
             let achieved = memory.bytes_per_step as f64 / per_step;
-            rows.push(BenchRow {
+            report.rows.push(BenchRow {
                 mesh: name.clone(),
                 nodes: model.node_count(),
                 springs: model.springs.len(),
                 engine: sim.engine_name(),
+                layout: v
+                    .layout
+                    .filter(|_| on_gpu)
+                    .map(|l| format!("{l:?}").to_lowercase()),
+                accumulation: v
+                    .accumulation
+                    .filter(|_| on_gpu)
+                    .map(|a| accumulation_name(a).to_string()),
+                order: v.order.map(|o| o.to_string()),
                 memory_bytes: memory.stats.total,
                 padding_percent: memory.stats.padding_percent(),
                 bytes_per_step: memory.bytes_per_step,
                 ms_per_step: per_step * 1e3,
+                gpu_ms_per_step,
                 spring_evals_per_s: model.springs.len() as f64 / per_step,
                 achieved_bytes_per_s: achieved,
                 bandwidth_bytes_per_s: bandwidth.bytes_per_s,
@@ -182,7 +315,7 @@ pub fn run_bench(
             });
         }
     }
-    Ok(rows)
+    Ok(report)
 }
 
 /// `|u - u_ref| / |u_ref|` over all nodes, `u` being displacements from `rest`.

@@ -21,6 +21,8 @@ pub struct RunOptions {
     pub engine: Option<EngineKind>,
     /// Use this GPU layout instead of the scene's.
     pub layout: Option<crate::layout::LayoutKind>,
+    /// Use this accumulation in the GPU edge layout instead of the scene's.
+    pub accumulation: Option<crate::layout::edges::Accumulation>,
     /// Run this many steps instead of the scene's.
     pub steps: Option<u64>,
     /// Write frames here instead of the scene's output folder.
@@ -171,6 +173,7 @@ pub fn run_scene(
         integrator: scene.integrator,
         allow_unstable: scene.allow_unstable,
         layout: opts.layout.unwrap_or(scene.layout),
+        accumulation: opts.accumulation.unwrap_or(scene.accumulation),
         ..SimConfig::new(dt)
     };
     let mut summary = RunSummary {

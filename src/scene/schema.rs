@@ -182,6 +182,10 @@ pub struct Scene {
     /// GPU memory layout (for `engine: Gpu` or `Auto`).
     #[serde(default)]
     pub layout: crate::layout::LayoutKind,
+    /// How the GPU edge layout brings spring forces to the nodes (`Gather`, `AtomicFixed`,
+    /// `AtomicFloat`); ignored by the other layouts and engines.
+    #[serde(default)]
+    pub accumulation: crate::layout::edges::Accumulation,
     /// Integration scheme.
     #[serde(default)]
     pub integrator: Integrator,

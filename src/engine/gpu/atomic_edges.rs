@@ -66,7 +66,7 @@ impl AtomicEdgePasses {
                     return Err(Error::Unsupported(format!(
                         "the AtomicFloat accumulation needs float32 atomics \
                          (SHADER_FLOAT32_ATOMIC), which {} does not have; use AtomicFixed or \
-                         Gather",
+                         Gather (--accumulation atomic-fixed or gather)",
                         ctx.describe()
                     )));
                 }

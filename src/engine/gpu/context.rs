@@ -31,10 +31,27 @@ fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
 impl GpuContext {
     /// Open the preferred adapter. Without any adapter this is an error that says what to
     /// install, never a panic.
+    ///
+    /// The environment variable `WGPU_BACKEND` (wgpu's own, a comma-separated list such as
+    /// `vulkan` or `vulkan,gl`) restricts the backends searched; without it, native APIs are
+    /// searched first and OpenGL only when they have no adapter. Restricting to `vulkan` is how
+    /// to make sure no OpenGL fallback is picked up, e.g. to test the no-GPU path with the
+    /// Vulkan driver hidden (`VK_ICD_FILENAMES=/nonexistent`).
     pub fn new() -> Result<Self> {
-        // Native APIs first; OpenGL (which also runs compute on llvmpipe) only when none has an
-        // adapter, since probing it costs time and prints EGL warnings.
-        let adapter = [wgpu::Backends::PRIMARY, wgpu::Backends::GL]
+        let from_env = std::env::var("WGPU_BACKEND").ok();
+        let searches = match wgpu::Backends::from_env() {
+            Some(b) if b.is_empty() => {
+                return Err(Error::Unsupported(format!(
+                    "WGPU_BACKEND={:?} names no backend; use a comma-separated list of vulkan,                      metal, dx12, gl, or unset it",
+                    from_env.unwrap_or_default()
+                )))
+            }
+            Some(b) => vec![b],
+            // Native APIs first; OpenGL (which also runs compute on llvmpipe) only when none
+            // has an adapter, since probing it costs time and prints EGL warnings.
+            None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::GL],
+        };
+        let adapter = searches
             .into_iter()
             .find_map(|backends| {
                 let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
@@ -46,18 +63,22 @@ impl GpuContext {
                     .min_by_key(|a| rank(&a.get_info()))
             })
             .ok_or_else(|| {
-                Error::Unsupported(
-                    "no GPU adapter found; install a Vulkan driver (on Debian: apt-get install \
-                     mesa-vulkan-drivers libvulkan1 gives a CPU Vulkan device) or run with \
-                     --engine cpu"
-                        .into(),
-                )
+                let restricted = from_env.map_or(String::new(), |v| {
+                    format!(" on the backends WGPU_BACKEND={v:?} allows (unset it to search all)")
+                });
+                Error::Unsupported(format!(
+                    "no GPU adapter found{restricted}; install a Vulkan driver (on Debian: \
+                     apt-get install mesa-vulkan-drivers libvulkan1 gives a CPU Vulkan device) \
+                     or run with --engine cpu"
+                ))
             })?;
         let info = adapter.get_info();
         let limits = adapter.limits();
-        // Float atomics serve only the edge layout's AtomicFloat variant; ask for them where the
-        // adapter has them, never require them.
-        let features = adapter.features() & wgpu::Features::SHADER_FLOAT32_ATOMIC;
+        // Float atomics serve only the edge layout's AtomicFloat variant, timestamps only the
+        // device timing in `lancet bench`; ask for them where the adapter has them, never
+        // require them.
+        let features = adapter.features()
+            & (wgpu::Features::SHADER_FLOAT32_ATOMIC | wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("lancet"),
             required_features: features,

@@ -16,6 +16,7 @@ pub mod node_gather;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod timing;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -256,6 +257,8 @@ pub struct GpuEngine {
     /// Fixed-point constants (used by the atomic fixed-point variant only).
     fixed_point: FixedPoint,
     memory: EngineMemory,
+    /// Device timing of the step pass, where the adapter has timestamp queries.
+    timer: Option<timing::PassTimer>,
 }
 
 /// The arrays each layout uploads.
@@ -281,7 +284,7 @@ impl GpuEngine {
         config: SimConfig,
         layout: LayoutKind,
     ) -> Result<Self> {
-        let packed = PackedLayout::pack(model, layout, NodeOrder::locality(model))?;
+        let packed = PackedLayout::pack(model, layout, config.node_order.order(model))?;
         Self::with_layout(ctx, model, config, packed)
     }
 
@@ -340,7 +343,9 @@ impl GpuEngine {
         )?;
         let memory = layout_memory(&ctx, &layout, config);
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
+        let timer = timing::PassTimer::new(&ctx);
         Ok(GpuEngine {
+            timer,
             ctx,
             config,
             layout,
@@ -700,7 +705,7 @@ impl Engine for GpuEngine {
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("springs"),
-                timestamp_writes: None,
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
             });
             for _ in 0..steps {
                 let d = self.dispatch;
@@ -713,7 +718,15 @@ impl Engine for GpuEngine {
                 self.phase = (self.phase + 1) % self.state.phases();
             }
         }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
         self.ctx.queue.submit([enc.finish()]);
+    }
+
+    fn last_device_seconds(&self) -> Option<f64> {
+        // A failed readback only loses the timing; the step itself is unaffected.
+        self.timer.as_ref()?.last_seconds(&self.ctx).ok().flatten()
     }
 
     fn wait(&mut self) {
