@@ -121,7 +121,10 @@ fn accuracy_refuses_a_step_above_the_bound_with_exit_2() {
     let out = lancet(&["report", "accuracy", &scene, "--ladder", "2", "--no-plot"]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("fraction 2") && stderr.contains("bound"), "{stderr}");
+    assert!(
+        stderr.contains("fraction 2") && stderr.contains("bound"),
+        "{stderr}"
+    );
     let out = lancet(&["report", "accuracy", &scene, "--ladder", "abc"]);
     assert_eq!(out.status.code(), Some(2));
 }

@@ -5,8 +5,8 @@ mod common;
 use std::path::Path;
 
 use lancet::engine::EngineKind;
-use lancet::layout::LayoutKind;
 use lancet::engine::Integrator;
+use lancet::layout::LayoutKind;
 use lancet::report::accuracy::{
     model_accuracy, scene_accuracy, step_for_times, AccuracyOptions, AccuracyReport, AccuracyRow,
 };
@@ -61,7 +61,11 @@ fn flicked_box(damping: f64) -> (lancet::PackedModel, AccuracyOptions) {
         .unwrap()
         .pack(&mesh)
         .unwrap();
-    let v = model.rest.iter().map(|p| [0.0, 0.0, 0.05 * p[0] / 0.03]).collect();
+    let v = model
+        .rest
+        .iter()
+        .map(|p| [0.0, 0.0, 0.05 * p[0] / 0.03])
+        .collect();
     let opts = AccuracyOptions {
         // Converged reference at 1/256 of the bound, so that its own error (1/16 of the
         // finest row's at second order) barely touches the ratios.
@@ -89,8 +93,15 @@ fn halving_ratios(report: &AccuracyReport) -> Vec<f64> {
 #[test]
 fn undamped_verlet_error_falls_at_second_order_as_dt_halves() {
     let (model, opts) = flicked_box(0.0);
-    let report = model_accuracy("flicked box", &model, Integrator::Verlet, 0.2, &opts, |_| {})
-        .unwrap();
+    let report = model_accuracy(
+        "flicked box",
+        &model,
+        Integrator::Verlet,
+        0.2,
+        &opts,
+        |_| {},
+    )
+    .unwrap();
     // Second order: halving dt cuts the error 4x in the limit. Measured on this box: 4.0 to
     // 4.2 (the rungs' steps are not exactly halved, as they must divide the sample times).
     // 3 leaves room and is still far from first order's 2.
@@ -98,7 +109,10 @@ fn undamped_verlet_error_falls_at_second_order_as_dt_halves() {
     assert!(ratios.iter().all(|&r| r > 3.0), "{ratios:?}");
     // The reference's self-check (2 dt against dt, both 16 times finer than the finest
     // rung) is far below the finest rung: the reference is converged relative to the rows.
-    let finest = rows(&report, "cpu-reference-f64").last().unwrap().worst_relative_l2();
+    let finest = rows(&report, "cpu-reference-f64")
+        .last()
+        .unwrap()
+        .worst_relative_l2();
     assert!(
         report.reference_self_error() < finest / 10.0,
         "self-check {:.3e} vs finest row {finest:.3e}",
@@ -112,8 +126,15 @@ fn damped_verlet_converges_at_first_order() {
     // damped run converges at first order: halving dt about halves the error. Measured: 2.0
     // to 2.1.
     let (model, opts) = flicked_box(200.0);
-    let report = model_accuracy("flicked box", &model, Integrator::Verlet, 0.2, &opts, |_| {})
-        .unwrap();
+    let report = model_accuracy(
+        "flicked box",
+        &model,
+        Integrator::Verlet,
+        0.2,
+        &opts,
+        |_| {},
+    )
+    .unwrap();
     let ratios = halving_ratios(&report);
     assert!(ratios.iter().all(|r| (1.6..2.6).contains(r)), "{ratios:?}");
 }
@@ -191,7 +212,10 @@ fn every_engine_and_layout_appears_once_per_dt_with_positive_times() {
         assert!((r.steps as f64 * r.dt - last).abs() < 1e-9 * last);
         // At equal dt, time discretisation dominates: a float32 engine's error is the float64
         // engine's to within a few per cent (float32 rounding is ~1e-7 relative per step).
-        let same = reference_rows.iter().find(|q| q.fraction == r.fraction).unwrap();
+        let same = reference_rows
+            .iter()
+            .find(|q| q.fraction == r.fraction)
+            .unwrap();
         for (a, b) in r.errors.iter().zip(&same.errors) {
             assert!(
                 (a.relative_l2 - b.relative_l2).abs() <= 0.05 * b.relative_l2,
@@ -224,8 +248,8 @@ fn steps_divide_every_sample_time() {
 fn steps_above_the_bound_or_an_empty_ladder_are_refused() {
     let scene = tiny_box(0.0);
     for ladder in [vec![1.5], vec![], vec![-0.5]] {
-        let err = scene_accuracy(&scene, Path::new("x.ron"), &cpu_options(&ladder), |_| {})
-            .unwrap_err();
+        let err =
+            scene_accuracy(&scene, Path::new("x.ron"), &cpu_options(&ladder), |_| {}).unwrap_err();
         assert!(
             matches!(err, lancet::Error::Options(_)),
             "{ladder:?}: {err}"

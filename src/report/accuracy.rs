@@ -217,8 +217,7 @@ pub fn step_for_times(times: &[f64], target: f64) -> Result<(f64, Vec<u64>)> {
         )));
     }
     let t0 = times.iter().copied().fold(f64::INFINITY, f64::min);
-    if times.is_empty() || !(t0.is_finite() && t0 > 0.0) || times.iter().any(|t| !t.is_finite())
-    {
+    if times.is_empty() || !(t0.is_finite() && t0 > 0.0) || times.iter().any(|t| !t.is_finite()) {
         return Err(Error::Options(format!(
             "sample times {times:?} must be finite and positive"
         )));
@@ -421,10 +420,7 @@ pub fn model_accuracy(
     let reference = run_to(
         model,
         EngineKind::Reference,
-        SimConfig {
-            dt: ref_dt,
-            ..base
-        },
+        SimConfig { dt: ref_dt, ..base },
         &ref_counts,
         opts,
     )?;

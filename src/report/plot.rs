@@ -66,10 +66,7 @@ fn find_ttf(dir: &Path, depth: u32, found: &mut Vec<PathBuf>) {
         let p = e.path();
         if p.is_dir() && depth > 0 {
             find_ttf(&p, depth - 1, found);
-        } else if p
-            .extension()
-            .is_some_and(|x| x.eq_ignore_ascii_case("ttf"))
-        {
+        } else if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("ttf")) {
             found.push(p);
         }
     }
