@@ -254,7 +254,15 @@ struct Run {
     engine: String,
     states: Vec<Vec<[f64; 3]>>,
     stepping_s: f64,
+    /// Simulated time reached, s (short of the last sample time if the run diverged).
+    simulated_s: f64,
     diverged: Option<String>,
+}
+
+impl Run {
+    fn wall_per_sim_s(&self) -> f64 {
+        self.stepping_s / self.simulated_s
+    }
 }
 
 /// Run `model` on `kind` at `config.dt`, stopping at each of `counts` steps to read positions.
@@ -283,6 +291,7 @@ fn run_to(
         engine,
         states: Vec::with_capacity(counts.len()),
         stepping_s: 0.0,
+        simulated_s: 0.0,
         diverged: None,
     };
     let mut done = 0u64;
@@ -293,6 +302,7 @@ fn run_to(
             sim.step_unchecked(n as u32);
             run.stepping_s += t.elapsed().as_secs_f64();
             done += n;
+            run.simulated_s = done as f64 * config.dt;
             if let Err(e) = sim.check() {
                 // `step_unchecked` counted the warm-up too; report the step of this run.
                 run.diverged = Some(match e {
@@ -441,13 +451,12 @@ pub fn model_accuracy(
         &check_counts,
         opts,
     )?;
-    let sim_time = times.last().copied().unwrap_or(0.0);
     let reference_run = ReferenceRun {
         engine: reference.engine.clone(),
         dt: ref_dt,
         dt_over_bound: ref_dt / bound.dt,
         steps: last(&ref_counts),
-        wall_s_per_sim_s: reference.stepping_s / sim_time,
+        wall_s_per_sim_s: reference.wall_per_sim_s(),
         check_dt,
         self_error: errors_of(model, &times, &check.states, &reference.states),
     };
@@ -507,7 +516,7 @@ pub fn model_accuracy(
                 dt,
                 dt_over_bound: dt / bound.dt,
                 steps: last(&counts),
-                wall_s_per_sim_s: run.stepping_s / sim_time,
+                wall_s_per_sim_s: run.wall_per_sim_s(),
                 errors: errors_of(model, &times, &run.states, &reference.states),
                 diverged: run.diverged,
             });
