@@ -509,6 +509,7 @@ pub fn model_accuracy(
                 ..base
             };
             let run = run_to(model, *kind, config, &counts, opts)?;
+            let wall_s_per_sim_s = run.wall_per_sim_s();
             rows.push(AccuracyRow {
                 series: name.clone(),
                 engine: run.engine,
@@ -516,7 +517,7 @@ pub fn model_accuracy(
                 dt,
                 dt_over_bound: dt / bound.dt,
                 steps: last(&counts),
-                wall_s_per_sim_s: run.wall_per_sim_s(),
+                wall_s_per_sim_s,
                 errors: errors_of(model, &times, &run.states, &reference.states),
                 diverged: run.diverged,
             });
