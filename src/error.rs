@@ -128,6 +128,11 @@ pub enum Error {
     /// A feature or format that this build or this file needs is not available.
     #[error("unsupported: {0}")]
     Unsupported(String),
+
+    /// A request to a report or tool is inconsistent (an empty list, a time step fraction above
+    /// the stable bound, sample times that no common step divides).
+    #[error("invalid options: {0}")]
+    Options(String),
 }
 
 impl Error {

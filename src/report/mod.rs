@@ -1,5 +1,8 @@
 //! Measurements users act on: benchmarks of engines and layouts against the memory-bandwidth
-//! floor (and, to come, error against run time).
+//! floor, and error against run time over a ladder of time steps.
 
+pub mod accuracy;
 pub mod bandwidth;
 pub mod bench;
+#[cfg(feature = "plot")]
+pub mod plot;
