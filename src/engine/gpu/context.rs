@@ -38,11 +38,18 @@ impl GpuContext {
     /// to make sure no OpenGL fallback is picked up, e.g. to test the no-GPU path with the
     /// Vulkan driver hidden (`VK_ICD_FILENAMES=/nonexistent`).
     pub fn new() -> Result<Self> {
+        Self::with_limits(|_| {})
+    }
+
+    /// Like [`GpuContext::new`], with the device's limits lowered by `lower` (which may only
+    /// lower them): to check that a mesh too big for a smaller device gets a clear error.
+    pub fn with_limits(lower: impl FnOnce(&mut wgpu::Limits)) -> Result<Self> {
         let from_env = std::env::var("WGPU_BACKEND").ok();
         let searches = match wgpu::Backends::from_env() {
             Some(b) if b.is_empty() => {
                 return Err(Error::Unsupported(format!(
-                    "WGPU_BACKEND={:?} names no backend; use a comma-separated list of vulkan,                      metal, dx12, gl, or unset it",
+                    "WGPU_BACKEND={:?} names no backend; use a comma-separated list of vulkan, \
+                     metal, dx12, gl, or unset it",
                     from_env.unwrap_or_default()
                 )))
             }
@@ -73,7 +80,8 @@ impl GpuContext {
                 ))
             })?;
         let info = adapter.get_info();
-        let limits = adapter.limits();
+        let mut limits = adapter.limits();
+        lower(&mut limits);
         // Float atomics serve only the edge layout's AtomicFloat variant, timestamps only the
         // device timing in `lancet bench`; ask for them where the adapter has them, never
         // require them.
