@@ -83,6 +83,9 @@ enum Command {
         /// Steps timed per engine.
         #[arg(long, default_value_t = 200)]
         steps: u64,
+        /// Integration scheme of every run.
+        #[arg(long, value_enum, default_value = "verlet")]
+        integrator: IntegratorArg,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -163,6 +166,24 @@ enum LayoutArg {
     Valence,
     /// One record per spring.
     Edges,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum IntegratorArg {
+    /// Position Verlet over the two most recent positions.
+    Verlet,
+    /// Symplectic Euler (the same trajectory in exact arithmetic; keeps float32 precision
+    /// far below the stable bound).
+    SymplecticEuler,
+}
+
+impl From<IntegratorArg> for lancet::Integrator {
+    fn from(i: IntegratorArg) -> Self {
+        match i {
+            IntegratorArg::Verlet => lancet::Integrator::Verlet,
+            IntegratorArg::SymplecticEuler => lancet::Integrator::SymplecticEuler,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -290,9 +311,11 @@ fn main() -> ExitCode {
             accumulation,
             order,
             steps,
+            integrator,
             json,
         } => {
             let opts = lancet::report::bench::BenchOptions {
+                integrator: integrator.into(),
                 engines: engine.iter().map(|&e| e.into()).collect(),
                 layouts: layout.iter().map(|&l| l.into()).collect(),
                 accumulations: accumulation.iter().map(|&a| a.into()).collect(),
