@@ -9,6 +9,7 @@
 //! positions (and velocities) are read back, when asked for.
 
 pub mod atomic_edges;
+pub mod broad_tool;
 pub mod buffers;
 pub mod context;
 pub mod health;
@@ -23,6 +24,7 @@ use bytemuck::{Pod, Zeroable};
 pub use context::GpuContext;
 
 use super::{Engine, EngineMemory, Health, Integrator, PatchCost, SimConfig};
+use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::connectivity::StepParams;
 use crate::layout::edges::{Accumulation, FixedPoint};
@@ -259,6 +261,8 @@ pub struct GpuEngine {
     memory: EngineMemory,
     /// Device timing of the step pass, where the adapter has timestamp queries.
     timer: Option<timing::PassTimer>,
+    /// The tissue surface (model order) and its tool culler, built only once a program culls.
+    surface: Option<(Vec<[u32; 3]>, broad_tool::ToolCuller)>,
 }
 
 /// The arrays each layout uploads.
@@ -346,6 +350,7 @@ impl GpuEngine {
         let timer = timing::PassTimer::new(&ctx);
         Ok(GpuEngine {
             timer,
+            surface: None,
             ctx,
             config,
             layout,
@@ -455,6 +460,11 @@ impl GpuEngine {
             )?;
         }
         self.state.apply_moves(&self.ctx, &patch.moves);
+        // Node indices and state buffers may have changed under the surface.
+        if let Some((triangles, _)) = self.surface.take() {
+            let culler = self.make_culler(&triangles)?;
+            self.surface = Some((triangles, culler));
+        }
         self.memory = layout_memory(&self.ctx, &self.layout, self.config);
         Ok(PatchCost {
             uploaded_bytes: uploaded,
@@ -462,6 +472,65 @@ impl GpuEngine {
             state_moves: patch.moves.len(),
             reallocated: realloc,
         })
+    }
+
+    /// Give the engine the tissue's boundary triangles (dense model indices, as
+    /// `collide::broad::Surface` makes them) for [`GpuEngine::cull_tools`]: they and the rest
+    /// positions are uploaded once (again after a patch, which may renumber nodes).
+    pub fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
+        let n = self.rest.len();
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(crate::Error::Model(format!(
+                "surface triangle {t:?} names a node past the model's {n} nodes"
+            )));
+        }
+        let culler = self.make_culler(triangles)?;
+        self.surface = Some((triangles.to_vec(), culler));
+        Ok(())
+    }
+
+    fn make_culler(&self, triangles: &[[u32; 3]]) -> Result<broad_tool::ToolCuller> {
+        let order = self.layout.order();
+        let tris: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|i| order.rank[i as usize]))
+            .collect();
+        broad_tool::ToolCuller::new(&self.ctx, &tris, &self.rest_f32(), &self.state)
+    }
+
+    /// Rest positions in layout order as the passes see them (zero at holes).
+    pub fn rest_f32(&self) -> Vec<[f32; 4]> {
+        let mut rest = vec![[0.0f32; 4]; self.layout.node_slots()];
+        for (new, old) in self.layout.order().pairs() {
+            let r = self.rest[old];
+            rest[new] = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];
+        }
+        rest
+    }
+
+    /// The surface triangles in layout order, as the culler holds them.
+    pub fn surface_layout_order(&self) -> Option<Vec<[u32; 3]>> {
+        let order = self.layout.order();
+        self.surface.as_ref().map(|(t, _)| {
+            t.iter()
+                .map(|t| t.map(|i| order.rank[i as usize]))
+                .collect()
+        })
+    }
+
+    /// Broad phase against tool boxes on the device: the (triangle, tool) pairs whose boxes
+    /// overlap at the current state, triangle indices into the surface given to
+    /// [`GpuEngine::set_surface`]. Reads back only the candidate list.
+    pub fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<broad_tool::CullResult> {
+        let Some((_, culler)) = &mut self.surface else {
+            return Err(crate::Error::Model(
+                "no surface to cull: call set_surface with the boundary triangles first".into(),
+            ));
+        };
+        culler.cull(&self.ctx, &self.state, self.phase, boxes)
     }
 
     /// The packed layout as it is on the device.

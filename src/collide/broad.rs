@@ -1,0 +1,139 @@
+//! Broad phase, tool against tissue: the boundary triangles whose bounding boxes overlap a
+//! tool's (swept, margin-inflated) box. The GPU pass (`shaders/broad_tool.wgsl`,
+//! `engine::gpu::broad_tool`) appends the survivors to a candidate buffer through an atomic
+//! counter; [`cull_cpu`] is its twin, and [`cull_exact`] the brute-force float64 answer both
+//! must contain.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::mesh::topology::Topology;
+use crate::mesh::TetMesh;
+
+/// The boundary surface of the tissue: triangles as dense node indices (the packed model's
+/// order), outward oriented.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Surface {
+    /// Corner nodes of each boundary triangle.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Surface {
+    /// The boundary triangles of `mesh`, in its dense node order.
+    pub fn of(mesh: &TetMesh) -> Self {
+        let dense = mesh.dense_nodes();
+        let triangles = Topology::of(mesh)
+            .boundary
+            .iter()
+            .map(|f| f.nodes.map(|k| dense.index[k]))
+            .collect();
+        Surface { triangles }
+    }
+}
+
+/// An axis-aligned box, m. Mirrors `struct ToolBox` in `shaders/broad_tool.wgsl` (32 bytes:
+/// the fourth lanes are padding).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct ToolBox {
+    /// Lower corner.
+    pub lo: [f32; 4],
+    /// Upper corner.
+    pub hi: [f32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<ToolBox>() == 32);
+
+impl ToolBox {
+    /// The float32 box for the float64 box `lo..hi`, such that every triangle overlapping the
+    /// exact box overlaps it when its corners are formed in float32 as the passes form them
+    /// (rest position rounded to float32, plus the float32 displacement): each corner is
+    /// widened by two float32 epsilons of its magnitude (half an ulp for rounding the rest
+    /// position, half for the addition, with room to spare) and rounded outwards.
+    pub fn containing(lo: [f64; 3], hi: [f64; 3]) -> Self {
+        let pad = |x: f64| 2.0 * f32::EPSILON as f64 * x.abs();
+        let lo = lo.map(|x| x - pad(x));
+        let hi = hi.map(|x| x + pad(x));
+        let down = |x: f64| {
+            let f = x as f32;
+            if f as f64 > x {
+                f.next_down()
+            } else {
+                f
+            }
+        };
+        let up = |x: f64| {
+            let f = x as f32;
+            if (f as f64) < x {
+                f.next_up()
+            } else {
+                f
+            }
+        };
+        ToolBox {
+            lo: [down(lo[0]), down(lo[1]), down(lo[2]), 0.0],
+            hi: [up(hi[0]), up(hi[1]), up(hi[2]), 0.0],
+        }
+    }
+}
+
+/// A surviving pair: (triangle index, tool index).
+pub type Candidate = [u32; 2];
+
+/// Float32 position of a node from its rest position and displacement, as the GPU pass forms
+/// it.
+#[inline]
+fn position(rest: &[[f32; 4]], disp: &[[f32; 4]], i: u32) -> [f32; 3] {
+    let (r, u) = (rest[i as usize], disp[i as usize]);
+    [r[0] + u[0], r[1] + u[1], r[2] + u[2]]
+}
+
+/// The bounds of triangle `t` at float32 positions `rest + disp`, as the GPU pass computes
+/// them.
+fn triangle_box(rest: &[[f32; 4]], disp: &[[f32; 4]], t: [u32; 3]) -> ([f32; 3], [f32; 3]) {
+    let [a, b, c] = t.map(|i| position(rest, disp, i));
+    let lo = [0, 1, 2].map(|k| a[k].min(b[k]).min(c[k]));
+    let hi = [0, 1, 2].map(|k| a[k].max(b[k]).max(c[k]));
+    (lo, hi)
+}
+
+/// Every (triangle, tool) pair whose float32 boxes overlap (touching counts), in triangle then
+/// tool order: the CPU twin of the GPU pass, whose list is the same set in some order.
+/// `rest` and `disp` are indexed by the triangles' node indices.
+pub fn cull_cpu(
+    rest: &[[f32; 4]],
+    disp: &[[f32; 4]],
+    triangles: &[[u32; 3]],
+    boxes: &[ToolBox],
+) -> Vec<Candidate> {
+    let mut out = Vec::new();
+    for (t, &tri) in triangles.iter().enumerate() {
+        let (lo, hi) = triangle_box(rest, disp, tri);
+        for (k, b) in boxes.iter().enumerate() {
+            if (0..3).all(|c| lo[c] <= b.hi[c] && b.lo[c] <= hi[c]) {
+                out.push([t as u32, k as u32]);
+            }
+        }
+    }
+    out
+}
+
+/// The exact answer in float64: pairs whose triangle (at `positions`) and box `lo..hi`
+/// overlap. Every broad phase must return a superset of this.
+pub fn cull_exact(
+    positions: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    boxes: &[([f64; 3], [f64; 3])],
+) -> Vec<Candidate> {
+    let mut out = Vec::new();
+    for (t, tri) in triangles.iter().enumerate() {
+        let p = tri.map(|i| positions[i as usize]);
+        let lo = [0, 1, 2].map(|k| p[0][k].min(p[1][k]).min(p[2][k]));
+        let hi = [0, 1, 2].map(|k| p[0][k].max(p[1][k]).max(p[2][k]));
+        for (k, (blo, bhi)) in boxes.iter().enumerate() {
+            if (0..3).all(|c| lo[c] <= bhi[c] && blo[c] <= hi[c]) {
+                out.push([t as u32, k as u32]);
+            }
+        }
+    }
+    out
+}

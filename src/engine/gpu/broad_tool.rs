@@ -1,0 +1,202 @@
+//! The tool broad phase on the device: pairs with `shaders/broad_tool.wgsl`. Built only when a
+//! program asks for culling (no tool, no pass). The surface (triangles in layout order and the
+//! rest positions) is uploaded once; each cull uploads the tool boxes, runs one dispatch over
+//! the triangles and reads back the counter and the candidates, nothing else.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::buffers::{self, Sizing};
+use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
+use crate::collide::broad::{Candidate, ToolBox};
+use crate::error::{Error, Result};
+
+const SOURCE: &str = include_str!("../../../shaders/broad_tool.wgsl");
+
+/// Mirrors `struct CullParams` in `shaders/broad_tool.wgsl` (16 bytes).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct CullParams {
+    triangles: u32,
+    tools: u32,
+    capacity: u32,
+    row: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<CullParams>() == 16);
+
+/// What one cull found, and what it cost.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CullResult {
+    /// (triangle, tool) pairs, sorted.
+    pub candidates: Vec<Candidate>,
+    /// Times the candidate buffer was too small and the pass ran again after growing it.
+    pub regrown: u32,
+}
+
+/// The pass, its surface and its output buffers.
+pub struct ToolCuller {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    rest: wgpu::Buffer,
+    triangle_count: u32,
+    boxes: wgpu::Buffer,
+    candidates: wgpu::Buffer,
+    count: wgpu::Buffer,
+    /// One bind group per rotation phase (the displacement buffer differs).
+    bind_groups: Vec<wgpu::BindGroup>,
+}
+
+impl ToolCuller {
+    /// Upload the surface (`triangles` in layout order, `rest` positions in layout order) and
+    /// build the pass over the node state.
+    pub fn new(
+        ctx: &GpuContext,
+        triangles: &[[u32; 3]],
+        rest: &[[f32; 4]],
+        state: &NodeState,
+    ) -> Result<Self> {
+        let d = &ctx.device;
+        let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
+        let triangles_buf = buffers::storage_buffer(
+            ctx,
+            "surface triangles",
+            bytemuck::cast_slice(&tris),
+            Sizing::Exact,
+        )?;
+        let rest_buf = buffers::storage_buffer(
+            ctx,
+            "rest positions",
+            bytemuck::cast_slice(rest),
+            Sizing::Exact,
+        )?;
+        let params = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cull params"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // triangles, rest, displacements, boxes (read); candidates, count (written).
+        let layout =
+            buffers::pass_layout(ctx, "broad_tool", &[true, true, true, true, false, false]);
+        let pipeline = buffers::compute_pipeline(ctx, "broad_tool", SOURCE, &[&layout])?;
+        let boxes = buffers::storage_buffer(ctx, "tool boxes", &[0u8; 32], Sizing::Exact)?;
+        // Room for a few candidates per triangle touched by a millimetre tool; grown on demand.
+        let candidates =
+            buffers::storage_buffer(ctx, "candidates", &[0u8; 8 * 1024], Sizing::Exact)?;
+        let count = buffers::storage_buffer(ctx, "candidate count", &[0u8; 4], Sizing::Exact)?;
+        let mut culler = ToolCuller {
+            pipeline,
+            layout,
+            params,
+            triangles: triangles_buf,
+            rest: rest_buf,
+            triangle_count: triangles.len() as u32,
+            boxes,
+            candidates,
+            count,
+            bind_groups: Vec::new(),
+        };
+        culler.rebind(ctx, state);
+        Ok(culler)
+    }
+
+    /// Rebuild the bind groups (after the node state or an output buffer was reallocated).
+    pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
+        self.bind_groups = (0..state.phases())
+            .map(|phase| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("broad_tool"),
+                    layout: &self.layout,
+                    entries: &buffers::entries(&[
+                        &self.params,
+                        &self.triangles,
+                        &self.rest,
+                        state.bindings(phase).cur,
+                        &self.boxes,
+                        &self.candidates,
+                        &self.count,
+                    ]),
+                })
+            })
+            .collect();
+    }
+
+    /// Cull the surface against `boxes` at the state of `phase`.
+    pub fn cull(
+        &mut self,
+        ctx: &GpuContext,
+        state: &NodeState,
+        phase: usize,
+        boxes: &[ToolBox],
+    ) -> Result<CullResult> {
+        if boxes.is_empty() || self.triangle_count == 0 {
+            return Ok(CullResult {
+                candidates: Vec::new(),
+                regrown: 0,
+            });
+        }
+        let box_bytes: &[u8] = bytemuck::cast_slice(boxes);
+        if box_bytes.len() as u64 > self.boxes.size() {
+            self.boxes = buffers::storage_buffer(ctx, "tool boxes", box_bytes, Sizing::SizeClass)?;
+            self.rebind(ctx, state);
+        } else {
+            ctx.queue.write_buffer(&self.boxes, 0, box_bytes);
+        }
+        let groups = dispatch_size(ctx, self.triangle_count);
+        let row = groups.0 * WORKGROUP;
+        let mut regrown = 0;
+        loop {
+            let capacity = (self.candidates.size() / 8) as u32;
+            let params = CullParams {
+                triangles: self.triangle_count,
+                tools: boxes.len() as u32,
+                capacity,
+                row,
+            };
+            ctx.queue
+                .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            ctx.queue.write_buffer(&self.count, 0, &0u32.to_le_bytes());
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("broad_tool"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("broad_tool"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.bind_groups[phase], &[]);
+                pass.dispatch_workgroups(groups.0, groups.1, 1);
+            }
+            ctx.queue.submit([enc.finish()]);
+            let n = u32::from_le_bytes(
+                buffers::read_bytes(ctx, &self.count, 4)?
+                    .try_into()
+                    .map_err(|_| Error::Gpu("candidate count readback".into()))?,
+            );
+            if n <= capacity {
+                let raw = buffers::read_bytes(ctx, &self.candidates, (n.max(1) as u64) * 8)?;
+                let mut candidates: Vec<Candidate> = bytemuck::pod_collect_to_vec(&raw);
+                candidates.truncate(n as usize);
+                candidates.sort_unstable();
+                return Ok(CullResult {
+                    candidates,
+                    regrown,
+                });
+            }
+            // Too many survivors: grow by size class to hold them all and run again.
+            self.candidates = buffers::storage_buffer(
+                ctx,
+                "candidates",
+                &vec![0u8; n as usize * 8],
+                Sizing::SizeClass,
+            )?;
+            self.rebind(ctx, state);
+            regrown += 1;
+        }
+    }
+}
