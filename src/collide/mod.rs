@@ -2,3 +2,4 @@
 //! bounds (on the GPU, with a CPU twin), then exact queries on the few survivors.
 
 pub mod broad;
+pub mod self_broad;

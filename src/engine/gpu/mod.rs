@@ -9,6 +9,7 @@
 //! positions (and velocities) are read back, when asked for.
 
 pub mod atomic_edges;
+pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
 pub mod context;
@@ -261,8 +262,17 @@ pub struct GpuEngine {
     memory: EngineMemory,
     /// Device timing of the step pass, where the adapter has timestamp queries.
     timer: Option<timing::PassTimer>,
-    /// The tissue surface (model order) and its tool culler, built only once a program culls.
-    surface: Option<(Vec<[u32; 3]>, broad_tool::ToolCuller)>,
+    /// The tissue surface and its cullers, built only once a program culls.
+    surface: Option<SurfaceCulling>,
+}
+
+/// The tissue surface on the device and the broad phases over it.
+struct SurfaceCulling {
+    /// Boundary triangles, model order.
+    triangles: Vec<[u32; 3]>,
+    tool: broad_tool::ToolCuller,
+    /// The self-contact broad phase and the margin it was built for, once asked for.
+    self_contact: Option<(f64, broad_self::SelfCuller)>,
 }
 
 /// The arrays each layout uploads.
@@ -461,9 +471,8 @@ impl GpuEngine {
         }
         self.state.apply_moves(&self.ctx, &patch.moves);
         // Node indices and state buffers may have changed under the surface.
-        if let Some((triangles, _)) = self.surface.take() {
-            let culler = self.make_culler(&triangles)?;
-            self.surface = Some((triangles, culler));
+        if let Some(surface) = self.surface.take() {
+            self.set_surface(&surface.triangles)?;
         }
         self.memory = layout_memory(&self.ctx, &self.layout, self.config);
         Ok(PatchCost {
@@ -487,8 +496,12 @@ impl GpuEngine {
                 "surface triangle {t:?} names a node past the model's {n} nodes"
             )));
         }
-        let culler = self.make_culler(triangles)?;
-        self.surface = Some((triangles.to_vec(), culler));
+        let tool = self.make_culler(triangles)?;
+        self.surface = Some(SurfaceCulling {
+            triangles: triangles.to_vec(),
+            tool,
+            self_contact: None,
+        });
         Ok(())
     }
 
@@ -514,8 +527,9 @@ impl GpuEngine {
     /// The surface triangles in layout order, as the culler holds them.
     pub fn surface_layout_order(&self) -> Option<Vec<[u32; 3]>> {
         let order = self.layout.order();
-        self.surface.as_ref().map(|(t, _)| {
-            t.iter()
+        self.surface.as_ref().map(|s| {
+            s.triangles
+                .iter()
                 .map(|t| t.map(|i| order.rank[i as usize]))
                 .collect()
         })
@@ -525,12 +539,42 @@ impl GpuEngine {
     /// overlap at the current state, triangle indices into the surface given to
     /// [`GpuEngine::set_surface`]. Reads back only the candidate list.
     pub fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<broad_tool::CullResult> {
-        let Some((_, culler)) = &mut self.surface else {
-            return Err(crate::Error::Model(
-                "no surface to cull: call set_surface with the boundary triangles first".into(),
-            ));
+        let Some(surface) = &mut self.surface else {
+            return Err(no_surface());
         };
-        culler.cull(&self.ctx, &self.state, self.phase, boxes)
+        surface.tool.cull(&self.ctx, &self.state, self.phase, boxes)
+    }
+
+    /// Broad phase of the tissue against itself on the device: pairs of surface triangles that
+    /// share no node and whose boxes, widened by `margin / 2` (m), overlap at the current
+    /// state. The passes are built at the first call (and again when the margin changes).
+    pub fn cull_self(&mut self, margin: f64) -> Result<broad_self::SelfCullResult> {
+        let order = self.layout.order().clone();
+        let rest_f32 = self.rest_f32();
+        let Some(surface) = &mut self.surface else {
+            return Err(no_surface());
+        };
+        if surface
+            .self_contact
+            .as_ref()
+            .is_none_or(|(m, _)| *m != margin)
+        {
+            let tris: Vec<[u32; 3]> = surface
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| order.rank[i as usize]))
+                .collect();
+            let grid = crate::collide::self_broad::GridParams::for_surface(
+                &self.rest,
+                &surface.triangles,
+                margin,
+            );
+            let culler =
+                broad_self::SelfCuller::new(&self.ctx, &tris, &rest_f32, grid, &self.state)?;
+            surface.self_contact = Some((margin, culler));
+        }
+        let (_, culler) = surface.self_contact.as_mut().expect("built above");
+        culler.cull(&self.ctx, &self.state, self.phase)
     }
 
     /// The packed layout as it is on the device.
@@ -649,6 +693,13 @@ impl GpuEngine {
         }
         (x, v)
     }
+}
+
+/// The error for culling before a surface was given.
+fn no_surface() -> crate::Error {
+    crate::Error::Model(
+        "no surface to cull: call set_surface with the boundary triangles first".into(),
+    )
 }
 
 /// The divergence probe over the inverse masses of `passes` and `state`.

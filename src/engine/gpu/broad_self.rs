@@ -1,0 +1,297 @@
+//! The self-contact broad phase on the device: six dispatches in one submission (count, three
+//! prefix-sum steps, scatter, pair tests) over the surface, reading back the overflow flag, the
+//! pair count and the pairs. Built only when a program asks for self-contact. The twin is
+//! `collide::self_broad::self_pairs_cpu`.
+
+use super::buffers::{self, Sizing};
+use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
+use crate::collide::self_broad::GridParams;
+use crate::error::{Error, Result};
+
+const GRID: &str = include_str!("../../../shaders/self_grid.wgsl");
+
+fn source(pass: &str) -> String {
+    let body = match pass {
+        "self_count" => include_str!("../../../shaders/self_count.wgsl"),
+        "scan_blocks" => include_str!("../../../shaders/scan_blocks.wgsl"),
+        "scan_top" => include_str!("../../../shaders/scan_top.wgsl"),
+        "scan_apply" => include_str!("../../../shaders/scan_apply.wgsl"),
+        "self_scatter" => include_str!("../../../shaders/self_scatter.wgsl"),
+        _ => include_str!("../../../shaders/self_pairs.wgsl"),
+    };
+    format!("{GRID}{body}")
+}
+
+/// What one self-contact cull found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SelfCullResult {
+    /// Pairs of surface triangles (t < u), sorted.
+    pub pairs: Vec<[u32; 2]>,
+    /// The grid used (its cell may have grown for a stretched surface).
+    pub grid: GridParams,
+    /// Runs repeated to grow the cell or the pair buffer.
+    pub reruns: u32,
+}
+
+/// A pipeline with its layout.
+struct Pass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl Pass {
+    fn new(ctx: &GpuContext, name: &str, read_only: &[bool]) -> Result<Self> {
+        let layout = buffers::pass_layout(ctx, name, read_only);
+        let pipeline = buffers::compute_pipeline(ctx, name, &source(name), &[&layout])?;
+        Ok(Pass { pipeline, layout })
+    }
+}
+
+/// The passes and their buffers.
+pub struct SelfCuller {
+    passes: [Pass; 6],
+    params: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    rest: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    block_sums: wgpu::Buffer,
+    offsets: wgpu::Buffer,
+    cursors: wgpu::Buffer,
+    entries: wgpu::Buffer,
+    pairs: wgpu::Buffer,
+    count: wgpu::Buffer,
+    overflow: wgpu::Buffer,
+    grid: GridParams,
+    /// Per rotation phase: the bind groups of the six passes.
+    bind_groups: Vec<Vec<wgpu::BindGroup>>,
+}
+
+impl SelfCuller {
+    /// Upload the surface (layout order) and build the passes for `grid`.
+    pub fn new(
+        ctx: &GpuContext,
+        triangles: &[[u32; 3]],
+        rest: &[[f32; 4]],
+        grid: GridParams,
+        state: &NodeState,
+    ) -> Result<Self> {
+        let d = &ctx.device;
+        let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
+        let storage = |label: &str, bytes: u64| {
+            buffers::storage_buffer(ctx, label, &vec![0u8; bytes as usize], Sizing::Exact)
+        };
+        let table = grid.table as u64;
+        let passes = [
+            Pass::new(ctx, "self_count", &[true, true, true, false, false])?,
+            Pass::new(ctx, "scan_blocks", &[true, false])?,
+            Pass::new(ctx, "scan_top", &[false])?,
+            Pass::new(ctx, "scan_apply", &[true, true, false, false])?,
+            Pass::new(ctx, "self_scatter", &[true, true, true, false, false])?,
+            Pass::new(
+                ctx,
+                "self_pairs",
+                &[true, true, true, true, true, true, false, false],
+            )?,
+        ];
+        let mut culler = SelfCuller {
+            passes,
+            params: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("grid params"),
+                size: 32,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            triangles: buffers::storage_buffer(
+                ctx,
+                "surface triangles",
+                bytemuck::cast_slice(&tris),
+                Sizing::Exact,
+            )?,
+            rest: buffers::storage_buffer(
+                ctx,
+                "rest positions",
+                bytemuck::cast_slice(rest),
+                Sizing::Exact,
+            )?,
+            counts: storage("bucket counts", table * 4)?,
+            block_sums: storage("block sums", table / 256 * 4)?,
+            offsets: storage("bucket offsets", table * 4)?,
+            cursors: storage("bucket cursors", table * 4)?,
+            // Each triangle lands in at most MAX_SPAN^3 = 8 cells.
+            entries: storage("bucket entries", tris.len().max(1) as u64 * 8 * 4)?,
+            pairs: storage("self pairs", 8 * 1024)?,
+            count: storage("self pair count", 4)?,
+            overflow: storage("grid overflow", 4)?,
+            grid,
+            bind_groups: Vec::new(),
+        };
+        culler.rebind(ctx, state);
+        Ok(culler)
+    }
+
+    /// Rebuild the bind groups (after the node state or the pair buffer was reallocated).
+    pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
+        let group = |pass: &Pass, buffers: &[&wgpu::Buffer]| {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("self broad phase"),
+                layout: &pass.layout,
+                entries: &buffers::entries(buffers),
+            })
+        };
+        let p = &self.passes;
+        self.bind_groups = (0..state.phases())
+            .map(|phase| {
+                let disp = state.bindings(phase).cur;
+                vec![
+                    group(
+                        &p[0],
+                        &[
+                            &self.params,
+                            &self.triangles,
+                            &self.rest,
+                            disp,
+                            &self.counts,
+                            &self.overflow,
+                        ],
+                    ),
+                    group(&p[1], &[&self.params, &self.counts, &self.block_sums]),
+                    group(&p[2], &[&self.params, &self.block_sums]),
+                    group(
+                        &p[3],
+                        &[
+                            &self.params,
+                            &self.counts,
+                            &self.block_sums,
+                            &self.offsets,
+                            &self.cursors,
+                        ],
+                    ),
+                    group(
+                        &p[4],
+                        &[
+                            &self.params,
+                            &self.triangles,
+                            &self.rest,
+                            disp,
+                            &self.cursors,
+                            &self.entries,
+                        ],
+                    ),
+                    group(
+                        &p[5],
+                        &[
+                            &self.params,
+                            &self.triangles,
+                            &self.rest,
+                            disp,
+                            &self.counts,
+                            &self.offsets,
+                            &self.entries,
+                            &self.pairs,
+                            &self.count,
+                        ],
+                    ),
+                ]
+            })
+            .collect();
+    }
+
+    /// Find the self-contact pairs at the state of `phase`. A surface stretched so far that a
+    /// box spans more than two cells doubles the cell and runs again; a full pair buffer grows
+    /// by size class and runs again.
+    pub fn cull(
+        &mut self,
+        ctx: &GpuContext,
+        state: &NodeState,
+        phase: usize,
+    ) -> Result<SelfCullResult> {
+        let tri_groups = dispatch_size(ctx, self.grid.triangles.max(1));
+        let row = tri_groups.0 * WORKGROUP;
+        let block_groups = self.grid.blocks.div_ceil(WORKGROUP).max(1);
+        let mut reruns = 0;
+        loop {
+            let grid = GridParams {
+                capacity: (self.pairs.size() / 8) as u32,
+                row,
+                ..self.grid
+            };
+            ctx.queue
+                .write_buffer(&self.params, 0, bytemuck::bytes_of(&grid));
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("self broad phase"),
+                });
+            enc.clear_buffer(&self.counts, 0, None);
+            enc.clear_buffer(&self.count, 0, None);
+            enc.clear_buffer(&self.overflow, 0, None);
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("self broad phase"),
+                    timestamp_writes: None,
+                });
+                let groups = &self.bind_groups[phase];
+                let sizes = [
+                    tri_groups,
+                    (block_groups, 1),
+                    (1, 1),
+                    (block_groups, 1),
+                    tri_groups,
+                    tri_groups,
+                ];
+                for (i, (p, size)) in self.passes.iter().zip(sizes).enumerate() {
+                    pass.set_pipeline(&p.pipeline);
+                    pass.set_bind_group(0, &groups[i], &[]);
+                    pass.dispatch_workgroups(size.0, size.1, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+            let word = |b: &wgpu::Buffer| -> Result<u32> {
+                let v = buffers::read_bytes(ctx, b, 4)?;
+                Ok(u32::from_le_bytes(v.try_into().map_err(|_| {
+                    Error::Gpu("a four-byte readback came back another size".into())
+                })?))
+            };
+            if word(&self.overflow)? != 0 {
+                // The surface stretched past the grid: coarser cells, then again.
+                self.grid.inv_cell *= 0.5;
+                reruns += 1;
+                if reruns > 40 {
+                    return Err(Error::Diverged {
+                        step: 0,
+                        node: 0,
+                        reason: "the tissue surface stretched beyond any grid cell (non-finite \
+                                 or enormous positions)"
+                            .into(),
+                    });
+                }
+                continue;
+            }
+            let n = word(&self.count)?;
+            if n > grid.capacity {
+                self.pairs = buffers::storage_buffer(
+                    ctx,
+                    "self pairs",
+                    &vec![0u8; n as usize * 8],
+                    Sizing::SizeClass,
+                )?;
+                self.rebind(ctx, state);
+                reruns += 1;
+                continue;
+            }
+            let raw = buffers::read_bytes(ctx, &self.pairs, n.max(1) as u64 * 8)?;
+            let mut pairs: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&raw);
+            pairs.truncate(n as usize);
+            pairs.sort_unstable();
+            return Ok(SelfCullResult {
+                pairs,
+                grid: GridParams {
+                    capacity: 0,
+                    row: 0,
+                    ..self.grid
+                },
+                reruns,
+            });
+        }
+    }
+}
