@@ -49,10 +49,9 @@ impl GridParams {
         let mut extent: f64 = 0.0;
         let mut magnitude: f64 = 0.0;
         for t in triangles {
-            let p = t.map(|i| rest[i as usize]);
-            for c in 0..3 {
-                let lo = p[0][c].min(p[1][c]).min(p[2][c]);
-                let hi = p[0][c].max(p[1][c]).max(p[2][c]);
+            let [a, b, c] = t.map(|i| rest[i as usize]);
+            for ((a, b), c) in a.iter().zip(&b).zip(&c) {
+                let (lo, hi) = (a.min(*b).min(*c), a.max(*b).max(*c));
                 extent = extent.max(hi - lo);
                 magnitude = magnitude.max(lo.abs()).max(hi.abs());
             }
