@@ -27,6 +27,27 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
+enum BenchWhat {
+    /// The collision broad phases (tool against tissue, tissue against itself) on the GPU and
+    /// their CPU twins, against surface size and tool count: median latency including the
+    /// readback, and the culling ratio.
+    Collide {
+        /// Boundary triangles of the test surfaces (thin slabs), comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["10000", "50000", "200000"])]
+        triangles: Vec<usize>,
+        /// Tool counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["1", "3"])]
+        tools: Vec<usize>,
+        /// Timed runs per row (the median is reported).
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Run a scene file, every scene in a folder, or (with no argument) the embedded default
     /// scene; check its expectations.
@@ -59,6 +80,9 @@ enum Command {
     /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
     /// achieved bandwidth against this machine's measured floor, error against the reference.
     Bench {
+        /// `collide`: the collision broad phases instead of the engines.
+        #[command(subcommand)]
+        what: Option<BenchWhat>,
         /// Cube meshes of N^3 cells, six tets each (repeatable; cubes 10 and 26 when neither
         /// --cube nor --mesh is given).
         #[arg(long = "cube")]
@@ -304,6 +328,17 @@ fn main() -> ExitCode {
             accuracy(scene.as_deref(), &opts, json, plot)
         }
         Command::Bench {
+            what:
+                Some(BenchWhat::Collide {
+                    triangles,
+                    tools,
+                    repeats,
+                    json,
+                }),
+            ..
+        } => bench_collide(&triangles, &tools, repeats, json),
+        Command::Bench {
+            what: None,
             cubes,
             mesh,
             engine,
@@ -500,6 +535,60 @@ fn print_table(summaries: &[RunSummary]) {
 }
 
 /// Run the benchmark matrix and print it.
+#[cfg(feature = "gpu")]
+fn bench_collide(
+    triangles: &[usize],
+    tools: &[usize],
+    repeats: usize,
+    json: bool,
+) -> lancet::Result<ExitCode> {
+    let (device, rows) = lancet::report::collide_bench::run(triangles, tools, repeats.max(1))?;
+    if json {
+        let v = json!({ "device": device, "rows": rows });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("gpu device: {device}");
+    println!(
+        "{:>9} {:>5} {:>10} {:>10} {:>11} {:>9} {:>10} {:>10} {:>10}",
+        "triangles",
+        "tools",
+        "gpu ms",
+        "cpu ms",
+        "candidates",
+        "ratio",
+        "self gpu",
+        "self cpu",
+        "self pairs"
+    );
+    for r in &rows {
+        println!(
+            "{:>9} {:>5} {:>10.3} {:>10.3} {:>11.1} {:>9.2e} {:>10.3} {:>10.3} {:>10}",
+            r.triangles,
+            r.tools,
+            r.gpu_tool_ms,
+            r.cpu_tool_ms,
+            r.candidates,
+            r.culling_ratio,
+            r.gpu_self_ms,
+            r.cpu_self_ms,
+            r.self_pairs
+        );
+    }
+    println!(
+        "gpu/cpu ms: median wall time of one cull, readback included; ratio: candidates over \
+         triangle-tool pairs; self: tissue against itself, margin 0.5 mm"
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(not(feature = "gpu"))]
+fn bench_collide(_: &[usize], _: &[usize], _: usize, _: bool) -> lancet::Result<ExitCode> {
+    Err(lancet::Error::Unsupported(
+        "bench collide runs the GPU broad phases; build with the `gpu` feature".into(),
+    ))
+}
+
 fn bench(
     cubes: &[usize],
     files: &[PathBuf],

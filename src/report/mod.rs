@@ -4,5 +4,7 @@
 pub mod accuracy;
 pub mod bandwidth;
 pub mod bench;
+#[cfg(feature = "gpu")]
+pub mod collide_bench;
 #[cfg(feature = "plot")]
 pub mod plot;

@@ -1,0 +1,121 @@
+//! `lancet bench collide`: the broad phases against surface size and tool count. Per surface
+//! (a thin slab, so that the boundary is large for its volume): the tool broad phase on the GPU
+//! and its CPU twin, with the culling ratio (candidates over all triangle-tool pairs), and the
+//! self-contact broad phase on the GPU and its CPU twin. Times are medians over repeated runs
+//! and include the readback of the candidates (the latency a haptic loop sees).
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::collide::broad::{cull_cpu, Surface, ToolBox};
+use crate::collide::self_broad::{self_pairs_cpu, GridParams};
+use crate::engine::gpu::{GpuContext, GpuEngine};
+use crate::engine::{Engine, SimConfig};
+use crate::error::Result;
+use crate::layout::LayoutKind;
+use crate::mesh::generate::BoxGrid;
+use crate::model::{Material, ModelConfig, SpringModel};
+
+/// One row: a surface size and a tool count.
+#[derive(Debug, Clone, Serialize)]
+pub struct CollideRow {
+    /// Boundary triangles.
+    pub triangles: usize,
+    /// Tools culled against.
+    pub tools: usize,
+    /// Median wall time of the GPU tool broad phase, readback included, ms.
+    pub gpu_tool_ms: f64,
+    /// Median wall time of its CPU twin (one thread), ms.
+    pub cpu_tool_ms: f64,
+    /// Mean candidates per cull.
+    pub candidates: f64,
+    /// Candidates over all triangle-tool pairs.
+    pub culling_ratio: f64,
+    /// Median wall time of the GPU self-contact broad phase, readback included, ms.
+    pub gpu_self_ms: f64,
+    /// Median wall time of its CPU twin (one thread), ms.
+    pub cpu_self_ms: f64,
+    /// Self-contact pairs found (margin 0.5 mm, at rest).
+    pub self_pairs: usize,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Run the collision broad-phase benchmark on slabs of about `triangles` boundary triangles,
+/// with each tool count in `tools`, `repeats` timed runs each.
+pub fn run(
+    triangles: &[usize],
+    tools: &[usize],
+    repeats: usize,
+) -> Result<(String, Vec<CollideRow>)> {
+    let mut rows = Vec::new();
+    let mut device = String::new();
+    for &want in triangles {
+        // A slab of n x n x 1 cells of 2 mm: its boundary has about 4 n^2 triangles.
+        let n = ((want as f64 / 4.0).sqrt().ceil() as usize).max(2);
+        let mesh = BoxGrid::cube_cells([n, n, 1], 0.002).build()?;
+        let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))?
+            .pack(&mesh)?;
+        let surface = Surface::of(&mesh);
+        let ctx = GpuContext::new()?;
+        device = ctx.describe();
+        let mut engine =
+            GpuEngine::with_context(ctx, &model, SimConfig::new(1e-5), LayoutKind::Connectivity)?;
+        engine.set_surface(&surface.triangles)?;
+        engine.step(1);
+        engine.wait();
+        let (disp, _) = engine.raw_state()?;
+        let rest = engine.rest_f32();
+        let tris = engine.surface_layout_order().unwrap_or_default();
+        let x = engine.positions();
+        for &k in tools {
+            // Tools of 2 mm half-size at spread-out surface points: a probe's contact region.
+            let boxes: Vec<ToolBox> = (0..k)
+                .map(|i| {
+                    let t = surface.triangles[(i * 7919 + 13) % surface.triangles.len()];
+                    let p = x[t[0] as usize];
+                    ToolBox::containing(p.map(|c| c - 2e-3), p.map(|c| c + 2e-3))
+                })
+                .collect();
+            let (mut gpu, mut cpu, mut found) = (Vec::new(), Vec::new(), 0usize);
+            engine.cull_tools(&boxes)?; // warm-up: pipeline compilation
+            for _ in 0..repeats {
+                let t = Instant::now();
+                found += engine.cull_tools(&boxes)?.candidates.len();
+                gpu.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                std::hint::black_box(cull_cpu(&rest, &disp, &tris, &boxes));
+                cpu.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            let margin = 5e-4;
+            let grid = GridParams::for_surface(&model.rest, &surface.triangles, margin);
+            engine.cull_self(margin)?; // warm-up
+            let (mut gpu_self, mut cpu_self, mut pairs) = (Vec::new(), Vec::new(), 0);
+            for _ in 0..repeats {
+                let t = Instant::now();
+                pairs = engine.cull_self(margin)?.pairs.len();
+                gpu_self.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                std::hint::black_box(self_pairs_cpu(&grid, &rest, &disp, &tris));
+                cpu_self.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            let candidates = found as f64 / repeats as f64;
+            rows.push(CollideRow {
+                triangles: surface.triangles.len(),
+                tools: k,
+                gpu_tool_ms: median(gpu),
+                cpu_tool_ms: median(cpu),
+                candidates,
+                culling_ratio: candidates / (surface.triangles.len() * k) as f64,
+                gpu_self_ms: median(gpu_self),
+                cpu_self_ms: median(cpu_self),
+                self_pairs: pairs,
+            });
+        }
+    }
+    Ok((device, rows))
+}
