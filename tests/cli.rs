@@ -582,3 +582,39 @@ fn atomic_float_without_float_atomics_is_skipped_in_bench_and_refused_in_run() {
         "{err}"
     );
 }
+
+#[test]
+fn bench_collide_reports_each_surface_and_tool_count_with_a_culling_ratio() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let out = lancet(&[
+        "bench",
+        "collide",
+        "--triangles",
+        "400,1600",
+        "--tools",
+        "1,2",
+        "--repeats",
+        "2",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 4, "two surfaces times two tool counts");
+    for r in rows {
+        let (tris, ratio) = (
+            r["triangles"].as_u64().unwrap(),
+            r["culling_ratio"].as_f64().unwrap(),
+        );
+        assert!(tris >= 400, "{r}");
+        // Millimetre tools touch a small part of a centimetre surface.
+        assert!(ratio > 0.0 && ratio < 0.5, "{r}");
+        assert!(r["gpu_tool_ms"].as_f64().unwrap() > 0.0);
+    }
+}
