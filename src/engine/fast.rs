@@ -80,6 +80,8 @@ pub struct FastEngine {
     wide: bool,
     /// `order[internal] = model index`.
     order: Vec<u32>,
+    /// `rank[model index] = internal`.
+    rank: Vec<u32>,
     /// Rest positions in model order, returned exactly for fixed nodes.
     rest: Vec<[f64; 3]>,
     /// Current displacements from rest.
@@ -122,6 +124,7 @@ impl FastEngine {
             params,
             integrator: config.integrator,
             order,
+            rank,
             rest: model.rest.clone(),
             x_next: x.clone(),
             second_next: second.clone(),
@@ -284,6 +287,26 @@ impl Engine for FastEngine {
             }
             Integrator::SymplecticEuler => to_f64(self.second[i]),
         })
+    }
+
+    fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> crate::Result<()> {
+        super::check_correction(nodes, positions, self.order.len())?;
+        let inv_h = 1.0 / self.params.h as f64;
+        for (&o, p) in nodes.iter().zip(positions) {
+            let i = self.rank[o as usize] as usize;
+            if self.graph.fixed[i] {
+                continue;
+            }
+            let r = self.rest[o as usize];
+            let u = [p[0] - r[0], p[1] - r[1], p[2] - r[2]];
+            if self.integrator == Integrator::SymplecticEuler {
+                let old = to_f64(self.x[i]);
+                let v = to_f64(self.second[i]);
+                self.second[i] = to_p([0, 1, 2].map(|c| v[c] + (u[c] - old[c]) * inv_h));
+            }
+            self.x[i] = to_p(u);
+        }
+        Ok(())
     }
 
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {

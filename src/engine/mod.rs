@@ -86,6 +86,23 @@ pub trait Engine: Send {
         let _ = (model, diff);
         Ok(None)
     }
+    /// Positions of the nodes `nodes` (model indices), m, reading back only those where the
+    /// state lives on a device. Out-of-range indices are an error.
+    fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        let x = self.positions();
+        nodes
+            .iter()
+            .map(|&i| {
+                x.get(i as usize)
+                    .copied()
+                    .ok_or_else(|| bad_node(i, x.len()))
+            })
+            .collect()
+    }
+    /// Move nodes to new positions between steps (contact response by position correction):
+    /// the previous positions stay, so Verlet turns the move into velocity; symplectic Euler
+    /// adds `move / dt` to the velocity. Fixed nodes do not move.
+    fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()>;
     /// A cheap divergence probe computed where the state lives (the GPU engine reduces it on
     /// the device and reads back a few bytes); `Ok(None)` where reading the state is as cheap.
     fn health(&self) -> Result<Option<Health>> {
@@ -102,6 +119,26 @@ pub struct Health {
     pub kinetic: f64,
     /// Gravitational energy relative to the rest shape, J.
     pub gravity: f64,
+}
+
+/// The error for a node index past the model.
+pub(crate) fn bad_node(i: u32, n: usize) -> Error {
+    Error::Model(format!("node {i} does not exist: the model has {n} nodes"))
+}
+
+/// Check a position correction's arguments.
+pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) -> Result<()> {
+    if nodes.len() != positions.len() {
+        return Err(Error::Model(format!(
+            "{} nodes but {} positions to correct them to",
+            nodes.len(),
+            positions.len()
+        )));
+    }
+    match nodes.iter().find(|&&i| i as usize >= n) {
+        Some(&i) => Err(bad_node(i, n)),
+        None => Ok(()),
+    }
 }
 
 /// What applying a model change cost an engine.
@@ -576,6 +613,17 @@ impl Simulation {
         self.engine.set_state(positions, velocities);
         self.reset_energy_reference();
         Ok(())
+    }
+
+    /// Positions of a few nodes (model indices), m: on the GPU only those are read back.
+    pub fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        self.engine.node_positions(nodes)
+    }
+
+    /// Move nodes between steps (contact response by position correction); see
+    /// [`Engine::correct_positions`].
+    pub fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
+        self.engine.correct_positions(nodes, positions)
     }
 
     /// Current positions, m, in packed node order.

@@ -143,6 +143,22 @@ impl Engine for ReferenceEngine {
         }
     }
 
+    fn correct_positions(&mut self, nodes: &[u32], positions: &[V3]) -> crate::Result<()> {
+        super::check_correction(nodes, positions, self.x.len())?;
+        for (&i, &p) in nodes.iter().zip(positions) {
+            let i = i as usize;
+            if self.model.fixed[i] {
+                continue;
+            }
+            if self.integrator == Integrator::SymplecticEuler {
+                let moved = sub(p, self.x[i]);
+                self.second[i] = add(self.second[i], scale(moved, 1.0 / self.dt));
+            }
+            self.x[i] = p;
+        }
+        Ok(())
+    }
+
     fn set_state(&mut self, positions: &[V3], velocities: &[V3]) {
         for i in 0..self.x.len() {
             let (x, v) = if self.model.fixed[i] {

@@ -178,6 +178,37 @@ pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> 
     )?))
 }
 
+/// Read back the vec4 entries `indices` of `src`: each is copied next to the others on the
+/// device, so only `16 * indices.len()` bytes cross back.
+pub fn read_entries(
+    ctx: &GpuContext,
+    src: &wgpu::Buffer,
+    indices: &[u32],
+) -> Result<Vec<[f32; 4]>> {
+    if indices.is_empty() {
+        return Ok(Vec::new());
+    }
+    let size = indices.len() as u64 * 16;
+    let gathered = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("gathered entries"),
+        size,
+        usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("gather entries"),
+        });
+    for (k, &i) in indices.iter().enumerate() {
+        enc.copy_buffer_to_buffer(src, i as u64 * 16, &gathered, k as u64 * 16, 16);
+    }
+    ctx.queue.submit([enc.finish()]);
+    Ok(bytemuck::pod_collect_to_vec(&read_bytes(
+        ctx, &gathered, size,
+    )?))
+}
+
 /// Read back the first `size` bytes of `src` (a multiple of 4).
 pub fn read_bytes(ctx: &GpuContext, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
     let d = &ctx.device;

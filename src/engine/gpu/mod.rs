@@ -904,6 +904,70 @@ impl Engine for GpuEngine {
         GpuEngine::patch(self, model, diff).map(Some)
     }
 
+    fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        let n = self.rest.len();
+        if let Some(&i) = nodes.iter().find(|&&i| i as usize >= n) {
+            return Err(super::bad_node(i, n));
+        }
+        let rank = &self.layout.order().rank;
+        let idx: Vec<u32> = nodes.iter().map(|&i| rank[i as usize]).collect();
+        let cur = buffers::read_entries(&self.ctx, self.state.bindings(self.phase).cur, &idx)?;
+        Ok(nodes
+            .iter()
+            .zip(cur)
+            .map(|(&i, u)| {
+                let r = self.rest[i as usize];
+                if self.fixed[i as usize] {
+                    r
+                } else {
+                    [0, 1, 2].map(|c| r[c] + u[c] as f64)
+                }
+            })
+            .collect())
+    }
+
+    fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
+        super::check_correction(nodes, positions, self.rest.len())?;
+        let rank = &self.layout.order().rank;
+        let b = self.state.bindings(self.phase);
+        // Symplectic Euler adds the move over dt to the velocity: read the few old states.
+        let moving: Vec<(u32, [f64; 3])> = nodes
+            .iter()
+            .zip(positions)
+            .filter(|(&i, _)| !self.fixed[i as usize])
+            .map(|(&i, &p)| (i, p))
+            .collect();
+        let idx: Vec<u32> = moving.iter().map(|&(i, _)| rank[i as usize]).collect();
+        let euler = self.config.integrator == Integrator::SymplecticEuler;
+        let (old, vel) = if euler {
+            (
+                buffers::read_entries(&self.ctx, b.cur, &idx)?,
+                buffers::read_entries(&self.ctx, b.second_in, &idx)?,
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let inv_h = 1.0 / self.config.dt;
+        for (k, &(i, p)) in moving.iter().enumerate() {
+            let r = self.rest[i as usize];
+            let u = [0, 1, 2].map(|c| p[c] - r[c]);
+            let at = idx[k] as u64 * 16;
+            let cur = [u[0] as f32, u[1] as f32, u[2] as f32, 0.0];
+            self.ctx
+                .queue
+                .write_buffer(b.cur, at, bytemuck::bytes_of(&cur));
+            if euler {
+                let v = [0, 1, 2]
+                    .map(|c| (vel[k][c] as f64 + (u[c] - old[k][c] as f64) * inv_h) as f32);
+                let v = [v[0], v[1], v[2], 0.0];
+                self.ctx
+                    .queue
+                    .write_buffer(b.second_in, at, bytemuck::bytes_of(&v));
+            }
+        }
+        Ok(())
+    }
+
     fn health(&self) -> Result<Option<Health>> {
         let h = self
             .health
