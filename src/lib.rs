@@ -12,6 +12,7 @@
 
 #![warn(missing_docs)]
 
+pub mod collide;
 pub mod error;
 pub mod mesh;
 
