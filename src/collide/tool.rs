@@ -545,7 +545,8 @@ impl Trajectory {
 
     /// The pose at time `t` (s), clamped to the first and last keyframes (a velocity
     /// trajectory is clamped at time 0). An empty keyframe list, which
-    /// [`Trajectory::validate`] refuses, gives the identity pose.
+    /// [`Trajectory::validate`] refuses, gives the identity pose; keyframes out of order give
+    /// an unspecified pose, never a panic.
     pub fn pose_at(&self, t: f64) -> Isometry3<f64> {
         match self {
             Trajectory::Keyframes(frames) => {
@@ -558,8 +559,12 @@ impl Trajectory {
                 if t >= last.time {
                     return last.pose();
                 }
-                // The first keyframe after t; it exists and is not the first, by the clamps.
-                let j = frames.partition_point(|k| k.time <= t);
+                // The first keyframe after t; it exists and is not the first, by the clamps
+                // (there are at least two keyframes here). The clamp keeps the indices valid
+                // even for keyframes out of order, which `validate` refuses.
+                let j = frames
+                    .partition_point(|k| k.time <= t)
+                    .clamp(1, frames.len() - 1);
                 let (k0, k1) = (&frames[j - 1], &frames[j]);
                 let s = (t - k0.time) / (k1.time - k0.time);
                 let (p0, p1) = (k0.pose(), k1.pose());
