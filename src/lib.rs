@@ -12,12 +12,12 @@
 
 #![warn(missing_docs)]
 
+pub mod collide;
 pub mod error;
 pub mod mesh;
 
 pub use error::{Error, Location, ParseError, Result};
 pub use mesh::{NodeKey, TetKey, TetMesh};
-pub mod collide;
 pub mod engine;
 pub mod layout;
 pub mod model;

@@ -6,4 +6,4 @@ pub mod schema;
 
 pub use expect::ExpectationResult;
 pub use runner::{run_scene, RunOptions, RunSummary};
-pub use schema::{Expectation, MeshSource, Scene, TimeStep};
+pub use schema::{Expectation, MeshSource, Scene, SceneTool, TimeStep};

@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::collide::{ToolShape, Trajectory};
 use crate::engine::{EngineKind, Integrator};
 use crate::error::{Error, Result};
 use crate::mesh::generate::{BoxGrid, TetSplit};
@@ -198,6 +199,39 @@ pub struct Scene {
     /// What the run must satisfy.
     #[serde(default)]
     pub expect: Vec<Expectation>,
+    /// Surgical tools and how they move. Parsed and validated; the runner does not use them
+    /// yet.
+    #[serde(default)]
+    pub tools: Vec<SceneTool>,
+}
+
+/// A tool in a scene: a name for reports, a rigid shape, and how it moves.
+///
+/// ```ron
+/// tools: [
+///     (
+///         name: "probe",
+///         shape: Probe(radius: 0.002, length: 0.05),
+///         trajectory: Keyframes([
+///             (time: 0.0, translation: (0.05, 0.01, 0.03)),
+///             (time: 0.5, translation: (0.05, 0.01, 0.018), rotation: (0.0, 0.2, 0.0)),
+///         ]),
+///     ),
+///     (
+///         name: "needle",
+///         shape: Probe(radius: 0.0004, length: 0.04),
+///         trajectory: Velocity(translation: (0.02, 0.01, 0.03), linear: (0.0, 0.0, -0.01)),
+///     ),
+/// ]
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneTool {
+    /// Name shown in summaries and force reports; unique within the scene.
+    pub name: String,
+    /// The rigid shape (tool frame: axis along local z, working end at the origin).
+    pub shape: ToolShape,
+    /// Keyframed poses or a scripted velocity.
+    pub trajectory: Trajectory,
 }
 
 /// The scene lancet runs when given none: a soft beam, clamped at one end, sagging under
@@ -206,8 +240,10 @@ pub const DEFAULT_SCENE: &str = include_str!("../../fixtures/scenes/default.ron"
 
 impl Scene {
     /// Parse a scene from RON text; `path` is used in messages.
+    /// Tools are validated here (sizes, keyframe order, unique names), so a bad tool is
+    /// reported before any mesh is read.
     pub fn from_ron(text: &str, path: &Path) -> Result<Scene> {
-        ron::from_str(text).map_err(|e| {
+        let scene: Scene = ron::from_str(text).map_err(|e| {
             let msg = e.code.to_string();
             Error::parse(
                 path,
@@ -216,7 +252,32 @@ impl Scene {
                 format!("scene is not valid: {}", msg.to_lowercase()),
                 "see the scene format in the README",
             )
-        })
+        })?;
+        scene.validate_tools(path)?;
+        Ok(scene)
+    }
+
+    /// Check every tool's shape and trajectory and that names are unique; the message names
+    /// the tool by index and name.
+    pub fn validate_tools(&self, path: &Path) -> Result<()> {
+        for (i, tool) in self.tools.iter().enumerate() {
+            let fail = |message: String| Error::Scene {
+                path: path.to_path_buf(),
+                message: format!("tool {i} ({:?}): {message}", tool.name),
+            };
+            let detail = |e: Error| match e {
+                Error::Options(m) => m,
+                other => other.to_string(),
+            };
+            tool.shape.validate().map_err(|e| fail(detail(e)))?;
+            tool.trajectory.validate().map_err(|e| fail(detail(e)))?;
+            if self.tools[..i].iter().any(|t| t.name == tool.name) {
+                return Err(fail(
+                    "another tool has this name; give each tool its own".into(),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Read a scene file.
