@@ -21,11 +21,14 @@
 //!   triangle or tetrahedron, computed in a local frame centred on the tool part and scaled to
 //!   unit size so that parry's float32 arithmetic stays accurate for millimetre tools in scenes
 //!   measured in metres.
-//! - `response.rs` (not built yet): projection of penetrating nodes, friction, reaction force.
+//! - `response.rs` (feature `collide`): penetrating surface triangles pushed out of the tools by
+//!   position correction, and the reaction force on each tool.
 
 pub mod broad;
 #[cfg(feature = "collide")]
 pub mod narrow;
+#[cfg(feature = "collide")]
+pub mod response;
 pub mod self_broad;
 pub mod tool;
 

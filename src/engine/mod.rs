@@ -103,6 +103,21 @@ pub trait Engine: Send {
     /// the previous positions stay, so Verlet turns the move into velocity; symplectic Euler
     /// adds `move / dt` to the velocity. Fixed nodes do not move.
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()>;
+    /// Take the tissue's boundary triangles (dense model indices) for [`Engine::cull_tools`].
+    /// Engines that cull on the CPU need nothing and ignore it.
+    fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
+        let _ = triangles;
+        Ok(())
+    }
+    /// Broad phase of the surface given to [`Engine::set_surface`] against tool boxes where
+    /// the state lives (the GPU engine); `Ok(None)` where the caller should cull on the CPU.
+    fn cull_tools(
+        &mut self,
+        boxes: &[crate::collide::broad::ToolBox],
+    ) -> Result<Option<Vec<crate::collide::broad::Candidate>>> {
+        let _ = boxes;
+        Ok(None)
+    }
     /// A cheap divergence probe computed where the state lives (the GPU engine reduces it on
     /// the device and reads back a few bytes); `Ok(None)` where reading the state is as cheap.
     fn health(&self) -> Result<Option<Health>> {
@@ -362,6 +377,8 @@ pub struct Simulation {
     kind: EngineKind,
     bound: StabilityBound,
     steps: u64,
+    /// The boundary triangles for tool culling, once given.
+    surface: Option<Vec<[u32; 3]>>,
     start_energy: f64,
     energy_scale: f64,
     note: Option<String>,
@@ -402,6 +419,7 @@ impl Simulation {
             kind,
             bound,
             steps: 0,
+            surface: None,
             start_energy: 0.0,
             energy_scale: 0.0,
             note,
@@ -472,6 +490,9 @@ impl Simulation {
                 }
                 let (mut engine, _, _) = make_engine(&next, self.kind, self.config)?;
                 engine.set_state(&x, &v);
+                if let Some(t) = &self.surface {
+                    engine.set_surface(t)?;
+                }
                 let memory = engine.memory();
                 self.engine = engine;
                 PatchCost {
@@ -615,6 +636,61 @@ impl Simulation {
         Ok(())
     }
 
+    /// Set the tissue's boundary triangles (dense model indices, e.g.
+    /// `collide::broad::Surface::of(&mesh).triangles`) for [`Simulation::cull_tools`]; again
+    /// whenever a cut changes the surface.
+    pub fn set_surface(&mut self, triangles: Vec<[u32; 3]>) -> Result<()> {
+        let n = self.model.node_count();
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(Error::Model(format!(
+                "surface triangle {t:?} names a node past the model's {n} nodes"
+            )));
+        }
+        self.engine.set_surface(&triangles)?;
+        self.surface = Some(triangles);
+        Ok(())
+    }
+
+    /// The surface given to [`Simulation::set_surface`].
+    pub fn surface(&self) -> Option<&[[u32; 3]]> {
+        self.surface.as_deref()
+    }
+
+    /// Broad phase, tool against tissue: (triangle, tool) pairs of the surface whose bounds
+    /// overlap `boxes`. On the GPU engine the pass runs on the device and only the candidates
+    /// come back; elsewhere it runs on the CPU over float64 positions. Either way no overlapping
+    /// pair is missed.
+    pub fn cull_tools(
+        &mut self,
+        boxes: &[crate::collide::broad::ToolBox],
+    ) -> Result<Vec<crate::collide::broad::Candidate>> {
+        let Some(triangles) = &self.surface else {
+            return Err(Error::Model(
+                "no surface to cull: call set_surface with the boundary triangles first".into(),
+            ));
+        };
+        if let Some(c) = self.engine.cull_tools(boxes)? {
+            return Ok(c);
+        }
+        let exact: Vec<([f64; 3], [f64; 3])> = boxes
+            .iter()
+            .map(|b| {
+                (
+                    [b.lo[0] as f64, b.lo[1] as f64, b.lo[2] as f64],
+                    [b.hi[0] as f64, b.hi[1] as f64, b.hi[2] as f64],
+                )
+            })
+            .collect();
+        Ok(crate::collide::broad::cull_exact(
+            &self.engine.positions(),
+            triangles,
+            &exact,
+        ))
+    }
+
     /// Positions of a few nodes (model indices), m: on the GPU only those are read back.
     pub fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
         self.engine.node_positions(nodes)
@@ -622,8 +698,16 @@ impl Simulation {
 
     /// Move nodes between steps (contact response by position correction); see
     /// [`Engine::correct_positions`].
+    ///
+    /// The move is work done on the tissue from outside (a tool's push), so the energy the
+    /// divergence check compares against is taken again from the corrected state (on the GPU a
+    /// readback of the state, once per correcting step).
     pub fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
-        self.engine.correct_positions(nodes, positions)
+        self.engine.correct_positions(nodes, positions)?;
+        if !nodes.is_empty() {
+            self.reset_energy_reference();
+        }
+        Ok(())
     }
 
     /// Current positions, m, in packed node order.

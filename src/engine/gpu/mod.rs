@@ -968,6 +968,14 @@ impl Engine for GpuEngine {
         Ok(())
     }
 
+    fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
+        GpuEngine::set_surface(self, triangles)
+    }
+
+    fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<Option<Vec<[u32; 2]>>> {
+        GpuEngine::cull_tools(self, boxes).map(|r| Some(r.candidates))
+    }
+
     fn health(&self) -> Result<Option<Health>> {
         let h = self
             .health

@@ -1,0 +1,151 @@
+//! A probe pressed into a block: the indentation grows with depth, the force on the probe grows
+//! with depth and points away from the tissue, no tissue node ends a step inside the probe by
+//! more than a stated tolerance, and after the probe leaves the block returns to rest. On the
+//! fast CPU engine and, where there is an adapter, on the GPU (whose broad phase then runs on
+//! the device).
+
+mod common;
+
+use lancet::collide::broad::Surface;
+use lancet::collide::response::{resolve_contacts, ContactSettings};
+use lancet::collide::{Tool, ToolShape};
+use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
+use nalgebra::{Isometry3, Vector3};
+use rstest::rstest;
+
+const RADIUS: f64 = 3e-3;
+const TOP: f64 = 0.012;
+
+/// A 24 x 24 x 12 mm block of soft tissue (2 mm cells) on a fixed base, and its surface.
+fn block(kind: EngineKind) -> Simulation {
+    let mesh = BoxGrid::cube_cells([12, 12, 6], 0.002).build().unwrap();
+    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
+    config.mass_damping = 80.0;
+    config.fixed.push(FixedSelector::Plane {
+        point: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        tolerance: 1e-9,
+    });
+    let model = SpringModel::build(&mesh, &config)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let dt = 0.5 * stable_time_step(&model).dt;
+    let mut sim = Simulation::new(model, kind, SimConfig::new(dt)).unwrap();
+    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
+    sim
+}
+
+/// The sphere's pose with its lowest point `depth` below the block's top, over its centre.
+fn pose(depth: f64) -> Isometry3<f64> {
+    Isometry3::translation(0.012, 0.012, TOP + RADIUS - depth)
+}
+
+/// Step once and resolve contacts; returns the force and checks that no node is inside.
+fn step(
+    sim: &mut Simulation,
+    tool: &mut Tool,
+    to: Isometry3<f64>,
+    s: &ContactSettings,
+) -> Vector3<f64> {
+    tool.set_pose(to);
+    sim.run(1).unwrap();
+    let f = resolve_contacts(sim, std::slice::from_ref(tool), s).unwrap()[0];
+    let centre = tool.pose().translation.vector;
+    // Tolerance: the probe advances at most 1 um per step; corrections leave a node at most
+    // a few um inside where several contacts pull on it.
+    for p in sim.positions() {
+        let d = (Vector3::from(p) - centre).norm();
+        assert!(
+            d > RADIUS - 2e-5,
+            "a node is {:.2e} m inside the probe",
+            RADIUS - d
+        );
+    }
+    f.force
+}
+
+#[rstest]
+fn pressing_deeper_indents_more_and_pushes_back_harder(
+    #[values(EngineKind::Fast, EngineKind::Gpu)] kind: EngineKind,
+) {
+    if kind == EngineKind::Gpu && common::gpu().is_none() {
+        return;
+    }
+    let s = ContactSettings::default();
+    let mut sim = block(kind);
+    let mut tool = Tool::new(ToolShape::Sphere { radius: RADIUS }, pose(-1e-3)).unwrap();
+    let (mut depth, mut last_force, mut last_dent): (f64, f64, f64) = (-1e-3, 0.0, 0.0);
+    // Up to three quarters of a cell: deeper, the top layer of elements collapses and the node
+    // below it (held only by springs) ends inside the probe.
+    for target in [0.375e-3, 0.75e-3, 1.125e-3, 1.5e-3] {
+        // Press slowly (1 um per step), then hold until the tissue settles.
+        while depth < target {
+            depth = (depth + 1e-6).min(target);
+            step(&mut sim, &mut tool, pose(depth), &s);
+        }
+        let mut f = Vector3::zeros();
+        for k in 0..1500 {
+            let fk = step(&mut sim, &mut tool, pose(depth), &s);
+            if k >= 1300 {
+                f += fk / 200.0;
+            }
+        }
+        let dent = TOP
+            - sim
+                .positions()
+                .iter()
+                .map(|p| p[2])
+                .fold(f64::INFINITY, f64::min)
+                .max(0.0);
+        let top_nodes_min = sim
+            .positions()
+            .iter()
+            .zip(&sim.model().rest)
+            .filter(|(_, r)| r[2] > TOP - 1e-9)
+            .map(|(p, _)| p[2])
+            .fold(f64::INFINITY, f64::min);
+        let dent = dent.min(TOP - top_nodes_min);
+        assert!(
+            f.z > 0.0,
+            "{kind:?} at {target}: force {f:?} does not point away from the tissue"
+        );
+        assert!(
+            f.xy().norm() < 0.2 * f.z,
+            "{kind:?} at {target}: a centred press is pushed sideways: {f:?}"
+        );
+        assert!(
+            f.z > last_force,
+            "{kind:?}: force {} at {target} not above {last_force}",
+            f.z
+        );
+        assert!(
+            dent > last_dent,
+            "{kind:?}: indentation {dent} at {target} not above {last_dent}"
+        );
+        eprintln!(
+            "{kind:?}: press {target:.1e} m, dent {dent:.3e} m, force {:.3e} N",
+            f.z
+        );
+        // The surface under the probe follows it: the dent is most of the press depth. Faces
+        // are flat, so a face pushed at one point carries its far corners along, and the
+        // deepest node may sit somewhat below the probe's lowest point.
+        assert!(
+            dent > 0.5 * target && dent < 1.5 * target + 1e-4,
+            "{kind:?}: dent {dent} at {target}"
+        );
+        last_force = f.z;
+        last_dent = dent;
+    }
+    // Lift the probe clear: the block springs back to rest.
+    for _ in 0..2000 {
+        step(&mut sim, &mut tool, pose(-2e-3), &s);
+    }
+    let back = sim.max_displacement();
+    assert!(
+        back < 1e-5,
+        "{kind:?}: still displaced by {back} m after the probe left"
+    );
+}
