@@ -9,12 +9,9 @@ mod models;
 
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
-use lancet::layout::connectivity::ConnectivityLayout;
-use lancet::layout::edges::{Accumulation, EdgeLayout};
-use lancet::layout::valence::ValenceLayout;
+use lancet::layout::edges::Accumulation;
 use lancet::layout::{LayoutKind, PackedLayout};
-use lancet::model::PackedModel;
-use models::{moved_state, random_diff, random_model, random_state};
+use models::{fresh, moved_state, random_diff, random_model, random_state};
 use rstest::rstest;
 
 type Raw = (Vec<[f32; 4]>, Vec<[f32; 4]>);
@@ -40,20 +37,6 @@ fn twin(engine: &GpuEngine, accumulation: Accumulation, raw: Raw, steps: usize) 
         }
     }
     (cur, second)
-}
-
-/// The patched layout packed from scratch in the same arrangement.
-fn fresh(model: &PackedModel, patched: &PackedLayout) -> PackedLayout {
-    match patched {
-        PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
-            ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
-        ),
-        PackedLayout::Valence(v) => PackedLayout::Valence(
-            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
-                .unwrap(),
-        ),
-        PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
-    }
 }
 
 #[rstest]

@@ -11,20 +11,12 @@ use lancet::engine::{Integrator, SimConfig};
 use lancet::layout::connectivity::ConnectivityLayout;
 use lancet::layout::edges::{Accumulation, EdgeLayout};
 use lancet::layout::patch::{LayoutArray, LayoutPatch};
-use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder, PackedLayout};
 use lancet::model::{ModelDiff, PackedModel, PackedSpring};
-use models::{moved_state, random_diff, random_model, Rng};
+use models::{fresh, moved_state, random_diff, random_model, Rng};
 use rstest::rstest;
 
-const ARRAYS: [LayoutArray; 6] = [
-    LayoutArray::Slots,
-    LayoutArray::InvMass,
-    LayoutArray::Buckets,
-    LayoutArray::EdgeSprings,
-    LayoutArray::IncidenceRows,
-    LayoutArray::Incidence,
-];
+const ARRAYS: [LayoutArray; 6] = LayoutArray::ALL;
 
 /// The model after `diff`.
 fn applied(model: &PackedModel, diff: &ModelDiff) -> PackedModel {
@@ -46,20 +38,6 @@ fn assert_dirty_covers(before: &PackedLayout, after: &PackedLayout, patch: &Layo
                 "{a:?} byte {i} changed but is not in a dirty range {dirty:?}"
             );
         }
-    }
-}
-
-/// The patched layout packed from scratch in the same arrangement.
-fn fresh(model: &PackedModel, patched: &PackedLayout) -> PackedLayout {
-    match patched {
-        PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
-            ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
-        ),
-        PackedLayout::Valence(v) => PackedLayout::Valence(
-            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
-                .unwrap(),
-        ),
-        PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
     }
 }
 

@@ -222,14 +222,7 @@ impl ConnectivityLayout {
     /// `ConnectivityLayout::new(model, self.order.clone(), Some(self.capacity))`.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.node_count();
-        if model.node_count() != before + diff.added_nodes.len() {
-            return Err(Error::Model(format!(
-                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
-                 apply the diff to the model first, once",
-                diff.added_nodes.len(),
-                model.node_count()
-            )));
-        }
+        super::patch::check_model(before, diff, model)?;
         let k = self.capacity as usize;
         let mut patch = LayoutPatch::default();
         for (i, a) in diff.added_nodes.iter().enumerate() {

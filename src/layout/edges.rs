@@ -341,14 +341,7 @@ impl EdgeLayout {
     /// fixed point), though the records sit elsewhere.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.node_count();
-        if model.node_count() != before + diff.added_nodes.len() {
-            return Err(Error::Model(format!(
-                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
-                 apply the diff to the model first, once",
-                diff.added_nodes.len(),
-                model.node_count()
-            )));
-        }
+        super::patch::check_model(before, diff, model)?;
         let mut patch = LayoutPatch::default();
         let mut degree = vec![0u32; diff.added_nodes.len()];
         for s in &diff.added_springs {

@@ -25,6 +25,18 @@ pub enum LayoutArray {
     Incidence,
 }
 
+impl LayoutArray {
+    /// Every array a layout may upload.
+    pub const ALL: [LayoutArray; 6] = [
+        LayoutArray::Slots,
+        LayoutArray::InvMass,
+        LayoutArray::Buckets,
+        LayoutArray::EdgeSprings,
+        LayoutArray::IncidenceRows,
+        LayoutArray::Incidence,
+    ];
+}
+
 /// A changed byte range of one array.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Dirty {
@@ -145,6 +157,24 @@ impl LayoutPatch {
         self.moves.sort_by_key(|m| m.to);
         self.moves.dedup_by_key(|m| m.to);
     }
+}
+
+/// Refuse a patch whose model is not the layout's model after `diff`: the layout holds
+/// `before` nodes, so the model must hold those plus the added ones.
+pub(crate) fn check_model(
+    before: usize,
+    diff: &crate::model::ModelDiff,
+    model: &crate::model::PackedModel,
+) -> crate::Result<()> {
+    if model.node_count() == before + diff.added_nodes.len() {
+        return Ok(());
+    }
+    Err(crate::Error::Model(format!(
+        "the layout has {before} nodes and the diff adds {}, but the model has {}; apply the \
+         diff to the model first, once",
+        diff.added_nodes.len(),
+        model.node_count()
+    )))
 }
 
 /// Slots per row after growing to hold `needed`: the next multiple of four (128 bytes of slots),

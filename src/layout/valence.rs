@@ -180,14 +180,7 @@ impl ValenceLayout {
     /// [`ValenceLayout::arranged`] of `model` in the patched arrangement.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
-        if model.node_count() != before + diff.added_nodes.len() {
-            return Err(Error::Model(format!(
-                "the layout has {before} nodes and the diff adds {}, but the model has {}; \
-                 apply the diff to the model first, once",
-                diff.added_nodes.len(),
-                model.node_count()
-            )));
-        }
+        super::patch::check_model(before, diff, model)?;
         let old_rank = self.order.rank.clone();
         let lists = touched_neighbours(diff, before, |t| self.neighbours(t));
         // Untouched neighbours of touched nodes: their rows are rewritten if a node they point

@@ -218,3 +218,25 @@ pub fn moved_state(
     }
     out
 }
+
+/// The patched layout packed from scratch in the same arrangement (same node order, row width,
+/// buckets and room): what a patch must equal, or step like.
+pub fn fresh(
+    model: &PackedModel,
+    patched: &lancet::layout::PackedLayout,
+) -> lancet::layout::PackedLayout {
+    use lancet::layout::connectivity::ConnectivityLayout;
+    use lancet::layout::edges::EdgeLayout;
+    use lancet::layout::valence::ValenceLayout;
+    use lancet::layout::PackedLayout;
+    match patched {
+        PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
+            ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
+        ),
+        PackedLayout::Valence(v) => PackedLayout::Valence(
+            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
+                .unwrap(),
+        ),
+        PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
+    }
+}

@@ -275,16 +275,6 @@ struct SurfaceCulling {
     self_contact: Option<(f64, broad_self::SelfCuller)>,
 }
 
-/// The arrays each layout uploads.
-const ARRAYS: [LayoutArray; 6] = [
-    LayoutArray::Slots,
-    LayoutArray::InvMass,
-    LayoutArray::Buckets,
-    LayoutArray::EdgeSprings,
-    LayoutArray::IncidenceRows,
-    LayoutArray::Incidence,
-];
-
 impl GpuEngine {
     /// Open the preferred adapter and upload `model` in `layout`.
     pub fn new(model: &PackedModel, config: SimConfig, layout: LayoutKind) -> Result<Self> {
@@ -396,7 +386,7 @@ impl GpuEngine {
             self.state = self.state.grown(&self.ctx, slots)?;
             realloc = true;
         }
-        for a in ARRAYS {
+        for a in LayoutArray::ALL {
             let bytes = self.layout.array(a).len() as u64;
             if let Some(buf) = self.passes.buffer(a) {
                 realloc |= bytes > buf.size();
@@ -442,7 +432,7 @@ impl GpuEngine {
                 }
             }
         }
-        let layout_bytes: u64 = ARRAYS
+        let layout_bytes: u64 = LayoutArray::ALL
             .iter()
             .map(|&a| self.layout.array(a).len() as u64)
             .sum();
