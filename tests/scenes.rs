@@ -19,7 +19,8 @@ fn fixture_scene_meets_its_expectations(
         "default.ron",
         "stiffness_contrast.ron",
         "refused_time_step.ron",
-        "forced_unstable.ron"
+        "forced_unstable.ron",
+        "probe_press.ron"
     )]
     file: &str,
     #[values(EngineKind::Reference, EngineKind::Fast)] engine: EngineKind,
@@ -38,6 +39,38 @@ fn fixture_scene_meets_its_expectations(
         summary.expectations
     );
     assert!(!summary.expectations.is_empty());
+}
+
+/// The probe scene on the GPU engine feels what it feels on the CPU (its broad phase then
+/// runs on the device), and the force on the probe points up, away from the tissue below it.
+#[test]
+fn the_probe_scene_feels_the_same_force_on_the_gpu_and_it_points_away_from_the_tissue() {
+    let path = fixture("probe_press.ron");
+    let scene = Scene::read(&path).unwrap();
+    let run = |engine| {
+        let opts = RunOptions {
+            engine: Some(engine),
+            no_output: true,
+            ..Default::default()
+        };
+        run_scene(&scene, &path, &opts, |_, _| {}).unwrap()
+    };
+    let cpu = run(EngineKind::Fast);
+    let t = &cpu.tools[0];
+    assert!(t.final_force[2] > 0.9 * t.max_force, "{t:?}");
+    assert!(t.contact_steps > 1000, "{t:?}");
+    if lancet::engine::gpu::GpuContext::new().is_err() {
+        assert!(
+            std::env::var("LANCET_REQUIRE_GPU").is_err(),
+            "LANCET_REQUIRE_GPU=1 but no adapter"
+        );
+        eprintln!("skipped the GPU half: no adapter");
+        return;
+    }
+    let gpu = run(EngineKind::Gpu);
+    assert!(gpu.expectations_passed, "{:#?}", gpu.expectations);
+    let (a, b) = (cpu.tools[0].max_force, gpu.tools[0].max_force);
+    assert!((a - b).abs() < 0.02 * a, "cpu {a} N, gpu {b} N");
 }
 
 #[test]

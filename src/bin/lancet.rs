@@ -479,6 +479,14 @@ fn print_summary(s: &RunSummary) {
     if let Some(p) = &s.pvd {
         println!("wrote {} frames, series {}", s.frames_written, p.display());
     }
+    for t in &s.tools {
+        let f = t.final_force;
+        println!(
+            "tool {}: largest force {:.4e} N, final force ({:.3e}, {:.3e}, {:.3e}) N, deepest \
+             penetration {:.2e} m, in contact {} steps",
+            t.name, t.max_force, f[0], f[1], f[2], t.max_depth, t.contact_steps
+        );
+    }
     if !s.expectations.is_empty() {
         println!("expectations:");
         for e in &s.expectations {

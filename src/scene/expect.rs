@@ -32,6 +32,23 @@ pub struct FinalState<'a> {
     pub diverged: bool,
     /// Whether the time step was refused.
     pub refused: bool,
+    /// What each tool felt.
+    pub tools: &'a [ToolReport],
+}
+
+/// What a tool felt over a run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ToolReport {
+    /// The tool's name in the scene.
+    pub name: String,
+    /// Largest force magnitude over the run, N.
+    pub max_force: f64,
+    /// Force at the last step, N.
+    pub final_force: [f64; 3],
+    /// Deepest penetration found before it was resolved, m.
+    pub max_depth: f64,
+    /// Steps with at least one contact.
+    pub contact_steps: u64,
 }
 
 /// Largest nodal displacement from rest.
@@ -81,6 +98,20 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
         passed: ran && in_range(v, min, max),
     };
     match e {
+        Expectation::ToolForce { tool, min, max } => match s.tools.iter().find(|t| &t.name == tool)
+        {
+            Some(t) => ranged(
+                format!("largest force on {tool} (N)"),
+                t.max_force,
+                *min,
+                *max,
+            ),
+            None => ExpectationResult {
+                expectation: format!("largest force on {tool}: the scene has no such tool"),
+                measured: None,
+                passed: false,
+            },
+        },
         Expectation::MaxDisplacement { min, max } => ranged(
             "max displacement (m)".into(),
             max_displacement(s.model, s.positions),

@@ -3,6 +3,7 @@
 pub mod expect;
 pub mod runner;
 pub mod schema;
+pub mod tools;
 
 pub use expect::ExpectationResult;
 pub use runner::{run_scene, RunOptions, RunSummary};

@@ -76,6 +76,8 @@ pub struct RunSummary {
     pub frames_written: usize,
     /// The `.pvd` series written, if any.
     pub pvd: Option<PathBuf>,
+    /// What each tool felt (scenes with tools).
+    pub tools: Vec<super::expect::ToolReport>,
     /// Each expectation's outcome.
     pub expectations: Vec<ExpectationResult>,
     /// Whether all expectations held (and the run neither diverged nor was refused, unless
@@ -202,6 +204,7 @@ pub fn run_scene(
         message: None,
         frames_written: 0,
         pvd: None,
+        tools: Vec::new(),
         expectations: Vec::new(),
         expectations_passed: false,
     };
@@ -241,12 +244,21 @@ pub fn run_scene(
         _ => None,
     };
 
+    let mut stage = super::tools::ToolStage::new(scene, &mesh, &mut sim)?;
     let start = Instant::now();
     let mut done = 0;
     let chunk = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
     while done < steps {
         let n = chunk.min(steps - done);
-        let result = sim.run_with(n, |d| progress(done + d, steps));
+        let result = match stage.as_mut() {
+            // Tools move and touch every step: step one at a time.
+            Some(stage) => (0..n).try_for_each(|k| {
+                stage.step(&mut sim)?;
+                progress(done + k + 1, steps);
+                Ok(())
+            }),
+            None => sim.run_with(n, |d| progress(done + d, steps)),
+        };
         done = sim.steps();
         if let Err(e) = result {
             summary.diverged = matches!(e, Error::Diverged { .. });
@@ -265,6 +277,9 @@ pub fn run_scene(
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
     summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
     summary.energy = sim.energy();
+    if let Some(stage) = stage {
+        summary.tools = stage.reports;
+    }
     let x = sim.positions();
     finish(scene, &mesh, &packed, &x, &mut summary);
     Ok(summary)
@@ -293,6 +308,7 @@ fn finish(
         energy: summary.energy,
         diverged: summary.diverged,
         refused: summary.refused,
+        tools: &summary.tools,
     };
     summary.expectations = scene
         .expect

@@ -130,6 +130,17 @@ pub enum Expectation {
         #[serde(default)]
         max: Option<f64>,
     },
+    /// Bounds on the largest force a tool felt during the run (magnitude), N.
+    ToolForce {
+        /// The tool's name.
+        tool: String,
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
     /// The run must be refused because dt is above the stable bound.
     RefusesTimeStep,
     /// The run must diverge and be reported (for scenes forced past the bound).
@@ -199,8 +210,9 @@ pub struct Scene {
     /// What the run must satisfy.
     #[serde(default)]
     pub expect: Vec<Expectation>,
-    /// Surgical tools and how they move. Parsed and validated; the runner does not use them
-    /// yet.
+    /// Surgical tools and how they move: each step the runner poses them from their
+    /// trajectories, culls the surface against them, pushes penetrating tissue out and records
+    /// the force on each (`RunSummary::tools`).
     #[serde(default)]
     pub tools: Vec<SceneTool>,
 }
