@@ -21,10 +21,13 @@
 //!   triangle or tetrahedron, computed in a local frame centred on the tool part and scaled to
 //!   unit size so that parry's float32 arithmetic stays accurate for millimetre tools in scenes
 //!   measured in metres.
+//! - `grasp.rs` (feature `collide`): a closed grasper holds the surface nodes between its jaws.
 //! - `response.rs` (feature `collide`): penetrating surface triangles pushed out of the tools by
 //!   position correction, and the reaction force on each tool.
 
 pub mod broad;
+#[cfg(feature = "collide")]
+pub mod grasp;
 #[cfg(feature = "collide")]
 pub mod narrow;
 #[cfg(feature = "collide")]
