@@ -543,7 +543,7 @@ fn print_table(summaries: &[RunSummary]) {
 }
 
 /// Run the benchmark matrix and print it.
-#[cfg(feature = "gpu")]
+#[cfg(all(feature = "gpu", feature = "collide"))]
 fn bench_collide(
     triangles: &[usize],
     tools: &[usize],
@@ -558,7 +558,7 @@ fn bench_collide(
     }
     println!("gpu device: {device}");
     println!(
-        "{:>9} {:>5} {:>10} {:>10} {:>11} {:>9} {:>10} {:>10} {:>10}",
+        "{:>9} {:>5} {:>9} {:>9} {:>10} {:>9} {:>9} {:>9} {:>10} {:>8} {:>9} {:>9}",
         "triangles",
         "tools",
         "gpu ms",
@@ -567,11 +567,14 @@ fn bench_collide(
         "ratio",
         "self gpu",
         "self cpu",
-        "self pairs"
+        "self pairs",
+        "narrow",
+        "gpu p2f",
+        "cpu p2f"
     );
     for r in &rows {
         println!(
-            "{:>9} {:>5} {:>10.3} {:>10.3} {:>11.1} {:>9.2e} {:>10.3} {:>10.3} {:>10}",
+            "{:>9} {:>5} {:>9.3} {:>9.3} {:>10.1} {:>9.2e} {:>9.3} {:>9.3} {:>10} {:>8.2} {:>9.3} {:>9.3}",
             r.triangles,
             r.tools,
             r.gpu_tool_ms,
@@ -580,20 +583,27 @@ fn bench_collide(
             r.culling_ratio,
             r.gpu_self_ms,
             r.cpu_self_ms,
-            r.self_pairs
+            r.self_pairs,
+            r.narrow_us_per_candidate,
+            r.gpu_pose_to_force_ms,
+            r.cpu_pose_to_force_ms
         );
     }
     println!(
-        "gpu/cpu ms: median wall time of one cull, readback included; ratio: candidates over \
-         triangle-tool pairs; self: tissue against itself, margin 0.5 mm"
+        "gpu/cpu ms: median wall time of one tool cull, readback included; ratio: candidates \
+         over triangle-tool pairs; self: tissue against itself, margin 0.5 mm; narrow: parry \
+         tool-triangle query, us per candidate; p2f: pose to force (cull, read back the \
+         candidates' nodes, narrow phase, correction) for a 3 mm probe pressed 0.5 mm, ms"
     );
     Ok(ExitCode::SUCCESS)
 }
 
-#[cfg(not(feature = "gpu"))]
+#[cfg(not(all(feature = "gpu", feature = "collide")))]
 fn bench_collide(_: &[usize], _: &[usize], _: usize, _: bool) -> lancet::Result<ExitCode> {
     Err(lancet::Error::Unsupported(
-        "bench collide runs the GPU broad phases; build with the `gpu` feature".into(),
+        "bench collide runs the GPU broad phases and the narrow phase; build with the `gpu` \
+         and `collide` features"
+            .into(),
     ))
 }
 

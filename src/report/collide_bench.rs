@@ -8,10 +8,15 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use nalgebra::{Isometry3, Point3};
+
 use crate::collide::broad::{cull_cpu, Surface, ToolBox};
+use crate::collide::narrow::tool_triangle;
+use crate::collide::response::{resolve_contacts, ContactSettings};
 use crate::collide::self_broad::{self_pairs_cpu, GridParams};
+use crate::collide::{Tool, ToolShape};
 use crate::engine::gpu::{GpuContext, GpuEngine};
-use crate::engine::{Engine, SimConfig};
+use crate::engine::{Engine, EngineKind, SimConfig, Simulation};
 use crate::error::Result;
 use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;
@@ -38,6 +43,13 @@ pub struct CollideRow {
     pub cpu_self_ms: f64,
     /// Self-contact pairs found (margin 0.5 mm, at rest).
     pub self_pairs: usize,
+    /// Median narrow-phase time per candidate (parry, tool against triangle), µs.
+    pub narrow_us_per_candidate: f64,
+    /// Median end-to-end latency from a tool pose to its force (broad phase, readback of the
+    /// candidates' nodes, narrow phase, position correction) on the GPU engine, ms.
+    pub gpu_pose_to_force_ms: f64,
+    /// The same on the fast CPU engine, ms.
+    pub cpu_pose_to_force_ms: f64,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -103,6 +115,44 @@ pub fn run(
                 std::hint::black_box(self_pairs_cpu(&grid, &rest, &disp, &tris));
                 cpu_self.push(t.elapsed().as_secs_f64() * 1e3);
             }
+            // A 3 mm sphere pressed 0.5 mm into the slab's top: time the narrow phase per
+            // candidate and the whole response, from pose to force.
+            let centre = 0.5 * n as f64 * 0.002;
+            let probe = Tool::new(
+                ToolShape::Sphere { radius: 3e-3 },
+                Isometry3::translation(centre, centre, 0.002 + 2.5e-3),
+            )?;
+            let b = probe.step_bounds(1e-5);
+            let probe_box = [ToolBox::containing(
+                b.min.coords.into(),
+                b.max.coords.into(),
+            )];
+            let near = cull_cpu(&rest, &disp, &tris, &probe_box);
+            let corners: Vec<[Point3<f64>; 3]> = near
+                .iter()
+                .map(|c| surface.triangles[c[0] as usize].map(|i| Point3::from(x[i as usize])))
+                .collect();
+            let mut narrow = Vec::new();
+            for _ in 0..repeats {
+                let t = Instant::now();
+                for tri in &corners {
+                    std::hint::black_box(tool_triangle(&probe.shape, probe.pose(), tri, 1e-5)?);
+                }
+                narrow.push(t.elapsed().as_secs_f64() * 1e6 / corners.len().max(1) as f64);
+            }
+            let pose_to_force = |kind: EngineKind| -> Result<f64> {
+                let mut sim = Simulation::new(model.clone(), kind, SimConfig::new(1e-5))?;
+                sim.set_surface(surface.triangles.clone())?;
+                let settings = ContactSettings::default();
+                resolve_contacts(&mut sim, std::slice::from_ref(&probe), &settings)?;
+                let mut times = Vec::new();
+                for _ in 0..repeats {
+                    let t = Instant::now();
+                    resolve_contacts(&mut sim, std::slice::from_ref(&probe), &settings)?;
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                }
+                Ok(median(times))
+            };
             let candidates = found as f64 / repeats as f64;
             rows.push(CollideRow {
                 triangles: surface.triangles.len(),
@@ -114,6 +164,9 @@ pub fn run(
                 gpu_self_ms: median(gpu_self),
                 cpu_self_ms: median(cpu_self),
                 self_pairs: pairs,
+                narrow_us_per_candidate: median(narrow),
+                gpu_pose_to_force_ms: pose_to_force(EngineKind::Gpu)?,
+                cpu_pose_to_force_ms: pose_to_force(EngineKind::Fast)?,
             });
         }
     }

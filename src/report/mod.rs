@@ -4,7 +4,7 @@
 pub mod accuracy;
 pub mod bandwidth;
 pub mod bench;
-#[cfg(feature = "gpu")]
+#[cfg(all(feature = "gpu", feature = "collide"))]
 pub mod collide_bench;
 #[cfg(feature = "plot")]
 pub mod plot;
