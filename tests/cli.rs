@@ -617,6 +617,7 @@ fn bench_collide_reports_each_surface_and_tool_count_with_a_culling_ratio() {
         assert!(ratio > 0.0 && ratio < 0.5, "{r}");
         for key in [
             "gpu_tool_ms",
+            "bvh_tool_ms",
             "narrow_us_per_candidate",
             "gpu_pose_to_force_ms",
             "cpu_pose_to_force_ms",

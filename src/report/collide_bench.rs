@@ -33,6 +33,9 @@ pub struct CollideRow {
     pub gpu_tool_ms: f64,
     /// Median wall time of its CPU twin (one thread), ms.
     pub cpu_tool_ms: f64,
+    /// Median wall time of the baseline: parry's own BVH over the triangle boxes, every leaf
+    /// updated and the tree refitted, then queried with each tool box (one thread), ms.
+    pub bvh_tool_ms: f64,
     /// Mean candidates per cull.
     pub candidates: f64,
     /// Candidates over all triangle-tool pairs.
@@ -103,6 +106,46 @@ pub fn run(
                 std::hint::black_box(cull_cpu(&rest, &disp, &tris, &boxes));
                 cpu.push(t.elapsed().as_secs_f64() * 1e3);
             }
+            // Baseline: parry's BVH, refitted to the current boxes and queried, as a CPU
+            // simulator without a GPU broad phase would do every step.
+            let leaf_boxes: Vec<parry3d::bounding_volume::Aabb> = tris
+                .iter()
+                .map(|&t| {
+                    let p = t.map(|i| {
+                        let (r, u) = (rest[i as usize], disp[i as usize]);
+                        parry3d::math::Vector::new(r[0] + u[0], r[1] + u[1], r[2] + u[2])
+                    });
+                    parry3d::bounding_volume::Aabb::new(
+                        p[0].min(p[1]).min(p[2]),
+                        p[0].max(p[1]).max(p[2]),
+                    )
+                })
+                .collect();
+            let mut bvh = parry3d::partitioning::Bvh::from_leaves(Default::default(), &leaf_boxes);
+            let mut workspace = parry3d::partitioning::BvhWorkspace::default();
+            let queries: Vec<parry3d::bounding_volume::Aabb> = boxes
+                .iter()
+                .map(|b| {
+                    parry3d::bounding_volume::Aabb::new(
+                        parry3d::math::Vector::new(b.lo[0], b.lo[1], b.lo[2]),
+                        parry3d::math::Vector::new(b.hi[0], b.hi[1], b.hi[2]),
+                    )
+                })
+                .collect();
+            let mut bvh_times = Vec::new();
+            for _ in 0..repeats {
+                let t = Instant::now();
+                for (i, aabb) in leaf_boxes.iter().enumerate() {
+                    bvh.insert_or_update_partially(*aabb, i as u32, 0.0);
+                }
+                bvh.refit(&mut workspace);
+                let mut hits = 0usize;
+                for q in &queries {
+                    hits += bvh.intersect_aabb(q).count();
+                }
+                std::hint::black_box(hits);
+                bvh_times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
             let margin = 5e-4;
             let grid = GridParams::for_surface(&model.rest, &surface.triangles, margin);
             engine.cull_self(margin)?; // warm-up
@@ -159,6 +202,7 @@ pub fn run(
                 tools: k,
                 gpu_tool_ms: median(gpu),
                 cpu_tool_ms: median(cpu),
+                bvh_tool_ms: median(bvh_times),
                 candidates,
                 culling_ratio: candidates / (surface.triangles.len() * k) as f64,
                 gpu_self_ms: median(gpu_self),
