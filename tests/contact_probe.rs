@@ -93,21 +93,15 @@ fn pressing_deeper_indents_more_and_pushes_back_harder(
                 f += fk / 200.0;
             }
         }
+        // How far the lowest node of the top face went down.
         let dent = TOP
             - sim
                 .positions()
                 .iter()
-                .map(|p| p[2])
-                .fold(f64::INFINITY, f64::min)
-                .max(0.0);
-        let top_nodes_min = sim
-            .positions()
-            .iter()
-            .zip(&sim.model().rest)
-            .filter(|(_, r)| r[2] > TOP - 1e-9)
-            .map(|(p, _)| p[2])
-            .fold(f64::INFINITY, f64::min);
-        let dent = dent.min(TOP - top_nodes_min);
+                .zip(&sim.model().rest)
+                .filter(|(_, r)| r[2] > TOP - 1e-9)
+                .map(|(p, _)| p[2])
+                .fold(f64::INFINITY, f64::min);
         assert!(
             f.z > 0.0,
             "{kind:?} at {target}: force {f:?} does not point away from the tissue"

@@ -102,6 +102,33 @@ impl ToolCuller {
         Ok(culler)
     }
 
+    /// Replace the surface (after a patch renumbered nodes or reallocated the node state, or
+    /// a cut changed the surface), keeping the pipeline and output buffers.
+    pub fn set_surface(
+        &mut self,
+        ctx: &GpuContext,
+        triangles: &[[u32; 3]],
+        rest: &[[f32; 4]],
+        state: &NodeState,
+    ) -> Result<()> {
+        let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
+        self.triangles = buffers::storage_buffer(
+            ctx,
+            "surface triangles",
+            bytemuck::cast_slice(&tris),
+            Sizing::Exact,
+        )?;
+        self.rest = buffers::storage_buffer(
+            ctx,
+            "rest positions",
+            bytemuck::cast_slice(rest),
+            Sizing::Exact,
+        )?;
+        self.triangle_count = triangles.len() as u32;
+        self.rebind(ctx, state);
+        Ok(())
+    }
+
     /// Rebuild the bind groups (after the node state or an output buffer was reallocated).
     pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
         self.bind_groups = (0..state.phases())

@@ -486,7 +486,15 @@ impl GpuEngine {
                 "surface triangle {t:?} names a node past the model's {n} nodes"
             )));
         }
-        let tool = self.make_culler(triangles)?;
+        let (tris, rest) = (self.in_layout_order(triangles), self.rest_f32());
+        // A culler that exists keeps its pipeline: only the surface is uploaded again.
+        let tool = match self.surface.take() {
+            Some(mut s) => {
+                s.tool.set_surface(&self.ctx, &tris, &rest, &self.state)?;
+                s.tool
+            }
+            None => broad_tool::ToolCuller::new(&self.ctx, &tris, &rest, &self.state)?,
+        };
         self.surface = Some(SurfaceCulling {
             triangles: triangles.to_vec(),
             tool,
@@ -495,13 +503,13 @@ impl GpuEngine {
         Ok(())
     }
 
-    fn make_culler(&self, triangles: &[[u32; 3]]) -> Result<broad_tool::ToolCuller> {
-        let order = self.layout.order();
-        let tris: Vec<[u32; 3]> = triangles
+    /// Triangles of model nodes renumbered to layout indices.
+    fn in_layout_order(&self, triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        let rank = &self.layout.order().rank;
+        triangles
             .iter()
-            .map(|t| t.map(|i| order.rank[i as usize]))
-            .collect();
-        broad_tool::ToolCuller::new(&self.ctx, &tris, &self.rest_f32(), &self.state)
+            .map(|t| t.map(|i| rank[i as usize]))
+            .collect()
     }
 
     /// Rest positions in layout order as the passes see them (zero at holes).
@@ -516,13 +524,9 @@ impl GpuEngine {
 
     /// The surface triangles in layout order, as the culler holds them.
     pub fn surface_layout_order(&self) -> Option<Vec<[u32; 3]>> {
-        let order = self.layout.order();
-        self.surface.as_ref().map(|s| {
-            s.triangles
-                .iter()
-                .map(|t| t.map(|i| order.rank[i as usize]))
-                .collect()
-        })
+        self.surface
+            .as_ref()
+            .map(|s| self.in_layout_order(&s.triangles))
     }
 
     /// Broad phase against tool boxes on the device: the (triangle, tool) pairs whose boxes
@@ -539,31 +543,32 @@ impl GpuEngine {
     /// share no node and whose boxes, widened by `margin / 2` (m), overlap at the current
     /// state. The passes are built at the first call (and again when the margin changes).
     pub fn cull_self(&mut self, margin: f64) -> Result<broad_self::SelfCullResult> {
-        let order = self.layout.order().clone();
-        let rest_f32 = self.rest_f32();
-        let Some(surface) = &mut self.surface else {
+        let Some(surface) = &self.surface else {
             return Err(no_surface());
         };
+        // Built at the first call and when the margin changes; otherwise nothing is made here.
         if surface
             .self_contact
             .as_ref()
             .is_none_or(|(m, _)| *m != margin)
         {
-            let tris: Vec<[u32; 3]> = surface
-                .triangles
-                .iter()
-                .map(|t| t.map(|i| order.rank[i as usize]))
-                .collect();
+            let tris = self.in_layout_order(&surface.triangles);
             let grid = crate::collide::self_broad::GridParams::for_surface(
                 &self.rest,
                 &surface.triangles,
                 margin,
             );
             let culler =
-                broad_self::SelfCuller::new(&self.ctx, &tris, &rest_f32, grid, &self.state)?;
-            surface.self_contact = Some((margin, culler));
+                broad_self::SelfCuller::new(&self.ctx, &tris, &self.rest_f32(), grid, &self.state)?;
+            if let Some(s) = &mut self.surface {
+                s.self_contact = Some((margin, culler));
+            }
         }
-        let (_, culler) = surface.self_contact.as_mut().expect("built above");
+        let (_, culler) = self
+            .surface
+            .as_mut()
+            .and_then(|s| s.self_contact.as_mut())
+            .expect("built above");
         culler.cull(&self.ctx, &self.state, self.phase)
     }
 
