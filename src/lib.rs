@@ -32,3 +32,4 @@ pub mod scene;
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctest;
+pub mod cut;

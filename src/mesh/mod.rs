@@ -204,6 +204,24 @@ impl TetMesh {
         before - self.nodes.len()
     }
 
+    /// Replace the corners of tet `key` (a cut giving a tet copies of its nodes). The new
+    /// corners must exist, be distinct and keep the tet positively oriented; on error the tet is
+    /// unchanged.
+    pub fn set_tet_nodes(&mut self, key: TetKey, nodes: [NodeKey; 4]) -> Result<()> {
+        let v6 = self.check_tet(&nodes)?;
+        if v6 < 0.0 {
+            return Err(Error::Mesh(
+                "new corners would invert the tet; swap two of them".into(),
+            ));
+        }
+        let t = self
+            .tets
+            .get_mut(key)
+            .ok_or_else(|| Error::Mesh("tet does not exist".into()))?;
+        t.nodes = nodes;
+        Ok(())
+    }
+
     /// Move a node's rest position (used by cuts that snap nodes). Does not re-check tets.
     pub fn set_rest(&mut self, key: NodeKey, p: Point3<f64>) -> Option<()> {
         self.nodes.get_mut(key).map(|n| n.rest = p)

@@ -293,6 +293,98 @@ impl SpringModel {
         Ok(removed)
     }
 
+    /// Move tet `tk`'s share from its old corner nodes `old` to `new` (the same tet with some
+    /// corners replaced by copies at the same rest positions, as a cut that separates tets
+    /// does). Each spring and node loses exactly what the tet gave and the new ones receive it,
+    /// so masses and stiffnesses are divided by each tet's share whatever the parameterisation.
+    /// Springs left with no tet are deleted, springs on new edges are created (with the old
+    /// edge's rest length), nodes left with no tet lose their mass entry, and new nodes take
+    /// the fixed flag of the node they replace. Returns the deleted springs.
+    pub fn renode_tet(
+        &mut self,
+        tk: TetKey,
+        old: [NodeKey; 4],
+        new: [NodeKey; 4],
+    ) -> Result<Vec<SpringKey>> {
+        let mut share = *self
+            .shares
+            .get(tk)
+            .ok_or_else(|| Error::Model("tet has no share in the model".into()))?;
+        for (i, (&o, &n)) in old.iter().zip(&new).enumerate() {
+            if o == n {
+                continue;
+            }
+            if let Some(m) = self.mass.get_mut(o) {
+                *m -= share.mass[i];
+            }
+            if let Some(c) = self.tets_at_node.get_mut(o) {
+                *c = c.saturating_sub(1);
+            }
+            if let Some(e) = self.mass.entry(n) {
+                *e.or_insert(0.0) += share.mass[i];
+            }
+            if let Some(e) = self.tets_at_node.entry(n) {
+                *e.or_insert(0) += 1;
+            }
+            if self.fixed.contains_key(o) {
+                self.fixed.insert(n, ());
+            }
+        }
+        let mut removed = Vec::new();
+        for (e, [a, b]) in TET_EDGES.iter().enumerate() {
+            let (oa, ob, na, nb) = (old[*a], old[*b], new[*a], new[*b]);
+            if oa == na && ob == nb {
+                continue;
+            }
+            let old_key = share.springs[e];
+            let rest_length = self.springs.get(old_key).map_or(0.0, |s| s.rest_length);
+            if let Some(s) = self.springs.get_mut(old_key) {
+                s.stiffness -= share.stiffness[e];
+                s.damping -= share.damping[e];
+                s.tets = s.tets.saturating_sub(1);
+                if s.tets == 0 {
+                    let nodes = s.nodes;
+                    self.springs.remove(old_key);
+                    self.by_edge.remove(&nodes);
+                    removed.push(old_key);
+                }
+            }
+            let key = edge_key(na, nb);
+            let sk = match self.by_edge.get(&key) {
+                Some(&s) => s,
+                None => {
+                    let s = self.springs.insert(Spring {
+                        nodes: key,
+                        rest_length,
+                        stiffness: 0.0,
+                        damping: 0.0,
+                        tets: 0,
+                    });
+                    self.by_edge.insert(key, s);
+                    s
+                }
+            };
+            let s = &mut self.springs[sk];
+            s.stiffness += share.stiffness[e];
+            s.damping += share.damping[e];
+            s.tets += 1;
+            share.springs[e] = sk;
+        }
+        for o in old {
+            if self.tets_at_node.get(o).is_some_and(|&c| c == 0) {
+                self.mass.remove(o);
+                self.tets_at_node.remove(o);
+            }
+        }
+        self.shares.insert(tk, share);
+        Ok(removed)
+    }
+
+    /// Number of tets holding node `n`.
+    pub fn tets_at_node(&self, n: NodeKey) -> u32 {
+        self.tets_at_node.get(n).copied().unwrap_or(0)
+    }
+
     /// The configuration the model was built with.
     pub fn config(&self) -> &ModelConfig {
         &self.config

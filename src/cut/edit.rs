@@ -1,0 +1,149 @@
+//! The topology edits of a cut, on the mesh, the spring model and the face index together.
+
+use std::collections::BTreeMap;
+
+use petgraph::unionfind::UnionFind;
+
+use super::snapshot::Snapshot;
+use super::{CutOutcome, Cutter};
+use crate::error::Result;
+use crate::mesh::{NodeKey, TetKey};
+
+impl Cutter {
+    /// Carving: delete `tets` (sorted). Nodes left without a tet are retired (fixed, no
+    /// springs); crack pairs involving a deleted tet are dropped.
+    pub(super) fn remove(&mut self, tets: &[TetKey], outcome: &mut CutOutcome) -> Result<()> {
+        let before: Vec<[NodeKey; 4]> = tets.iter().map(|&t| self.mesh.tet(t).expect("a tet").nodes).collect();
+        let snapshot = Snapshot::take(&self.model, &before);
+        for &tk in tets {
+            let tet = *self.mesh.tet(tk).expect("a tet");
+            outcome.volume_removed += self.mesh.tet_volume(tk);
+            self.faces.remove(tk, &tet);
+            self.model.remove_tet(&self.mesh, tk)?;
+            self.mesh.remove_tet(tk);
+        }
+        self.volume_removed += outcome.volume_removed;
+        self.crack
+            .retain(|(a, b)| self.mesh.tet(*a).is_some() && self.mesh.tet(*b).is_some());
+        let mut retired: Vec<NodeKey> = before.iter().flatten().copied().collect();
+        retired.sort();
+        retired.dedup();
+        outcome.nodes_retired = retired
+            .iter()
+            .filter(|&&n| self.faces.tets_at(n).is_empty())
+            .count();
+        outcome.tets_touched = tets.len();
+        outcome.tets_removed = tets.len();
+        outcome.diff = snapshot.diff(&self.mesh, &self.model, &[], &[], &self.dense);
+        Ok(())
+    }
+
+    /// Splitting along faces: the pairs in `crossed` (sorted, face neighbours, not yet on the
+    /// crack) join the crack; every node of their shared faces is then split into one copy per
+    /// group of its tets still joined across faces that are not cut. The group holding the
+    /// smallest tet key keeps the original node. Pairs whose face opened leave the crack.
+    pub(super) fn separate(
+        &mut self,
+        crossed: &[(TetKey, TetKey)],
+        outcome: &mut CutOutcome,
+    ) -> Result<()> {
+        let mut nodes: Vec<NodeKey> = Vec::new();
+        for &(a, b) in crossed {
+            self.crack.insert((a, b));
+            let (ta, tb) = (self.mesh.tet(a).expect("a tet"), self.mesh.tet(b).expect("a tet"));
+            nodes.extend(ta.nodes.iter().filter(|n| tb.nodes.contains(n)));
+        }
+        outcome.faces_cut = crossed.len();
+        nodes.sort();
+        nodes.dedup();
+
+        // Groups are found on the topology before any node is split, so the order in which
+        // nodes are visited does not matter.
+        let mut replace: BTreeMap<TetKey, Vec<(NodeKey, usize)>> = BTreeMap::new();
+        let mut copies: Vec<NodeKey> = Vec::new(); // the node each new copy duplicates
+        for &n in &nodes {
+            let around = self.faces.tets_at(n);
+            let slot = |t: TetKey| around.binary_search(&t).ok();
+            let mut uf = UnionFind::<usize>::new(around.len());
+            for (i, &t) in around.iter().enumerate() {
+                let tet = self.mesh.tet(t).expect("a tet");
+                let at = tet.nodes.iter().position(|&k| k == n).expect("n is a corner");
+                for local in (0..4).filter(|&l| l != at) {
+                    let Some(other) = self.faces.neighbour(t, tet, local) else {
+                        continue;
+                    };
+                    let pair = if t < other { (t, other) } else { (other, t) };
+                    if self.crack.contains(&pair) {
+                        continue;
+                    }
+                    if let Some(j) = slot(other) {
+                        uf.union(i, j);
+                    }
+                }
+            }
+            // Groups in order of their smallest tet (`around` is sorted).
+            let mut label: BTreeMap<usize, usize> = BTreeMap::new();
+            for i in 0..around.len() {
+                let root = uf.find(i);
+                let next = label.len();
+                let g = *label.entry(root).or_insert(next);
+                if g > 0 {
+                    replace
+                        .entry(around[i])
+                        .or_default()
+                        .push((n, copies.len() + g - 1));
+                }
+            }
+            for _ in 1..label.len() {
+                copies.push(n);
+            }
+        }
+        if copies.is_empty() {
+            return Ok(());
+        }
+
+        let before: Vec<[NodeKey; 4]> = replace
+            .keys()
+            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
+            .collect();
+        let snapshot = Snapshot::take(&self.model, &before);
+        let mut added = Vec::with_capacity(copies.len());
+        let mut new_keys = Vec::with_capacity(copies.len());
+        for &n in &copies {
+            let k = self.mesh.add_node(self.mesh.rest(n));
+            self.dense.insert(k, self.dense.len() as u32);
+            added.push((k, n));
+            new_keys.push(k);
+        }
+        for &t in replace.keys() {
+            self.faces.remove(t, self.mesh.tet(t).expect("a tet"));
+        }
+        let mut after = Vec::with_capacity(before.len());
+        for ((&t, subs), old) in replace.iter().zip(&before) {
+            let mut new = *old;
+            for &(n, c) in subs {
+                for k in new.iter_mut().filter(|k| **k == n) {
+                    *k = new_keys[c];
+                }
+            }
+            self.mesh.set_tet_nodes(t, new)?;
+            self.model.renode_tet(t, *old, new)?;
+            after.push(new);
+        }
+        for &t in replace.keys() {
+            let tet = *self.mesh.tet(t).expect("a tet");
+            self.faces.insert(t, &tet)?;
+        }
+        // A pair leaves the crack once its tets no longer share a face.
+        let faces = &self.faces;
+        let mesh = &self.mesh;
+        self.crack.retain(|&(a, b)| {
+            let ta = mesh.tet(a).expect("a tet");
+            (0..4).any(|l| faces.neighbour(a, ta, l) == Some(b))
+        });
+        outcome.tets_touched = replace.len();
+        outcome.nodes_added = copies.len();
+        outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
+        Ok(())
+    }
+}

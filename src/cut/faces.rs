@@ -1,0 +1,152 @@
+//! Tet-face adjacency kept up to date through cuts: which tets use each face, which tets meet
+//! at each node, and the boundary surface. A cut touches a few tets; only their faces are
+//! re-examined, so the boundary is updated incrementally instead of recomputed.
+//!
+//! Ordered maps keep every iteration in key order, so the same history of edits gives the same
+//! boundary in the same order (bit-identical runs).
+
+use std::collections::BTreeMap;
+
+use slotmap::SecondaryMap;
+
+use crate::error::{Error, Result};
+use crate::mesh::{NodeKey, Tet, TetKey, TetMesh, TET_FACES};
+
+/// A face as its sorted node triple, the same whichever tet names it.
+pub type FaceId = [NodeKey; 3];
+
+/// The face id of local face `local` of `tet`.
+pub fn face_id(tet: &Tet, local: usize) -> FaceId {
+    let mut f = TET_FACES[local].map(|i| tet.nodes[i]);
+    f.sort();
+    f
+}
+
+/// The tets using one face (one on the boundary, two inside).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FaceUse {
+    tets: [(TetKey, u8); 2],
+    count: u8,
+}
+
+/// Face adjacency, node-to-tet incidence and the boundary of a mesh.
+#[derive(Debug, Clone, Default)]
+pub struct FaceIndex {
+    faces: BTreeMap<FaceId, FaceUse>,
+    boundary: BTreeMap<FaceId, (TetKey, u8)>,
+    node_tets: SecondaryMap<NodeKey, Vec<TetKey>>,
+}
+
+impl FaceIndex {
+    /// Index `mesh`. Fails on a face shared by more than two tets (a non-manifold mesh cannot be
+    /// cut consistently).
+    pub fn of(mesh: &TetMesh) -> Result<Self> {
+        let mut index = FaceIndex::default();
+        for (tk, tet) in mesh.tets() {
+            index.insert(tk, tet)?;
+        }
+        Ok(index)
+    }
+
+    /// Add a tet's faces and incidences.
+    pub fn insert(&mut self, tk: TetKey, tet: &Tet) -> Result<()> {
+        for local in 0..4 {
+            let id = face_id(tet, local);
+            match self.faces.get_mut(&id) {
+                None => {
+                    self.faces.insert(
+                        id,
+                        FaceUse {
+                            tets: [(tk, local as u8), (tk, local as u8)],
+                            count: 1,
+                        },
+                    );
+                    self.boundary.insert(id, (tk, local as u8));
+                }
+                Some(u) if u.count == 1 => {
+                    u.tets[1] = (tk, local as u8);
+                    u.count = 2;
+                    self.boundary.remove(&id);
+                }
+                Some(_) => {
+                    return Err(Error::Mesh(
+                        "a face is shared by more than two tets; a non-manifold mesh cannot be \
+                         cut (repair it, e.g. with TetGen -d)"
+                            .into(),
+                    ))
+                }
+            }
+        }
+        for &n in &tet.nodes {
+            if let Some(e) = self.node_tets.entry(n) {
+                let v = e.or_default();
+                let at = v.partition_point(|t| *t < tk);
+                v.insert(at, tk);
+            }
+        }
+        Ok(())
+    }
+
+    /// Remove a tet's faces and incidences (`tet` as it was when inserted).
+    pub fn remove(&mut self, tk: TetKey, tet: &Tet) {
+        for local in 0..4 {
+            let id = face_id(tet, local);
+            let Some(u) = self.faces.get_mut(&id) else {
+                continue;
+            };
+            if u.count == 2 {
+                let keep = if u.tets[0].0 == tk { u.tets[1] } else { u.tets[0] };
+                *u = FaceUse {
+                    tets: [keep, keep],
+                    count: 1,
+                };
+                self.boundary.insert(id, keep);
+            } else {
+                self.faces.remove(&id);
+                self.boundary.remove(&id);
+            }
+        }
+        for &n in &tet.nodes {
+            if let Some(v) = self.node_tets.get_mut(n) {
+                v.retain(|t| *t != tk);
+                if v.is_empty() {
+                    self.node_tets.remove(n);
+                }
+            }
+        }
+    }
+
+    /// The tet across local face `local` of `tk` (whose nodes are `tet`), if the face is inside.
+    pub fn neighbour(&self, tk: TetKey, tet: &Tet, local: usize) -> Option<TetKey> {
+        let u = self.faces.get(&face_id(tet, local))?;
+        (u.count == 2).then(|| if u.tets[0].0 == tk { u.tets[1].0 } else { u.tets[0].0 })
+    }
+
+    /// The tets using `face` (none, one or two).
+    pub fn tets_of_face(&self, face: &FaceId) -> Vec<TetKey> {
+        match self.faces.get(face) {
+            None => Vec::new(),
+            Some(u) => u.tets[..u.count as usize].iter().map(|t| t.0).collect(),
+        }
+    }
+
+    /// The tets at a node, in key order (empty for a node no tet uses).
+    pub fn tets_at(&self, n: NodeKey) -> &[TetKey] {
+        self.node_tets.get(n).map_or(&[], |v| v.as_slice())
+    }
+
+    /// The boundary faces as (tet, local face), in face-id order.
+    pub fn boundary(&self) -> impl ExactSizeIterator<Item = (TetKey, u8)> + '_ {
+        self.boundary.values().copied()
+    }
+
+    /// Number of boundary faces.
+    pub fn boundary_len(&self) -> usize {
+        self.boundary.len()
+    }
+
+    /// Number of faces.
+    pub fn face_count(&self) -> usize {
+        self.faces.len()
+    }
+}

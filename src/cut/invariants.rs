@@ -1,0 +1,216 @@
+//! What a cut mesh must satisfy, checked after every cut by tests and by `lancet run --check`:
+//!
+//! - rest volume conserved, or reduced by exactly the removed tets;
+//! - every node a tet uses has a positive mass, and with `Mass::Density` each node's mass is
+//!   `rho V / 4` summed over its tets (so the total is density times volume);
+//! - every fragment's boundary is closed and consistently outward oriented (each directed
+//!   boundary edge meets its reverse), and encloses its tet volume;
+//! - no tet is inverted or below the quality floor;
+//! - the spring model equals one built from scratch on the cut mesh (material stiffness and
+//!   density parameterisations, which do not depend on how many tets share an edge or node).
+
+use std::collections::HashMap;
+
+use serde::Serialize;
+
+use super::Cutter;
+use crate::mesh::quality::tet_quality;
+use crate::mesh::topology::components;
+use crate::mesh::{NodeKey, TET_FACES};
+use crate::model::{Mass, SpringModel, Stiffness};
+
+/// Relative tolerance of the volume and mass comparisons (sums in different orders).
+const REL: f64 = 1e-9;
+
+/// The measures behind the invariants, and what failed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InvariantReport {
+    /// Connected pieces of the mesh.
+    pub fragments: usize,
+    /// Total rest volume now, m^3.
+    pub volume: f64,
+    /// What it must be: the volume before cutting minus what carving removed.
+    pub volume_expected: f64,
+    /// Total mass of the nodes tets use, kg.
+    pub mass: f64,
+    /// Boundary edges without a matching reverse edge (0 for closed surfaces).
+    pub open_edges: usize,
+    /// Largest relative difference between a fragment's enclosed volume and its tet volume.
+    pub worst_enclosed_volume_error: f64,
+    /// Smallest volume-length ratio of any tet (1 regular, 0 flat, negative inverted).
+    pub min_quality: f64,
+    /// Springs whose parameters differ from a model rebuilt from scratch (`None` where the
+    /// parameterisation depends on incidence counts, so a rebuild differs by design).
+    pub springs_differing_from_rebuild: Option<usize>,
+    /// What failed, in words; empty when every invariant holds.
+    pub violations: Vec<String>,
+}
+
+impl InvariantReport {
+    /// Whether every invariant holds.
+    pub fn passed(&self) -> bool {
+        self.violations.is_empty()
+    }
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= REL * a.abs().max(b.abs()).max(f64::MIN_POSITIVE)
+}
+
+impl Cutter {
+    /// Check the invariants. `volume_before` is the rest volume before any cut; `quality_floor`
+    /// the smallest volume-length ratio allowed.
+    pub fn check_invariants(&self, volume_before: f64, quality_floor: f64) -> InvariantReport {
+        let mesh = &self.mesh;
+        let model = &self.model;
+        let mut violations = Vec::new();
+
+        let volume = mesh.volume();
+        let volume_expected = volume_before - self.volume_removed;
+        if !close(volume, volume_expected) {
+            violations.push(format!(
+                "rest volume {volume:e} m^3, expected {volume_expected:e} m^3"
+            ));
+        }
+
+        // Masses of the nodes tets use.
+        let mut expected_mass: HashMap<NodeKey, f64> = HashMap::new();
+        let density = |region: i32| match model.config().material_of(region).mass {
+            Mass::Density(rho) => Some(rho),
+            Mass::PerNode(_) => None,
+        };
+        let mut by_density = true;
+        for (tk, t) in mesh.tets() {
+            match density(t.region) {
+                Some(rho) => {
+                    let share = rho * mesh.tet_volume(tk) / 4.0;
+                    for &n in &t.nodes {
+                        *expected_mass.entry(n).or_insert(0.0) += share;
+                    }
+                }
+                None => by_density = false,
+            }
+        }
+        let mut mass = 0.0;
+        let mut bad_mass = 0;
+        for (n, _) in mesh.nodes() {
+            if self.faces.tets_at(n).is_empty() {
+                continue;
+            }
+            let m = model.mass(n).unwrap_or(0.0);
+            mass += m;
+            let wrong = !(m > 0.0 && m.is_finite())
+                || (by_density && !close(m, expected_mass.get(&n).copied().unwrap_or(0.0)));
+            if wrong {
+                bad_mass += 1;
+            }
+        }
+        if bad_mass > 0 {
+            violations.push(format!(
+                "{bad_mass} nodes have a mass that is not positive or not the density share of \
+                 their tets"
+            ));
+        }
+
+        // Fragments, their closed surfaces and enclosed volumes.
+        let (of_tet, fragments) = components(mesh);
+        let mut tet_volume = vec![0.0; fragments];
+        let mut enclosed = vec![0.0; fragments];
+        let mut half_edges: HashMap<(NodeKey, NodeKey), i64> = HashMap::new();
+        for (tk, _) in mesh.tets() {
+            tet_volume[of_tet[tk] as usize] += mesh.tet_volume(tk);
+        }
+        for (tk, local) in self.faces.boundary() {
+            let t = mesh.tet(tk).expect("boundary faces belong to tets");
+            let f = TET_FACES[local as usize].map(|i| t.nodes[i]);
+            let [a, b, c] = f.map(|k| mesh.rest(k).coords);
+            enclosed[of_tet[tk] as usize] += a.dot(&b.cross(&c)) / 6.0;
+            for k in 0..3 {
+                let (p, q) = (f[k], f[(k + 1) % 3]);
+                // +1 for p->q, -1 for q->p, keyed by the ordered pair: a closed, consistently
+                // oriented surface cancels to zero on every edge.
+                if p < q {
+                    *half_edges.entry((p, q)).or_insert(0) += 1;
+                } else {
+                    *half_edges.entry((q, p)).or_insert(0) -= 1;
+                }
+            }
+        }
+        let open_edges = half_edges.values().filter(|&&c| c != 0).count();
+        if open_edges > 0 {
+            violations.push(format!(
+                "{open_edges} boundary edges are not matched by a reverse edge: a fragment \
+                 surface is open or inconsistently oriented"
+            ));
+        }
+        let mut worst = 0.0f64;
+        for (v, e) in tet_volume.iter().zip(&enclosed) {
+            worst = worst.max((v - e).abs() / v.abs().max(f64::MIN_POSITIVE));
+        }
+        if worst > 1e-8 {
+            violations.push(format!(
+                "a fragment's surface encloses a volume {worst:e} (relative) away from its tets'"
+            ));
+        }
+
+        let min_quality = mesh
+            .tets()
+            .map(|(_, t)| tet_quality(&mesh.tet_points(t)).volume_length_ratio)
+            .fold(f64::INFINITY, f64::min);
+        if mesh.tet_count() > 0 && !(min_quality > 0.0 && min_quality >= quality_floor) {
+            violations.push(format!(
+                "a tet has volume-length ratio {min_quality:.3e}, below the floor \
+                 {quality_floor:.3e} (or inverted)"
+            ));
+        }
+
+        let springs_differing_from_rebuild = self.compare_with_rebuild();
+        if let Some(n) = springs_differing_from_rebuild.filter(|&n| n > 0) {
+            violations.push(format!(
+                "{n} springs differ from a model rebuilt from scratch on the cut mesh"
+            ));
+        }
+
+        InvariantReport {
+            fragments,
+            volume,
+            volume_expected,
+            mass,
+            open_edges,
+            worst_enclosed_volume_error: worst,
+            min_quality,
+            springs_differing_from_rebuild,
+            violations,
+        }
+    }
+
+    /// Springs whose presence or parameters differ from a model built from scratch, where the
+    /// parameterisation allows the comparison.
+    fn compare_with_rebuild(&self) -> Option<usize> {
+        let config = self.model.config();
+        let materials = std::iter::once(&config.material).chain(config.regions.values());
+        let comparable = materials.clone().all(|m| {
+            matches!(m.stiffness, Stiffness::Material { .. })
+                && !matches!(m.damping, crate::model::SpringDamping::Absolute(_))
+        });
+        if !comparable {
+            return None;
+        }
+        // A rebuild needs every node used; retired nodes are left out of the comparison.
+        let mut mesh = self.mesh.clone();
+        mesh.remove_unused_nodes();
+        let fresh = SpringModel::build(&mesh, config).ok()?;
+        let mut differing = 0;
+        for (_, s) in self.model.springs() {
+            match fresh.spring_between(s.nodes[0], s.nodes[1]) {
+                Some(f)
+                    if close(f.rest_length, s.rest_length)
+                        && close(f.stiffness, s.stiffness)
+                        && (f.damping == s.damping || close(f.damping, s.damping)) => {}
+                _ => differing += 1,
+            }
+        }
+        differing += fresh.spring_count().saturating_sub(self.model.spring_count());
+        Some(differing)
+    }
+}

@@ -1,0 +1,225 @@
+//! Incisions: a blade sweeps through the tissue, the tetrahedral mesh is cut, and the change
+//! goes to the engine as a [`ModelDiff`] so that only what changed is uploaded.
+//!
+//! The pipeline, one stage per file:
+//!
+//! - `sweep.rs`: the surface a blade sweeps between two poses ([`Sweep`]).
+//! - `exact.rs`: exact float64 orientation predicates (Shewchuk's, from the `robust` crate)
+//!   with one tie rule, so that a sweep exactly through nodes, edges or faces classifies the
+//!   same way every time.
+//! - `classify.rs`: the tets the sweep meets and the inside faces it crosses, at the current
+//!   (deformed) positions.
+//! - `faces.rs`: face adjacency, node-to-tet incidence and the boundary, updated per touched
+//!   tet.
+//! - `edit.rs`: the topology edits ([`CutMethod`]) on the mesh and the spring model.
+//! - `snapshot.rs`: what the edit changed, as a [`ModelDiff`].
+//! - `invariants.rs`: the checks a cut mesh must pass (volume, mass, closed fragment
+//!   surfaces, quality, agreement with a rebuild).
+//!
+//! A [`Cutter`] owns the mesh and spring model being cut. Node keys are only ever added, never
+//! removed, so the mesh's node storage order stays the packed model's dense order: a node left
+//! with no tet (carving) stays as a fixed node without springs.
+
+mod classify;
+mod edit;
+pub mod exact;
+pub mod faces;
+pub mod invariants;
+mod snapshot;
+pub mod sweep;
+
+use std::collections::BTreeSet;
+use std::time::Instant;
+
+use nalgebra::Point3;
+use serde::{Deserialize, Serialize};
+use slotmap::SecondaryMap;
+
+use crate::error::{Error, Result};
+use crate::mesh::{NodeKey, TetKey, TetMesh, TET_FACES};
+use crate::model::{ModelDiff, SpringModel};
+
+pub use faces::FaceIndex;
+pub use sweep::Sweep;
+
+/// How a cut edits the mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+pub enum CutMethod {
+    /// Delete the tets the blade passes (carving). Removes material.
+    Remove,
+    /// Open the inside faces the blade passes between two tets, duplicating their nodes (one
+    /// copy per group of tets still joined across uncut faces). No new elements, no material
+    /// lost; the cut follows the existing faces.
+    #[default]
+    Separate,
+}
+
+impl std::fmt::Display for CutMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            CutMethod::Remove => "remove",
+            CutMethod::Separate => "separate",
+        })
+    }
+}
+
+/// What one cut did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CutOutcome {
+    /// The change to the packed model (empty when the sweep cut nothing new).
+    pub diff: ModelDiff,
+    /// Tets removed or given new corners.
+    pub tets_touched: usize,
+    /// Tets removed (carving).
+    pub tets_removed: usize,
+    /// Rest volume removed, m^3.
+    pub volume_removed: f64,
+    /// Inside faces newly cut (separating), opened or still on the crack front.
+    pub faces_cut: usize,
+    /// Nodes created (copies).
+    pub nodes_added: usize,
+    /// Nodes left without any tet (fixed from now on).
+    pub nodes_retired: usize,
+    /// Springs removed, added or changed.
+    pub springs_touched: usize,
+    /// Seconds spent finding what the sweep cuts.
+    pub classify_s: f64,
+    /// Seconds spent editing the mesh and model and building the diff.
+    pub edit_s: f64,
+}
+
+impl CutOutcome {
+    /// Whether the sweep changed nothing.
+    pub fn is_empty(&self) -> bool {
+        self.diff.is_empty()
+    }
+}
+
+/// The mesh and spring model being cut, with the adjacency the cuts need.
+#[derive(Debug, Clone)]
+pub struct Cutter {
+    mesh: TetMesh,
+    model: SpringModel,
+    faces: FaceIndex,
+    dense: SecondaryMap<NodeKey, u32>,
+    method: CutMethod,
+    /// Face-neighbour pairs a sweep has crossed whose face is still shared: the crack front of
+    /// a partial cut. They stay cut when the blade moves on.
+    crack: BTreeSet<(TetKey, TetKey)>,
+    volume_removed: f64,
+}
+
+impl Cutter {
+    /// Prepare to cut `mesh`, whose model is `model` (packed with [`SpringModel::pack`], so
+    /// dense indices follow the mesh's node order).
+    pub fn new(mesh: TetMesh, model: SpringModel, method: CutMethod) -> Result<Self> {
+        let faces = FaceIndex::of(&mesh)?;
+        let dense = mesh.dense_nodes().index;
+        Ok(Cutter {
+            mesh,
+            model,
+            faces,
+            dense,
+            method,
+            crack: BTreeSet::new(),
+            volume_removed: 0.0,
+        })
+    }
+
+    /// The mesh as cut so far.
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+
+    /// The spring model as cut so far.
+    pub fn model(&self) -> &SpringModel {
+        &self.model
+    }
+
+    /// The face adjacency and boundary.
+    pub fn faces(&self) -> &FaceIndex {
+        &self.faces
+    }
+
+    /// The cut method.
+    pub fn method(&self) -> CutMethod {
+        self.method
+    }
+
+    /// Total rest volume removed by carving so far, m^3.
+    pub fn volume_removed(&self) -> f64 {
+        self.volume_removed
+    }
+
+    /// Face-neighbour pairs cut but not yet opened (the crack front of a partial cut).
+    pub fn crack_front(&self) -> usize {
+        self.crack.len()
+    }
+
+    /// Dense (packed model) index of a node.
+    pub fn dense_index(&self, n: NodeKey) -> Option<u32> {
+        self.dense.get(n).copied()
+    }
+
+    /// The boundary triangles as dense node indices, outward oriented, for
+    /// [`crate::Simulation::set_surface`].
+    pub fn surface(&self) -> Vec<[u32; 3]> {
+        self.faces
+            .boundary()
+            .map(|(tk, local)| {
+                let t = &self.mesh.tet(tk).expect("boundary faces belong to tets").nodes;
+                TET_FACES[local as usize].map(|i| self.dense[t[i]])
+            })
+            .collect()
+    }
+
+    /// Cut with `sweep`, classifying at `positions` (current positions of every node, dense
+    /// order, as [`crate::Simulation::positions`] gives them). The mesh and model are edited;
+    /// give the returned diff to [`crate::Simulation::apply`] and the new
+    /// [`Cutter::surface`] to the simulation.
+    pub fn cut(&mut self, sweep: &Sweep, positions: &[[f64; 3]]) -> Result<CutOutcome> {
+        if positions.len() != self.mesh.node_count() {
+            return Err(Error::Model(format!(
+                "{} positions for {} nodes; give the current position of every node",
+                positions.len(),
+                self.mesh.node_count()
+            )));
+        }
+        let start = Instant::now();
+        let (mesh, dense) = (&self.mesh, &self.dense);
+        let corners = |tk: TetKey| {
+            mesh.tet(tk)
+                .expect("candidates are tets of the mesh")
+                .nodes
+                .map(|k| Point3::from(positions[dense[k] as usize]))
+        };
+        let candidates = classify::candidates(mesh, &corners, sweep);
+        let mut outcome = CutOutcome::default();
+        match self.method {
+            CutMethod::Remove => {
+                let met = classify::tets_met(&candidates, &corners, sweep);
+                outcome.classify_s = start.elapsed().as_secs_f64();
+                if !met.is_empty() {
+                    self.remove(&met, &mut outcome)?;
+                }
+            }
+            CutMethod::Separate => {
+                let crossed =
+                    classify::faces_crossed(mesh, &self.faces, &candidates, &corners, sweep);
+                outcome.classify_s = start.elapsed().as_secs_f64();
+                let new: Vec<(TetKey, TetKey)> = crossed
+                    .into_iter()
+                    .filter(|p| !self.crack.contains(p))
+                    .collect();
+                if !new.is_empty() {
+                    self.separate(&new, &mut outcome)?;
+                }
+            }
+        }
+        outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;
+        let d = &outcome.diff;
+        outcome.springs_touched =
+            d.removed_springs.len() + d.added_springs.len() + d.changed_springs.len();
+        Ok(outcome)
+    }
+}

@@ -1,0 +1,128 @@
+//! Turning a topology edit into a [`ModelDiff`]: the springs and nodes an edit can touch are
+//! recorded before it, compared with what the spring model holds after it, and only the
+//! differences are put in the diff (the layouts turn it into dirty byte ranges).
+
+use std::collections::BTreeMap;
+
+use slotmap::SecondaryMap;
+
+use crate::mesh::{NodeKey, TetMesh};
+use crate::model::{AddedNode, ModelDiff, NodeChange, PackedSpring, SpringModel};
+
+/// Rest length, stiffness, damping of a spring.
+type SpringParams = (f64, f64, f64);
+
+/// The state of some springs and nodes before an edit.
+#[derive(Debug, Default)]
+pub struct Snapshot {
+    springs: BTreeMap<[NodeKey; 2], Option<SpringParams>>,
+    nodes: BTreeMap<NodeKey, (Option<f64>, bool)>,
+}
+
+fn edge(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
+    if a < b {
+        [a, b]
+    } else {
+        [b, a]
+    }
+}
+
+fn params(model: &SpringModel, e: &[NodeKey; 2]) -> Option<SpringParams> {
+    model
+        .spring_between(e[0], e[1])
+        .map(|s| (s.rest_length, s.stiffness, s.damping))
+}
+
+impl Snapshot {
+    /// Record the edges and corners of the given tets (their current nodes) before an edit.
+    pub fn take(model: &SpringModel, tets: &[[NodeKey; 4]]) -> Self {
+        let mut snap = Snapshot::default();
+        for t in tets {
+            for [a, b] in crate::mesh::TET_EDGES {
+                let e = edge(t[a], t[b]);
+                snap.springs.entry(e).or_insert_with(|| params(model, &e));
+            }
+            for &n in t {
+                snap.nodes
+                    .entry(n)
+                    .or_insert_with(|| (model.mass(n), model.is_fixed(n)));
+            }
+        }
+        snap
+    }
+
+    /// The diff from the recorded state to `model` now. `after` are the touched tets' nodes
+    /// after the edit (their new edges are compared too); `added` are the nodes the edit
+    /// created, in creation order, with the node each copies (its state is carried over);
+    /// `dense` numbers every node, added ones included. A node left without tets keeps its
+    /// mass in the packed model and becomes fixed, so that dense indices never change.
+    pub fn diff(
+        self,
+        mesh: &TetMesh,
+        model: &SpringModel,
+        after: &[[NodeKey; 4]],
+        added: &[(NodeKey, NodeKey)],
+        dense: &SecondaryMap<NodeKey, u32>,
+    ) -> ModelDiff {
+        let mut springs = self.springs;
+        for t in after {
+            for [a, b] in crate::mesh::TET_EDGES {
+                springs.entry(edge(t[a], t[b])).or_insert(None);
+            }
+        }
+        let mut diff = ModelDiff::default();
+        let packed = |e: &[NodeKey; 2], p: SpringParams| {
+            let (a, b) = (dense[e[0]], dense[e[1]]);
+            PackedSpring {
+                nodes: [a.min(b), a.max(b)],
+                rest_length: p.0,
+                stiffness: p.1,
+                damping: p.2,
+            }
+        };
+        for (e, before) in &springs {
+            match (before, params(model, e)) {
+                (Some(_), None) => {
+                    let (a, b) = (dense[e[0]], dense[e[1]]);
+                    diff.removed_springs.push([a.min(b), a.max(b)]);
+                }
+                (None, Some(p)) => diff.added_springs.push(packed(e, p)),
+                (Some(p0), Some(p1)) if *p0 != p1 => diff.changed_springs.push(packed(e, p1)),
+                _ => {}
+            }
+        }
+        for &(n, from) in added {
+            let p = mesh.rest(n);
+            diff.added_nodes.push(AddedNode {
+                key: n,
+                rest: [p.x, p.y, p.z],
+                mass: model.mass(n).unwrap_or(0.0),
+                fixed: model.is_fixed(n),
+                state_from: Some(dense[from]),
+            });
+        }
+        for (n, (mass0, fixed0)) in &self.nodes {
+            let (mass1, fixed1) = (model.mass(*n), model.is_fixed(*n));
+            match (mass0, mass1) {
+                (Some(m0), None) => diff.changed_nodes.push(NodeChange {
+                    node: dense[*n],
+                    mass: *m0,
+                    fixed: true,
+                }),
+                (Some(m0), Some(m1)) if *m0 != m1 || *fixed0 != fixed1 => {
+                    diff.changed_nodes.push(NodeChange {
+                        node: dense[*n],
+                        mass: m1,
+                        fixed: fixed1,
+                    })
+                }
+                _ => {}
+            }
+        }
+        diff.removed_springs.sort_unstable();
+        diff.added_springs.sort_by_key(|s| s.nodes);
+        diff.changed_springs.sort_by_key(|s| s.nodes);
+        diff.changed_nodes.sort_by_key(|c| c.node);
+        diff
+    }
+}

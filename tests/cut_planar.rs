@@ -1,0 +1,138 @@
+//! Planar cuts of a box, where the outcome is known exactly: which layer carving removes,
+//! which faces splitting opens, and the volumes of the two pieces.
+
+use lancet::collide::ToolShape;
+use lancet::cut::{CutMethod, Cutter, Sweep};
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{Material, ModelConfig, SpringModel};
+use lancet::TetMesh;
+use nalgebra::{Isometry3, Point3};
+
+const H: f64 = 0.01;
+const BLADE: ToolShape = ToolShape::Blade {
+    width: 0.1,
+    length: 0.1,
+    thickness: 1e-4,
+};
+
+fn box_mesh() -> TetMesh {
+    BoxGrid::cube_cells([4, 4, 4], H).build().unwrap()
+}
+
+fn config() -> ModelConfig {
+    ModelConfig::new(Material::elastic(3e3, 0.3, 1000.0))
+}
+
+/// A blade upright in the plane `y = y0` (its normal along +y), edge at height `z`. The
+/// rotation is the identity, so the plane is exactly `y = y0` (a turned blade's plane is off by
+/// the rounding of its rotation).
+fn blade_at(y0: f64, z: f64) -> Isometry3<f64> {
+    Isometry3::translation(0.02, y0, z)
+}
+
+/// Cut the box with a blade moving down through it from above in `steps` steps.
+fn cut_down(method: CutMethod, y0: f64, steps: usize) -> (Cutter, f64) {
+    let mesh = box_mesh();
+    let volume = mesh.volume();
+    let model = SpringModel::build(&mesh, &config()).unwrap();
+    let mut cutter = Cutter::new(mesh, model, method).unwrap();
+    let (top, bottom) = (0.05, -0.01);
+    for k in 0..steps {
+        let z0 = top + (bottom - top) * k as f64 / steps as f64;
+        let z1 = top + (bottom - top) * (k + 1) as f64 / steps as f64;
+        let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
+        let rest: Vec<[f64; 3]> = cutter
+            .mesh()
+            .nodes()
+            .map(|(_, n)| n.rest.coords.into())
+            .collect();
+        cutter.cut(&sweep, &rest).unwrap();
+    }
+    (cutter, volume)
+}
+
+fn fragment_volumes(cutter: &Cutter) -> Vec<f64> {
+    let mesh = cutter.mesh();
+    let (of, n) = lancet::mesh::topology::components(mesh);
+    let mut v = vec![0.0; n];
+    for (tk, _) in mesh.tets() {
+        v[of[tk] as usize] += mesh.tet_volume(tk);
+    }
+    v.sort_by(f64::total_cmp);
+    v
+}
+
+fn assert_invariants(cutter: &Cutter, volume: f64) {
+    let report = cutter.check_invariants(volume, 0.0);
+    assert!(report.passed(), "{:#?}", report);
+    assert_eq!(report.springs_differing_from_rebuild, Some(0));
+}
+
+#[test]
+fn separating_off_the_grid_follows_faces_to_pieces_of_known_volume() {
+    // In each cell of the 6-tet split, two tets have centroids at y = 1.25 h, two at 1.5 h and
+    // two at 1.75 h of their cell: a cut at y = 1.7 h opens the faces between the 1.5 h and
+    // 1.75 h tets of the second layer, leaving (1 + 4/6) / 4 of the volume on one side.
+    let (cutter, volume) = cut_down(CutMethod::Separate, 1.7 * H, 1);
+    assert_invariants(&cutter, volume);
+    let v = fragment_volumes(&cutter);
+    assert_eq!(v.len(), 2, "{v:?}");
+    let left = (1.0 + 4.0 / 6.0) / 4.0 * volume;
+    assert!((v[0] - left).abs() < 1e-12 * volume, "{v:?} vs {left}");
+    assert!((v[1] - (volume - left)).abs() < 1e-12 * volume);
+    // No material lost, nothing removed.
+    assert!((cutter.mesh().volume() - volume).abs() < 1e-12 * volume);
+    assert_eq!(cutter.crack_front(), 0);
+}
+
+#[test]
+fn separating_through_grid_nodes_splits_exactly_on_the_plane() {
+    let (cutter, volume) = cut_down(CutMethod::Separate, 2.0 * H, 1);
+    assert_invariants(&cutter, volume);
+    let v = fragment_volumes(&cutter);
+    assert_eq!(v.len(), 2, "{v:?}");
+    assert!((v[0] - 0.5 * volume).abs() < 1e-12 * volume, "{v:?}");
+    // Every node of the plane is split in two: 5 x 5 copies.
+    assert_eq!(cutter.mesh().node_count(), 125 + 25);
+}
+
+#[test]
+fn carving_removes_the_layer_the_blade_passes() {
+    // Every tet of the second layer has corners at y = h and y = 2 h, so a blade at 1.7 h
+    // meets all of them and no other; at exactly 2 h the tie rule (on the plane counts as the
+    // blade's positive side, +y here) takes the same layer.
+    for y0 in [1.7 * H, 2.0 * H] {
+        let (cutter, volume) = cut_down(CutMethod::Remove, y0, 1);
+        assert_invariants(&cutter, volume);
+        assert!(
+            (cutter.volume_removed() - 0.25 * volume).abs() < 1e-12 * volume,
+            "y0 {y0}: removed {}",
+            cutter.volume_removed()
+        );
+        let v = fragment_volumes(&cutter);
+        assert_eq!(v.len(), 2, "y0 {y0}: {v:?}");
+        assert!((v[0] - 0.25 * volume).abs() < 1e-12 * volume);
+    }
+}
+
+#[test]
+fn a_fast_blade_cuts_the_same_as_a_slow_one() {
+    for method in [CutMethod::Separate, CutMethod::Remove] {
+        let (fast, _) = cut_down(method, 1.7 * H, 1);
+        let (slow, _) = cut_down(method, 1.7 * H, 37);
+        let tets = |c: &Cutter| -> Vec<[Point3<f64>; 4]> {
+            let mut v: Vec<_> = c.mesh().tets().map(|(_, t)| c.mesh().tet_points(t)).collect();
+            v.sort_by(|a, b| format!("{a:?}").cmp(&format!("{b:?}")));
+            v
+        };
+        assert_eq!(tets(&fast), tets(&slow), "{method}");
+        // Same tets; the volumes are summed in a different storage order.
+        let (vf, vs) = (fragment_volumes(&fast), fragment_volumes(&slow));
+        assert_eq!(vf.len(), vs.len(), "{method}");
+        for (a, b) in vf.iter().zip(&vs) {
+            assert!((a - b).abs() <= 1e-14 * a, "{method}: {vf:?} vs {vs:?}");
+        }
+        assert_eq!(fast.mesh().node_count(), slow.mesh().node_count(), "{method}");
+    }
+}
+
