@@ -121,7 +121,11 @@ fn a_fast_blade_cuts_the_same_as_a_slow_one() {
         let (fast, _) = cut_down(method, 1.7 * H, 1);
         let (slow, _) = cut_down(method, 1.7 * H, 37);
         let tets = |c: &Cutter| -> Vec<[Point3<f64>; 4]> {
-            let mut v: Vec<_> = c.mesh().tets().map(|(_, t)| c.mesh().tet_points(t)).collect();
+            let mut v: Vec<_> = c
+                .mesh()
+                .tets()
+                .map(|(_, t)| c.mesh().tet_points(t))
+                .collect();
             v.sort_by(|a, b| format!("{a:?}").cmp(&format!("{b:?}")));
             v
         };
@@ -132,7 +136,10 @@ fn a_fast_blade_cuts_the_same_as_a_slow_one() {
         for (a, b) in vf.iter().zip(&vs) {
             assert!((a - b).abs() <= 1e-14 * a, "{method}: {vf:?} vs {vs:?}");
         }
-        assert_eq!(fast.mesh().node_count(), slow.mesh().node_count(), "{method}");
+        assert_eq!(
+            fast.mesh().node_count(),
+            slow.mesh().node_count(),
+            "{method}"
+        );
     }
 }
-

@@ -76,6 +76,14 @@ enum Command {
         /// Write no VTU frames.
         #[arg(long)]
         no_output: bool,
+        /// Cut with this method only (scenes that cut run once per method they name
+        /// otherwise).
+        #[arg(long, value_enum)]
+        method: Option<MethodArg>,
+        /// Check the cut invariants after every cut (volume, mass, closed fragment surfaces,
+        /// quality, agreement with a rebuild); a violation fails the scene.
+        #[arg(long)]
+        check: bool,
     },
     /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
     /// achieved bandwidth against this machine's measured floor, error against the reference.
@@ -274,6 +282,24 @@ impl From<EngineArg> for EngineKind {
     }
 }
 
+/// Cut methods on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MethodArg {
+    /// Delete the tets the blade passes.
+    Remove,
+    /// Open the faces the blade passes, duplicating nodes.
+    Separate,
+}
+
+impl From<MethodArg> for lancet::cut::CutMethod {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Remove => lancet::cut::CutMethod::Remove,
+            MethodArg::Separate => lancet::cut::CutMethod::Separate,
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -286,6 +312,8 @@ fn main() -> ExitCode {
             steps,
             output,
             no_output,
+            method,
+            check,
         } => {
             let opts = RunOptions {
                 engine: engine.map(Into::into),
@@ -294,6 +322,8 @@ fn main() -> ExitCode {
                 steps,
                 output_dir: output,
                 no_output,
+                cut_method: method.map(Into::into),
+                check,
             };
             run(scene.as_deref(), json, &opts)
         }
@@ -399,14 +429,26 @@ fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<Ex
     };
     let mut summaries = Vec::with_capacity(scenes.len());
     for (scene, path) in &scenes {
-        let bar = progress_bar(scene, opts, json);
-        let summary = run_scene(scene, path, opts, |done, _| bar.set_position(done));
-        bar.finish_and_clear();
-        let summary = summary?;
-        if !json {
-            print_summary(&summary);
+        // A scene that cuts runs once per method it names, unless --method picks one.
+        let methods: Vec<Option<lancet::cut::CutMethod>> = match (&scene.cut, opts.cut_method) {
+            (Some(_), Some(m)) => vec![Some(m)],
+            (Some(c), None) => c.methods.iter().map(|&m| Some(m)).collect(),
+            (None, _) => vec![None],
+        };
+        for method in methods {
+            let opts = RunOptions {
+                cut_method: method,
+                ..opts.clone()
+            };
+            let bar = progress_bar(scene, &opts, json);
+            let summary = run_scene(scene, path, &opts, |done, _| bar.set_position(done));
+            bar.finish_and_clear();
+            let summary = summary?;
+            if !json {
+                print_summary(&summary);
+            }
+            summaries.push(summary);
         }
-        summaries.push(summary);
     }
     let all_passed = summaries.iter().all(|s| s.expectations_passed);
     if json {
@@ -487,6 +529,40 @@ fn print_summary(s: &RunSummary) {
             t.name, t.max_force, f[0], f[1], f[2], t.max_depth, t.contact_steps
         );
     }
+    if let Some(c) = &s.cuts {
+        println!(
+            "cuts ({}): {} steps cut, {} tets touched ({} removed), {} nodes added, {} springs \
+             touched, {} fragments, volume removed {:.3}%",
+            c.method,
+            c.cuts,
+            c.tets_touched,
+            c.tets_removed,
+            c.nodes_added,
+            c.springs_touched,
+            c.fragments,
+            100.0 * c.volume_removed_fraction
+        );
+        println!(
+            "  uploaded {} of {} layout bytes a rebuild per cut would ({:.2}%; at most {:.2}% \
+             in one cut); per cut p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} invariant checks, \
+             {} violations",
+            c.bytes_uploaded,
+            c.bytes_full,
+            100.0 * c.bytes_uploaded as f64 / c.bytes_full.max(1) as f64,
+            100.0 * c.max_upload_fraction,
+            c.p50_ms,
+            c.p99_ms,
+            c.max_ms,
+            c.checks,
+            c.violations.len()
+        );
+        for e in &c.time_step_events {
+            println!("  {e}");
+        }
+        for v in c.violations.iter().take(5) {
+            println!("  violation: {v}");
+        }
+    }
     if !s.expectations.is_empty() {
         println!("expectations:");
         for e in &s.expectations {
@@ -518,14 +594,15 @@ fn print_table(summaries: &[RunSummary]) {
         .unwrap_or(5)
         .max(5);
     println!(
-        "{:<w$}  {:>8}  {:>8}  {:>10}  {:>9}  {:>8}  result",
-        "scene", "nodes", "steps", "dt (s)", "wall (s)", "checks"
+        "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10}  {:>9}  {:>8}  result",
+        "scene", "method", "nodes", "steps", "dt (s)", "wall (s)", "checks"
     );
     for s in summaries {
         let passed = s.expectations.iter().filter(|e| e.passed).count();
         println!(
-            "{:<w$}  {:>8}  {:>8}  {:>10.3e}  {:>9.3}  {:>8}  {}",
+            "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10.3e}  {:>9.3}  {:>8}  {}",
             s.scene,
+            s.cut_method.as_deref().unwrap_or("-"),
             s.nodes,
             s.steps,
             s.dt,

@@ -568,7 +568,11 @@ impl Trajectory {
                 let (k0, k1) = (&frames[j - 1], &frames[j]);
                 let s = (t - k0.time) / (k1.time - k0.time);
                 let (p0, p1) = (k0.pose(), k1.pose());
-                let translation = p0.translation.vector.lerp(&p1.translation.vector, s);
+                // `a + (b - a) s` rather than nalgebra's `a (1 - s) + b s`: a coordinate that
+                // does not change between keyframes stays exactly as written (a blade kept in
+                // the plane of grid nodes cuts exactly through them).
+                let (a, b) = (p0.translation.vector, p1.translation.vector);
+                let translation = a + (b - a) * s;
                 Isometry3::from_parts(
                     Translation3::from(translation),
                     slerp(&p0.rotation, &p1.rotation, s),
@@ -595,6 +599,9 @@ impl Trajectory {
 /// Slerp that never panics: nalgebra's `slerp` panics when the two rotations are nearly equal
 /// (the angle between them is too small to divide by), where any point between them will do.
 fn slerp(q0: &UnitQuaternion<f64>, q1: &UnitQuaternion<f64>, s: f64) -> UnitQuaternion<f64> {
+    if q0 == q1 {
+        return *q0;
+    }
     let nearer = if s < 0.5 { *q0 } else { *q1 };
     q0.try_slerp(q1, s, 1e-12).unwrap_or(nearer)
 }

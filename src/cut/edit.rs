@@ -13,7 +13,10 @@ impl Cutter {
     /// Carving: delete `tets` (sorted). Nodes left without a tet are retired (fixed, no
     /// springs); crack pairs involving a deleted tet are dropped.
     pub(super) fn remove(&mut self, tets: &[TetKey], outcome: &mut CutOutcome) -> Result<()> {
-        let before: Vec<[NodeKey; 4]> = tets.iter().map(|&t| self.mesh.tet(t).expect("a tet").nodes).collect();
+        let before: Vec<[NodeKey; 4]> = tets
+            .iter()
+            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
+            .collect();
         let snapshot = Snapshot::take(&self.model, &before);
         for &tk in tets {
             let tet = *self.mesh.tet(tk).expect("a tet");
@@ -50,7 +53,10 @@ impl Cutter {
         let mut nodes: Vec<NodeKey> = Vec::new();
         for &(a, b) in crossed {
             self.crack.insert((a, b));
-            let (ta, tb) = (self.mesh.tet(a).expect("a tet"), self.mesh.tet(b).expect("a tet"));
+            let (ta, tb) = (
+                self.mesh.tet(a).expect("a tet"),
+                self.mesh.tet(b).expect("a tet"),
+            );
             nodes.extend(ta.nodes.iter().filter(|n| tb.nodes.contains(n)));
         }
         outcome.faces_cut = crossed.len();
@@ -67,7 +73,11 @@ impl Cutter {
             let mut uf = UnionFind::<usize>::new(around.len());
             for (i, &t) in around.iter().enumerate() {
                 let tet = self.mesh.tet(t).expect("a tet");
-                let at = tet.nodes.iter().position(|&k| k == n).expect("n is a corner");
+                let at = tet
+                    .nodes
+                    .iter()
+                    .position(|&k| k == n)
+                    .expect("n is a corner");
                 for local in (0..4).filter(|&l| l != at) {
                     let Some(other) = self.faces.neighbour(t, tet, local) else {
                         continue;

@@ -61,7 +61,10 @@ pub fn segment_crosses_triangle(p: &Point3<f64>, q: &Point3<f64>, t: &[Point3<f6
 /// Whether the open segment `p q` passes through the open triangle `t`: strictly, so touching
 /// at a corner, along an edge or in the plane does not count.
 pub fn segment_pierces_triangle(p: &Point3<f64>, q: &Point3<f64>, t: &[Point3<f64>; 3]) -> bool {
-    let (sp, sq) = (orient(&t[0], &t[1], &t[2], p), orient(&t[0], &t[1], &t[2], q));
+    let (sp, sq) = (
+        orient(&t[0], &t[1], &t[2], p),
+        orient(&t[0], &t[1], &t[2], q),
+    );
     if sp * sq >= 0.0 {
         return false;
     }
@@ -122,15 +125,43 @@ mod tests {
     #[test]
     fn a_segment_through_a_corner_crosses_and_one_beside_does_not() {
         let t = [p(0., 0., 0.), p(1., 0., 0.), p(0., 1., 0.)];
-        assert!(segment_crosses_triangle(&p(0.2, 0.2, -1.), &p(0.2, 0.2, 1.), &t));
-        assert!(segment_crosses_triangle(&p(0., 0., -1.), &p(0., 0., 1.), &t));
-        assert!(segment_crosses_triangle(&p(0.5, 0.5, -1.), &p(0.5, 0.5, 1.), &t));
-        assert!(!segment_crosses_triangle(&p(0.6, 0.6, -1.), &p(0.6, 0.6, 1.), &t));
+        assert!(segment_crosses_triangle(
+            &p(0.2, 0.2, -1.),
+            &p(0.2, 0.2, 1.),
+            &t
+        ));
+        assert!(segment_crosses_triangle(
+            &p(0., 0., -1.),
+            &p(0., 0., 1.),
+            &t
+        ));
+        assert!(segment_crosses_triangle(
+            &p(0.5, 0.5, -1.),
+            &p(0.5, 0.5, 1.),
+            &t
+        ));
+        assert!(!segment_crosses_triangle(
+            &p(0.6, 0.6, -1.),
+            &p(0.6, 0.6, 1.),
+            &t
+        ));
         // Ending on the plane counts as the positive side: from below it crosses, from above not.
-        assert!(segment_crosses_triangle(&p(0.2, 0.2, -1.), &p(0.2, 0.2, 0.), &t));
-        assert!(!segment_crosses_triangle(&p(0.2, 0.2, 1.), &p(0.2, 0.2, 0.), &t));
+        assert!(segment_crosses_triangle(
+            &p(0.2, 0.2, -1.),
+            &p(0.2, 0.2, 0.),
+            &t
+        ));
+        assert!(!segment_crosses_triangle(
+            &p(0.2, 0.2, 1.),
+            &p(0.2, 0.2, 0.),
+            &t
+        ));
         // In the plane: never.
-        assert!(!segment_crosses_triangle(&p(-1., 0.2, 0.), &p(2., 0.2, 0.), &t));
+        assert!(!segment_crosses_triangle(
+            &p(-1., 0.2, 0.),
+            &p(2., 0.2, 0.),
+            &t
+        ));
     }
 
     #[test]

@@ -95,7 +95,11 @@ impl FaceIndex {
                 continue;
             };
             if u.count == 2 {
-                let keep = if u.tets[0].0 == tk { u.tets[1] } else { u.tets[0] };
+                let keep = if u.tets[0].0 == tk {
+                    u.tets[1]
+                } else {
+                    u.tets[0]
+                };
                 *u = FaceUse {
                     tets: [keep, keep],
                     count: 1,
@@ -119,7 +123,13 @@ impl FaceIndex {
     /// The tet across local face `local` of `tk` (whose nodes are `tet`), if the face is inside.
     pub fn neighbour(&self, tk: TetKey, tet: &Tet, local: usize) -> Option<TetKey> {
         let u = self.faces.get(&face_id(tet, local))?;
-        (u.count == 2).then(|| if u.tets[0].0 == tk { u.tets[1].0 } else { u.tets[0].0 })
+        (u.count == 2).then(|| {
+            if u.tets[0].0 == tk {
+                u.tets[1].0
+            } else {
+                u.tets[0].0
+            }
+        })
     }
 
     /// The tets using `face` (none, one or two).

@@ -210,7 +210,9 @@ impl Cutter {
                 _ => differing += 1,
             }
         }
-        differing += fresh.spring_count().saturating_sub(self.model.spring_count());
+        differing += fresh
+            .spring_count()
+            .saturating_sub(self.model.spring_count());
         Some(differing)
     }
 }

@@ -167,7 +167,11 @@ impl Cutter {
         self.faces
             .boundary()
             .map(|(tk, local)| {
-                let t = &self.mesh.tet(tk).expect("boundary faces belong to tets").nodes;
+                let t = &self
+                    .mesh
+                    .tet(tk)
+                    .expect("boundary faces belong to tets")
+                    .nodes;
                 TET_FACES[local as usize].map(|i| self.dense[t[i]])
             })
             .collect()

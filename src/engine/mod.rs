@@ -379,6 +379,9 @@ pub struct Simulation {
     steps: u64,
     /// The boundary triangles for tool culling, once given.
     surface: Option<Vec<[u32; 3]>>,
+    /// Simulated time and step count when the time step last changed.
+    time_at_dt_change: f64,
+    steps_at_dt_change: u64,
     start_energy: f64,
     energy_scale: f64,
     note: Option<String>,
@@ -420,6 +423,8 @@ impl Simulation {
             bound,
             steps: 0,
             surface: None,
+            time_at_dt_change: 0.0,
+            steps_at_dt_change: 0,
             start_energy: 0.0,
             energy_scale: 0.0,
             note,
@@ -462,10 +467,17 @@ impl Simulation {
     /// `allow_unstable`). A refused change (an invalid diff, an unstable step) leaves the model
     /// and engine as they were; a device failure while patching leaves the engine unusable.
     pub fn apply(&mut self, diff: &ModelDiff) -> Result<PatchCost> {
+        self.apply_with(diff, self.config.allow_unstable)
+    }
+
+    /// [`Simulation::apply`], choosing whether a change that puts `dt` above the new stable
+    /// bound is refused (`allow_unstable = false`) or applied anyway (a cut scene whose policy
+    /// is to warn).
+    pub fn apply_with(&mut self, diff: &ModelDiff, allow_unstable: bool) -> Result<PatchCost> {
         let mut next = self.model.clone();
         next.apply(diff)?;
         let bound = stable_time_step(&next);
-        if self.config.dt > bound.dt && !self.config.allow_unstable {
+        if self.config.dt > bound.dt && !allow_unstable {
             return Err(Error::UnstableTimeStep {
                 dt: self.config.dt,
                 bound: bound.dt,
@@ -507,6 +519,38 @@ impl Simulation {
         self.bound = bound;
         self.reset_energy_reference();
         Ok(cost)
+    }
+
+    /// Change the time step between steps, keeping the state (positions and velocities): the
+    /// engine is rebuilt for the new step (on the GPU its pipelines are made again), so this is
+    /// for rare events such as a cut that lowers the stable bound. A step above the bound is
+    /// refused unless `allow_unstable`.
+    pub fn set_time_step(&mut self, dt: f64) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::Model(format!(
+                "time step {dt} must be finite and positive"
+            )));
+        }
+        if dt > self.bound.dt && !self.config.allow_unstable {
+            return Err(Error::UnstableTimeStep {
+                dt,
+                bound: self.bound.dt,
+                node: self.bound.node,
+            });
+        }
+        let (x, v) = self.engine.state();
+        let config = SimConfig { dt, ..self.config };
+        let (mut engine, _, _) = make_engine(&self.model, self.kind, config)?;
+        engine.set_state(&x, &v);
+        if let Some(t) = &self.surface {
+            engine.set_surface(t)?;
+        }
+        self.time_at_dt_change = self.time();
+        self.steps_at_dt_change = self.steps;
+        self.engine = engine;
+        self.config = config;
+        self.reset_energy_reference();
+        Ok(())
     }
 
     /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.
@@ -738,7 +782,7 @@ impl Simulation {
 
     /// Simulated time so far, s.
     pub fn time(&self) -> f64 {
-        self.steps as f64 * self.config.dt
+        self.time_at_dt_change + (self.steps - self.steps_at_dt_change) as f64 * self.config.dt
     }
 
     /// The stable time-step bound of the model.

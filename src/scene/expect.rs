@@ -34,6 +34,10 @@ pub struct FinalState<'a> {
     pub refused: bool,
     /// What each tool felt.
     pub tools: &'a [ToolReport],
+    /// What the cuts did (scenes that cut).
+    pub cuts: Option<&'a super::cuts::CutReport>,
+    /// The cut method of this run (scenes that cut).
+    pub method: Option<crate::cut::CutMethod>,
 }
 
 /// What a tool felt over a run.
@@ -163,6 +167,25 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
             };
             ranged(format!("{part:?} energy (J)").to_lowercase(), v, *min, *max)
         }
+        Expectation::Method(method, inner) => {
+            if s.method == Some(*method) {
+                let mut r = check(inner, s);
+                r.expectation = format!("[{method}] {}", r.expectation);
+                r
+            } else {
+                ExpectationResult {
+                    expectation: format!("[{method}] not this method: skipped"),
+                    measured: None,
+                    passed: true,
+                }
+            }
+        }
+        Expectation::Fragments { .. }
+        | Expectation::Cuts { .. }
+        | Expectation::NodesAdded { .. }
+        | Expectation::VolumeRemoved { .. }
+        | Expectation::UploadFraction { .. }
+        | Expectation::InvariantsHold => check_cut(e, s, ran),
         Expectation::RefusesTimeStep => ExpectationResult {
             expectation: "time step refused as unstable".into(),
             measured: None,
@@ -172,6 +195,51 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
             expectation: "divergence detected and reported".into(),
             measured: None,
             passed: s.diverged,
+        },
+    }
+}
+
+/// The cut expectations.
+fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
+    let Some(c) = s.cuts else {
+        return ExpectationResult {
+            expectation: format!("{e:?}: the scene does not cut (add a `cut` section)"),
+            measured: None,
+            passed: false,
+        };
+    };
+    let counted = |what: &str, v: usize, min: Option<usize>, max: Option<usize>| {
+        let (fmin, fmax) = (min.map(|m| m as f64), max.map(|m| m as f64));
+        ExpectationResult {
+            expectation: format!("{what} {}", range_text(fmin, fmax)),
+            measured: Some(v as f64),
+            passed: ran && in_range(v as f64, fmin, fmax),
+        }
+    };
+    match e {
+        Expectation::Fragments { min, max } => counted("fragments", c.fragments, *min, *max),
+        Expectation::Cuts { min, max } => counted("steps that cut", c.cuts, *min, *max),
+        Expectation::NodesAdded { min, max } => counted("nodes added", c.nodes_added, *min, *max),
+        Expectation::VolumeRemoved { min, max } => ExpectationResult {
+            expectation: format!("volume removed (fraction) {}", range_text(*min, *max)),
+            measured: Some(c.volume_removed_fraction),
+            passed: ran && in_range(c.volume_removed_fraction, *min, *max),
+        },
+        Expectation::UploadFraction { max } => ExpectationResult {
+            expectation: format!("largest layout fraction one cut uploaded <= {max}"),
+            measured: Some(c.max_upload_fraction),
+            passed: ran && c.max_upload_fraction <= *max,
+        },
+        _ => ExpectationResult {
+            expectation: format!(
+                "invariants hold after every cut ({} checks{})",
+                c.checks,
+                c.violations
+                    .first()
+                    .map_or(String::new(), |v| format!("; first failure: {v}"))
+            ),
+            measured: Some(c.violations.len() as f64),
+            passed: ran && c.checks == c.cuts && c.violations.is_empty(),
         },
     }
 }

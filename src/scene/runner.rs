@@ -29,6 +29,10 @@ pub struct RunOptions {
     pub output_dir: Option<PathBuf>,
     /// Do not write any output.
     pub no_output: bool,
+    /// Cut with this method instead of the scene's first.
+    pub cut_method: Option<crate::cut::CutMethod>,
+    /// Check the cut invariants after every cut.
+    pub check: bool,
 }
 
 /// What a run did, for humans and for `--json`.
@@ -78,6 +82,10 @@ pub struct RunSummary {
     pub pvd: Option<PathBuf>,
     /// What each tool felt (scenes with tools).
     pub tools: Vec<super::expect::ToolReport>,
+    /// The cut method of this run (scenes that cut).
+    pub cut_method: Option<String>,
+    /// What the cuts did (scenes that cut).
+    pub cuts: Option<super::cuts::CutReport>,
     /// Each expectation's outcome.
     pub expectations: Vec<ExpectationResult>,
     /// Whether all expectations held (and the run neither diverged nor was refused, unless
@@ -205,6 +213,8 @@ pub fn run_scene(
         frames_written: 0,
         pvd: None,
         tools: Vec::new(),
+        cut_method: None,
+        cuts: None,
         expectations: Vec::new(),
         expectations_passed: false,
     };
@@ -213,7 +223,7 @@ pub fn run_scene(
         Err(e @ Error::UnstableTimeStep { .. }) => {
             summary.refused = true;
             summary.message = Some(e.to_string());
-            finish(scene, &mesh, &packed, &packed.rest, &mut summary);
+            finish(scene, &mesh, &packed, &packed.rest, None, &mut summary);
             return Ok(summary);
         }
         Err(e) => return Err(e),
@@ -245,6 +255,15 @@ pub fn run_scene(
     };
 
     let mut stage = super::tools::ToolStage::new(scene, &mesh, &mut sim)?;
+    if let Some(stage) = stage.as_mut() {
+        let check = opts.check || scene.checks_cuts();
+        stage.cut = super::cuts::CutStage::new(scene, opts.cut_method, check, &mesh, &model)?;
+    }
+    let method = stage
+        .as_ref()
+        .and_then(|s| s.cut.as_ref())
+        .map(|c| c.method());
+    summary.cut_method = method.map(|m| m.to_string());
     let start = Instant::now();
     let mut done = 0;
     let chunk = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
@@ -269,7 +288,13 @@ pub fn run_scene(
             break;
         }
         if let Some((w, _)) = frames.as_mut() {
-            w.frame(sim.time(), &mesh, Some(&sim.positions()))?;
+            // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
+            // still the simulation's.
+            let current = stage
+                .as_ref()
+                .and_then(|s| s.cut.as_ref())
+                .map_or(&mesh, |c| c.mesh());
+            w.frame(sim.time(), current, Some(&sim.positions()))?;
         }
     }
     summary.wall_s = start.elapsed().as_secs_f64();
@@ -277,11 +302,17 @@ pub fn run_scene(
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
     summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
     summary.energy = sim.energy();
+    let mut mesh = mesh;
     if let Some(stage) = stage {
         summary.tools = stage.reports;
+        if let Some(cut) = stage.cut {
+            let (cut_mesh, report) = cut.finish();
+            mesh = cut_mesh;
+            summary.cuts = Some(report);
+        }
     }
     let x = sim.positions();
-    finish(scene, &mesh, &packed, &x, &mut summary);
+    finish(scene, &mesh, sim.model(), &x, method, &mut summary);
     Ok(summary)
 }
 
@@ -291,6 +322,7 @@ fn finish(
     mesh: &TetMesh,
     packed: &crate::model::PackedModel,
     x: &[[f64; 3]],
+    method: Option<crate::cut::CutMethod>,
     summary: &mut RunSummary,
 ) {
     let finite = x.iter().all(|p| p.iter().all(|c| c.is_finite()));
@@ -309,6 +341,8 @@ fn finish(
         diverged: summary.diverged,
         refused: summary.refused,
         tools: &summary.tools,
+        cuts: summary.cuts.as_ref(),
+        method,
     };
     summary.expectations = scene
         .expect

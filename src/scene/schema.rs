@@ -141,6 +141,51 @@ pub enum Expectation {
         #[serde(default)]
         max: Option<f64>,
     },
+    /// Bounds on the number of connected pieces at the end (cut scenes count fragments).
+    Fragments {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<usize>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<usize>,
+    },
+    /// Bounds on the number of steps at which a cut changed the mesh.
+    Cuts {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<usize>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<usize>,
+    },
+    /// Bounds on the nodes cuts created.
+    NodesAdded {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<usize>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<usize>,
+    },
+    /// Bounds on the rest volume carving removed, as a fraction of the volume before.
+    VolumeRemoved {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
+    /// Upper bound on the fraction of the layout any one cut uploaded.
+    UploadFraction {
+        /// Upper bound.
+        max: f64,
+    },
+    /// Every cut kept the invariants (`cut.check` is turned on by this expectation).
+    InvariantsHold,
+    /// An expectation that applies only when the scene runs with this cut method.
+    Method(crate::cut::CutMethod, Box<Expectation>),
     /// The run must be refused because dt is above the stable bound.
     RefusesTimeStep,
     /// The run must diverge and be reported (for scenes forced past the bound).
@@ -215,6 +260,9 @@ pub struct Scene {
     /// the force on each (`RunSummary::tools`).
     #[serde(default)]
     pub tools: Vec<SceneTool>,
+    /// Cutting: the blades among `tools` cut the mesh as they sweep through it.
+    #[serde(default)]
+    pub cut: Option<super::cuts::SceneCut>,
 }
 
 /// A tool in a scene: a name for reports, a rigid shape, and how it moves.
@@ -266,6 +314,7 @@ impl Scene {
             )
         })?;
         scene.validate_tools(path)?;
+        scene.validate_cut(path)?;
         Ok(scene)
     }
 
@@ -290,6 +339,56 @@ impl Scene {
             }
         }
         Ok(())
+    }
+
+    /// Check the cutting settings: at least one method, and blade names that name blades.
+    pub fn validate_cut(&self, path: &Path) -> Result<()> {
+        let Some(cut) = &self.cut else {
+            return Ok(());
+        };
+        let fail = |message: String| Error::Scene {
+            path: path.to_path_buf(),
+            message: format!("cut: {message}"),
+        };
+        if cut.methods.is_empty() {
+            return Err(fail(
+                "give at least one method, e.g. methods: [Separate] or [Separate, Remove]".into(),
+            ));
+        }
+        for name in &cut.blades {
+            match self.tools.iter().find(|t| &t.name == name) {
+                None => {
+                    return Err(fail(format!(
+                        "blade {name:?} is not one of the scene's tools; name a tool from                          `tools`"
+                    )))
+                }
+                Some(t) if !matches!(t.shape, ToolShape::Blade { .. }) => {
+                    return Err(fail(format!(
+                        "tool {name:?} is not a blade; only blades cut"
+                    )))
+                }
+                Some(_) => {}
+            }
+        }
+        if !(cut.quality_floor.is_finite() && cut.quality_floor < 1.0) {
+            return Err(fail(format!(
+                "quality_floor {} must be a volume-length ratio below 1",
+                cut.quality_floor
+            )));
+        }
+        Ok(())
+    }
+
+    /// Whether a run must check the cut invariants (asked by the scene or an expectation).
+    pub fn checks_cuts(&self) -> bool {
+        fn wants(e: &Expectation) -> bool {
+            match e {
+                Expectation::InvariantsHold => true,
+                Expectation::Method(_, inner) => wants(inner),
+                _ => false,
+            }
+        }
+        self.cut.as_ref().is_some_and(|c| c.check) || self.expect.iter().any(wants)
     }
 
     /// Read a scene file.

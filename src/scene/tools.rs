@@ -24,6 +24,8 @@ pub struct ToolStage {
     settings: ContactSettings,
     /// What each tool felt so far.
     pub reports: Vec<ToolReport>,
+    /// Cutting, for scenes with a `cut` section: its blades cut instead of pushing.
+    pub cut: Option<super::cuts::CutStage>,
 }
 
 #[cfg(feature = "collide")]
@@ -56,6 +58,7 @@ impl ToolStage {
                     contact_steps: 0,
                 })
                 .collect(),
+            cut: None,
         }))
     }
 
@@ -67,8 +70,17 @@ impl ToolStage {
             tool.set_pose(trajectory.pose_at(t));
         }
         sim.run(1)?;
-        let forces = resolve_contacts(sim, &self.tools, &self.settings)?;
-        for (r, f) in self.reports.iter_mut().zip(forces) {
+        if let Some(cut) = self.cut.as_mut() {
+            cut.after_step(sim, &self.tools)?;
+        }
+        // Cutting blades pass through the tissue; the other tools push it.
+        let pushing: Vec<usize> = (0..self.tools.len())
+            .filter(|&i| !self.cut.as_ref().is_some_and(|c| c.cuts_with(i)))
+            .collect();
+        let tools: Vec<Tool> = pushing.iter().map(|&i| self.tools[i].clone()).collect();
+        let forces = resolve_contacts(sim, &tools, &self.settings)?;
+        for (&i, f) in pushing.iter().zip(forces) {
+            let r = &mut self.reports[i];
             r.max_force = r.max_force.max(f.force.norm());
             r.final_force = f.force.into();
             r.max_depth = r.max_depth.max(f.deepest);
@@ -83,6 +95,8 @@ impl ToolStage {
 pub struct ToolStage {
     /// Never filled.
     pub reports: Vec<ToolReport>,
+    /// Never made.
+    pub cut: Option<super::cuts::CutStage>,
 }
 
 #[cfg(not(feature = "collide"))]

@@ -1,0 +1,276 @@
+//! Cutting in a scene run: after each step every cutting blade's sweep over the step goes to
+//! the [`Cutter`]; a cut that changed something is applied to the simulation as a patch (only
+//! its dirty ranges are uploaded), the surface is refreshed for the other tools, the time-step
+//! policy decides what happens when the cut lowered the stable bound, and the invariants are
+//! checked when asked. What each cut cost is kept for [`CutReport`].
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::schema::Scene;
+use crate::collide::broad::ToolBox;
+use crate::collide::{Tool, ToolShape};
+use crate::cut::{CutMethod, Cutter, Sweep};
+use crate::engine::Simulation;
+use crate::error::{Error, Result};
+use crate::mesh::TetMesh;
+use crate::model::SpringModel;
+
+/// What to do when a cut lowers the stable time step below the one in use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum TimeStepPolicy {
+    /// Stop the run with an error naming the node that limits the new bound.
+    #[default]
+    Stop,
+    /// Go on at the same step and record a warning (the run may then diverge, and is stopped
+    /// and reported if it does).
+    Warn,
+    /// Lower the step to `BoundFraction` of the new bound (the scene's fraction, or 0.9) and go
+    /// on.
+    Substep,
+}
+
+/// Cutting settings of a scene.
+///
+/// ```ron
+/// cut: Some((methods: [Separate, Remove], time_step: Substep, check: true)),
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneCut {
+    /// The methods the scene runs with; the first unless the command line picks one. `lancet
+    /// run` runs a scene once per method.
+    pub methods: Vec<CutMethod>,
+    /// Names of the blades that cut; empty for every blade of the scene.
+    #[serde(default)]
+    pub blades: Vec<String>,
+    /// What a cut that lowers the stable bound below `dt` does.
+    #[serde(default)]
+    pub time_step: TimeStepPolicy,
+    /// Check the invariants after every cut (also turned on by `lancet run --check`).
+    #[serde(default)]
+    pub check: bool,
+    /// Smallest volume-length ratio allowed for any tet (invariant check).
+    #[serde(default)]
+    pub quality_floor: f64,
+}
+
+/// What the cuts of a run did.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct CutReport {
+    /// The method used.
+    pub method: String,
+    /// Steps at which a cut changed the mesh.
+    pub cuts: usize,
+    /// Tets removed or given new corners, over all cuts.
+    pub tets_touched: usize,
+    /// Tets removed.
+    pub tets_removed: usize,
+    /// Nodes created.
+    pub nodes_added: usize,
+    /// Springs removed, added or changed.
+    pub springs_touched: usize,
+    /// Rest volume removed, as a fraction of the volume before cutting.
+    pub volume_removed_fraction: f64,
+    /// Layout bytes uploaded by all cuts.
+    pub bytes_uploaded: u64,
+    /// Layout bytes a full rebuild would have uploaded at each cut, summed.
+    pub bytes_full: u64,
+    /// Largest fraction of the layout one cut uploaded.
+    pub max_upload_fraction: f64,
+    /// Time per cut (classify, edit, patch the engine, refresh the surface), ms: median.
+    pub p50_ms: f64,
+    /// 99th percentile, ms.
+    pub p99_ms: f64,
+    /// Largest, ms.
+    pub max_ms: f64,
+    /// Connected pieces at the end.
+    pub fragments: usize,
+    /// Time-step changes and warnings caused by cuts.
+    pub time_step_events: Vec<String>,
+    /// Invariant checks run.
+    pub checks: usize,
+    /// Invariant violations found, with the step.
+    pub violations: Vec<String>,
+}
+
+/// The cutting part of a scene run.
+pub struct CutStage {
+    cutter: Cutter,
+    /// Indices (in the scene's tools) of the blades that cut.
+    blades: Vec<usize>,
+    settings: SceneCut,
+    check: bool,
+    volume_before: f64,
+    bound_fraction: f64,
+    /// Whether a blade touched the tissue at the last step (it may be wholly inside now).
+    touching: Vec<bool>,
+    latencies: Vec<f64>,
+    /// What the cuts did so far.
+    pub report: CutReport,
+}
+
+impl CutStage {
+    /// The stage for `scene` cut by `method`, or `None` for a scene without cutting.
+    pub fn new(
+        scene: &Scene,
+        method: Option<CutMethod>,
+        check: bool,
+        mesh: &TetMesh,
+        model: &SpringModel,
+    ) -> Result<Option<Self>> {
+        let Some(settings) = scene.cut.clone() else {
+            return Ok(None);
+        };
+        let method = method
+            .or_else(|| settings.methods.first().copied())
+            .unwrap_or_default();
+        let blades: Vec<usize> = scene
+            .tools
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| {
+                matches!(t.shape, ToolShape::Blade { .. })
+                    && (settings.blades.is_empty() || settings.blades.contains(&t.name))
+            })
+            .map(|(i, _)| i)
+            .collect();
+        let bound_fraction = match scene.dt {
+            super::schema::TimeStep::BoundFraction(f) => f,
+            super::schema::TimeStep::Seconds(_) => 0.9,
+        };
+        Ok(Some(CutStage {
+            cutter: Cutter::new(mesh.clone(), model.clone(), method)?,
+            touching: vec![false; blades.len()],
+            blades,
+            check: check || settings.check,
+            settings,
+            volume_before: mesh.volume(),
+            bound_fraction,
+            latencies: Vec::new(),
+            report: CutReport {
+                method: method.to_string(),
+                ..CutReport::default()
+            },
+        }))
+    }
+
+    /// Whether tool `i` of the scene cuts (and so is not pushed against as a contact).
+    pub fn cuts_with(&self, i: usize) -> bool {
+        self.blades.contains(&i)
+    }
+
+    /// The cut method.
+    pub fn method(&self) -> CutMethod {
+        self.cutter.method()
+    }
+
+    /// The mesh as cut so far.
+    pub fn mesh(&self) -> &TetMesh {
+        self.cutter.mesh()
+    }
+
+    /// Cut with every cutting blade's sweep over the step just taken (`tools` at their new
+    /// poses, remembering the previous ones), between steps.
+    pub fn after_step(&mut self, sim: &mut Simulation, tools: &[Tool]) -> Result<()> {
+        for (slot, &i) in self.blades.iter().enumerate() {
+            let tool = &tools[i];
+            let Some(sweep) = Sweep::of_blade(&tool.shape, tool.previous_pose(), tool.pose())
+            else {
+                continue;
+            };
+            // Only read the state back when the blade's bounds meet the surface, or met it at
+            // the last step (a blade can be wholly inside the tissue).
+            let b = tool.step_bounds(0.0);
+            let near = !sim
+                .cull_tools(&[ToolBox::containing(
+                    b.min.coords.into(),
+                    b.max.coords.into(),
+                )])?
+                .is_empty();
+            let was = std::mem::replace(&mut self.touching[slot], near);
+            if !(near || was) {
+                continue;
+            }
+            let start = Instant::now();
+            let positions = sim.positions();
+            let outcome = self.cutter.cut(&sweep, &positions)?;
+            if outcome.is_empty() {
+                continue;
+            }
+            self.touching[slot] = true;
+            let cost = match sim.apply_with(&outcome.diff, false) {
+                Ok(cost) => cost,
+                Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
+                    TimeStepPolicy::Stop => {
+                        return Err(Error::UnstableTimeStep { dt, bound, node })
+                    }
+                    TimeStepPolicy::Warn => {
+                        self.report.time_step_events.push(format!(
+                            "step {}: the cut lowered the stable bound to {bound:e} s \
+                                 (node {node}) below dt {dt:e} s; going on",
+                            sim.steps()
+                        ));
+                        sim.apply_with(&outcome.diff, true)?
+                    }
+                    TimeStepPolicy::Substep => {
+                        let new_dt = self.bound_fraction * bound;
+                        self.report.time_step_events.push(format!(
+                            "step {}: the cut lowered the stable bound to {bound:e} s \
+                                 (node {node}); dt {dt:e} s -> {new_dt:e} s",
+                            sim.steps()
+                        ));
+                        let cost = sim.apply_with(&outcome.diff, true)?;
+                        sim.set_time_step(new_dt)?;
+                        cost
+                    }
+                },
+                Err(e) => return Err(e),
+            };
+            sim.set_surface(self.cutter.surface())?;
+            self.latencies.push(start.elapsed().as_secs_f64());
+            let r = &mut self.report;
+            r.cuts += 1;
+            r.tets_touched += outcome.tets_touched;
+            r.tets_removed += outcome.tets_removed;
+            r.nodes_added += outcome.nodes_added;
+            r.springs_touched += outcome.springs_touched;
+            r.bytes_uploaded += cost.uploaded_bytes;
+            r.bytes_full += cost.layout_bytes;
+            r.max_upload_fraction = r
+                .max_upload_fraction
+                .max(cost.uploaded_bytes as f64 / cost.layout_bytes.max(1) as f64);
+            if self.check {
+                let inv = self
+                    .cutter
+                    .check_invariants(self.volume_before, self.settings.quality_floor);
+                r.checks += 1;
+                r.violations.extend(
+                    inv.violations
+                        .into_iter()
+                        .map(|v| format!("after the cut at step {}: {v}", sim.steps())),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Finish the report (latency percentiles, fragments).
+    pub fn finish(mut self) -> (TetMesh, CutReport) {
+        let mut l = std::mem::take(&mut self.latencies);
+        l.sort_by(f64::total_cmp);
+        let pick = |q: f64| {
+            if l.is_empty() {
+                0.0
+            } else {
+                1e3 * l[((q * (l.len() - 1) as f64).round() as usize).min(l.len() - 1)]
+            }
+        };
+        self.report.p50_ms = pick(0.5);
+        self.report.p99_ms = pick(0.99);
+        self.report.max_ms = l.last().map_or(0.0, |s| 1e3 * s);
+        self.report.fragments = self.cutter.mesh().component_count();
+        self.report.volume_removed_fraction = self.cutter.volume_removed() / self.volume_before;
+        (self.cutter.mesh().clone(), self.report)
+    }
+}
