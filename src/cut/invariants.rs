@@ -6,6 +6,7 @@
 //! - every fragment's boundary is closed and consistently outward oriented (each directed
 //!   boundary edge meets its reverse), and encloses its tet volume;
 //! - no tet is inverted or below the quality floor;
+//! - copies of a fixed node are fixed;
 //! - the spring model equals one built from scratch on the cut mesh (material stiffness and
 //!   density parameterisations, which do not depend on how many tets share an edge or node).
 
@@ -150,6 +151,25 @@ impl Cutter {
         if worst > 1e-8 {
             violations.push(format!(
                 "a fragment's surface encloses a volume {worst:e} (relative) away from its tets'"
+            ));
+        }
+
+        // Copies sit at the rest position of the node they copy and must share its fixed flag.
+        let mut fixed_at: HashMap<[u64; 3], bool> = HashMap::new();
+        let mut fixed_mismatch = 0;
+        for (n, node) in mesh.nodes() {
+            if self.faces.tets_at(n).is_empty() {
+                continue;
+            }
+            let key = [node.rest.x, node.rest.y, node.rest.z].map(f64::to_bits);
+            let f = model.is_fixed(n);
+            if *fixed_at.entry(key).or_insert(f) != f {
+                fixed_mismatch += 1;
+            }
+        }
+        if fixed_mismatch > 0 {
+            violations.push(format!(
+                "{fixed_mismatch} copies of nodes do not share the fixed flag of the node they copy"
             ));
         }
 

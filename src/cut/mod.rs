@@ -42,6 +42,12 @@ use crate::model::{ModelDiff, SpringModel};
 pub use faces::FaceIndex;
 pub use sweep::Sweep;
 
+/// Nodes closer to their rest position than this fraction of the mesh's rest diagonal are
+/// classified at rest. Float32 engines drift by rounding even with no load (about 1e-7 of the
+/// size over a few hundred steps); without this a sweep drawn exactly through rest nodes, whose
+/// tie the exact predicates break one way, would meet them a hair off on either side.
+pub const SNAP_RELATIVE: f64 = 1e-5;
+
 /// How a cut edits the mesh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 pub enum CutMethod {
@@ -107,6 +113,8 @@ pub struct Cutter {
     /// a partial cut. They stay cut when the blade moves on.
     crack: BTreeSet<(TetKey, TetKey)>,
     volume_removed: f64,
+    /// Nodes displaced less than this from rest are classified at rest (m).
+    snap: f64,
 }
 
 impl Cutter {
@@ -115,6 +123,9 @@ impl Cutter {
     pub fn new(mesh: TetMesh, model: SpringModel, method: CutMethod) -> Result<Self> {
         let faces = FaceIndex::of(&mesh)?;
         let dense = mesh.dense_nodes().index;
+        let snap = mesh
+            .bounds()
+            .map_or(0.0, |(lo, hi)| SNAP_RELATIVE * (hi - lo).norm());
         Ok(Cutter {
             mesh,
             model,
@@ -123,6 +134,7 @@ impl Cutter {
             method,
             crack: BTreeSet::new(),
             volume_removed: 0.0,
+            snap,
         })
     }
 
@@ -190,12 +202,19 @@ impl Cutter {
             )));
         }
         let start = Instant::now();
-        let (mesh, dense) = (&self.mesh, &self.dense);
+        let (mesh, dense, snap2) = (&self.mesh, &self.dense, self.snap * self.snap);
         let corners = |tk: TetKey| {
             mesh.tet(tk)
                 .expect("candidates are tets of the mesh")
                 .nodes
-                .map(|k| Point3::from(positions[dense[k] as usize]))
+                .map(|k| {
+                    let (x, rest) = (Point3::from(positions[dense[k] as usize]), mesh.rest(k));
+                    if (x - rest).norm_squared() <= snap2 {
+                        rest
+                    } else {
+                        x
+                    }
+                })
         };
         let candidates = classify::candidates(mesh, &corners, sweep);
         let mut outcome = CutOutcome::default();

@@ -86,6 +86,9 @@ pub struct CutReport {
     pub max_ms: f64,
     /// Connected pieces at the end.
     pub fragments: usize,
+    /// Largest distance between a node and a copy of it at the end, m: how far the incision
+    /// opened (0 when no node was copied).
+    pub max_opening: f64,
     /// Time-step changes and warnings caused by cuts.
     pub time_step_events: Vec<String>,
     /// Invariant checks run.
@@ -106,6 +109,8 @@ pub struct CutStage {
     /// Whether a blade touched the tissue at the last step (it may be wholly inside now).
     touching: Vec<bool>,
     latencies: Vec<f64>,
+    /// Each node a cut created, with the node it copies (dense indices).
+    copies: Vec<(u32, u32)>,
     /// What the cuts did so far.
     pub report: CutReport,
 }
@@ -148,6 +153,7 @@ impl CutStage {
             volume_before: mesh.volume(),
             bound_fraction,
             latencies: Vec::new(),
+            copies: Vec::new(),
             report: CutReport {
                 method: method.to_string(),
                 ..CutReport::default()
@@ -199,6 +205,12 @@ impl CutStage {
                 continue;
             }
             self.touching[slot] = true;
+            let first = sim.model().node_count() as u32;
+            for (k, a) in outcome.diff.added_nodes.iter().enumerate() {
+                if let Some(from) = a.state_from {
+                    self.copies.push((first + k as u32, from));
+                }
+            }
             let cost = match sim.apply_with(&outcome.diff, false) {
                 Ok(cost) => cost,
                 Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
@@ -255,8 +267,14 @@ impl CutStage {
         Ok(())
     }
 
-    /// Finish the report (latency percentiles, fragments).
-    pub fn finish(mut self) -> (TetMesh, CutReport) {
+    /// Finish the report (latency percentiles, fragments, opening at the final `positions`).
+    pub fn finish(mut self, positions: &[[f64; 3]]) -> (TetMesh, CutReport) {
+        let at = |i: u32| nalgebra::Point3::from(positions[i as usize]);
+        self.report.max_opening = self
+            .copies
+            .iter()
+            .map(|&(c, o)| (at(c) - at(o)).norm())
+            .fold(0.0, f64::max);
         let mut l = std::mem::take(&mut self.latencies);
         l.sort_by(f64::total_cmp);
         let pick = |q: f64| {

@@ -184,6 +184,7 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
         | Expectation::Cuts { .. }
         | Expectation::NodesAdded { .. }
         | Expectation::VolumeRemoved { .. }
+        | Expectation::Opening { .. }
         | Expectation::UploadFraction { .. }
         | Expectation::InvariantsHold => check_cut(e, s, ran),
         Expectation::RefusesTimeStep => ExpectationResult {
@@ -224,6 +225,11 @@ fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
             expectation: format!("volume removed (fraction) {}", range_text(*min, *max)),
             measured: Some(c.volume_removed_fraction),
             passed: ran && in_range(c.volume_removed_fraction, *min, *max),
+        },
+        Expectation::Opening { min, max } => ExpectationResult {
+            expectation: format!("incision opening (m) {}", range_text(*min, *max)),
+            measured: Some(c.max_opening),
+            passed: ran && in_range(c.max_opening, *min, *max),
         },
         Expectation::UploadFraction { max } => ExpectationResult {
             expectation: format!("largest layout fraction one cut uploaded <= {max}"),

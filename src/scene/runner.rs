@@ -302,16 +302,16 @@ pub fn run_scene(
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
     summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
     summary.energy = sim.energy();
+    let x = sim.positions();
     let mut mesh = mesh;
     if let Some(stage) = stage {
         summary.tools = stage.reports;
         if let Some(cut) = stage.cut {
-            let (cut_mesh, report) = cut.finish();
+            let (cut_mesh, report) = cut.finish(&x);
             mesh = cut_mesh;
             summary.cuts = Some(report);
         }
     }
-    let x = sim.positions();
     finish(scene, &mesh, sim.model(), &x, method, &mut summary);
     Ok(summary)
 }

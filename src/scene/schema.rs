@@ -177,6 +177,16 @@ pub enum Expectation {
         #[serde(default)]
         max: Option<f64>,
     },
+    /// Bounds on how far the incision opened at the end: the largest distance between a node
+    /// and a copy of it, m (splitting methods).
+    Opening {
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
     /// Upper bound on the fraction of the layout any one cut uploaded.
     UploadFraction {
         /// Upper bound.
