@@ -1,0 +1,166 @@
+//! Cut-scenario fixtures on every engine and layout: they meet their expectations on the GPU as
+//! on the CPU, the GPU receives only part of its layout per cut, the same scene gives the same
+//! topology and state twice, and the crossing cut leaves pieces that each lie in one quadrant.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use lancet::collide::ToolShape;
+use lancet::cut::{CutMethod, Cutter, Sweep};
+use lancet::engine::EngineKind;
+use lancet::layout::LayoutKind;
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{Material, ModelConfig, SpringModel};
+use lancet::scene::{run_scene, RunOptions, RunSummary, Scene};
+use nalgebra::{Isometry3, Vector3};
+use rstest::rstest;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures/scenes")
+        .join(name)
+}
+
+fn run(name: &str, engine: EngineKind, layout: LayoutKind, method: CutMethod) -> RunSummary {
+    let path = fixture(name);
+    let scene = Scene::read(&path).unwrap();
+    let opts = RunOptions {
+        engine: Some(engine),
+        layout: Some(layout),
+        cut_method: Some(method),
+        no_output: true,
+        ..Default::default()
+    };
+    run_scene(&scene, &path, &opts, |_, _| {}).unwrap()
+}
+
+#[rstest]
+fn cut_fixtures_pass_on_the_gpu_in_every_layout(
+    #[values("cut_box_through.ron", "cut_partial_opens.ron", "cut_two_crossing.ron")] name: &str,
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+    #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,
+) {
+    if common::gpu().is_none() {
+        return;
+    }
+    let s = run(name, EngineKind::Gpu, layout, method);
+    assert!(
+        s.expectations_passed,
+        "{name} {layout:?} {method}: {:#?}",
+        s.expectations
+    );
+    let c = s.cuts.as_ref().unwrap();
+    assert!(c.cuts > 0);
+    // Patches, not rebuilds: over the run the device got less than one full layout per cut.
+    assert!(
+        c.bytes_uploaded < c.bytes_full,
+        "{name} {layout:?} {method}: uploaded {} of {}",
+        c.bytes_uploaded,
+        c.bytes_full
+    );
+}
+
+#[test]
+fn the_gpu_and_the_cpu_cut_the_same_and_move_the_same() {
+    if common::gpu().is_none() {
+        return;
+    }
+    for method in [CutMethod::Separate, CutMethod::Remove] {
+        let cpu = run(
+            "cut_box_through.ron",
+            EngineKind::Fast,
+            LayoutKind::Connectivity,
+            method,
+        );
+        let gpu = run(
+            "cut_box_through.ron",
+            EngineKind::Gpu,
+            LayoutKind::Connectivity,
+            method,
+        );
+        let (a, b) = (cpu.cuts.unwrap(), gpu.cuts.unwrap());
+        assert_eq!(
+            (a.nodes_added, a.tets_touched, a.fragments),
+            (b.nodes_added, b.tets_touched, b.fragments),
+            "{method}"
+        );
+        let (da, db) = (cpu.max_displacement, gpu.max_displacement);
+        assert!((da - db).abs() < 1e-3 * da, "{method}: cpu {da}, gpu {db}");
+    }
+}
+
+#[test]
+fn the_same_cut_scene_gives_the_same_topology_and_state_twice() {
+    for method in [CutMethod::Separate, CutMethod::Remove] {
+        let a = run(
+            "cut_partial_opens.ron",
+            EngineKind::Fast,
+            LayoutKind::Connectivity,
+            method,
+        );
+        let b = run(
+            "cut_partial_opens.ron",
+            EngineKind::Fast,
+            LayoutKind::Connectivity,
+            method,
+        );
+        let (ca, cb) = (a.cuts.unwrap(), b.cuts.unwrap());
+        assert_eq!(
+            (ca.cuts, ca.nodes_added, ca.tets_touched, ca.springs_touched),
+            (cb.cuts, cb.nodes_added, cb.tets_touched, cb.springs_touched)
+        );
+        assert_eq!(a.max_displacement.to_bits(), b.max_displacement.to_bits());
+        assert_eq!(ca.max_opening.to_bits(), cb.max_opening.to_bits());
+    }
+}
+
+/// The crossing fixture's cut, made directly: every piece lies in one quadrant of the two
+/// planes (by tet centroid), and the four quadrants are all there.
+#[test]
+fn crossing_cuts_leave_pieces_that_each_lie_in_one_quadrant() {
+    let mesh = BoxGrid::cube_cells([4, 4, 4], 0.01).build().unwrap();
+    let config = ModelConfig::new(Material::elastic(2e4, 0.3, 1000.0));
+    let model = SpringModel::build(&mesh, &config).unwrap();
+    let mut cutter = Cutter::new(mesh, model, CutMethod::Separate).unwrap();
+    let blade = ToolShape::Blade {
+        width: 0.1,
+        length: 0.1,
+        thickness: 2e-4,
+    };
+    let turn = Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2);
+    for (from, to) in [
+        (
+            Isometry3::translation(0.02, 0.017, 0.05),
+            Isometry3::translation(0.02, 0.017, -0.01),
+        ),
+        (
+            Isometry3::new(Vector3::new(0.023, 0.02, 0.05), turn),
+            Isometry3::new(Vector3::new(0.023, 0.02, -0.01), turn),
+        ),
+    ] {
+        let rest: Vec<[f64; 3]> = cutter
+            .mesh()
+            .nodes()
+            .map(|(_, n)| n.rest.coords.into())
+            .collect();
+        let sweep = Sweep::of_blade(&blade, &from, &to).unwrap();
+        assert!(!cutter.cut(&sweep, &rest).unwrap().is_empty());
+    }
+    let m = cutter.mesh();
+    let (of, n) = lancet::mesh::topology::components(m);
+    let mut quadrant_of = vec![None; n];
+    let mut seen = std::collections::BTreeSet::new();
+    for (tk, t) in m.tets() {
+        let p = m.tet_points(t);
+        let c = (p[0].coords + p[1].coords + p[2].coords + p[3].coords) / 4.0;
+        let q = (c.x > 0.023, c.y > 0.017);
+        seen.insert(q);
+        let slot = &mut quadrant_of[of[tk] as usize];
+        assert!(slot.is_none_or(|s| s == q), "a piece spans two quadrants");
+        *slot = Some(q);
+    }
+    assert_eq!(seen.len(), 4);
+    assert!(cutter.check_invariants(6.4e-5, 0.0).passed());
+}
