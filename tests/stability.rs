@@ -274,3 +274,36 @@ fn a_sliver_heavy_mesh_runs_stable_at_its_bound(
     sim.run(3000).unwrap();
     assert!(sim.max_displacement() > 0.0, "nothing moved");
 }
+
+#[path = "common/models.rs"]
+mod models;
+
+mod incremental {
+    use super::models;
+    use lancet::model::stable_time_step;
+
+    /// The bound updated from a diff's touched nodes equals the bound of the changed model
+    /// computed from scratch (up to the order of the stiffness sums).
+    #[test]
+    fn the_bound_after_a_diff_equals_the_bound_of_the_changed_model() {
+        for seed in 1..=20 {
+            let model = models::random_model(seed, seed % 2 == 0);
+            let diff = models::random_diff(&model, seed * 7 + 1);
+            let mut next = model.clone();
+            next.apply(&diff).unwrap();
+            let fresh = stable_time_step(&next);
+            let updated = stable_time_step(&model).after(&model, &diff);
+            assert_eq!(updated.per_node.len(), next.node_count());
+            for (i, (a, b)) in updated.per_node.iter().zip(&fresh.per_node).enumerate() {
+                assert!(
+                    a == b || (a - b).abs() <= 1e-12 * b,
+                    "seed {seed} node {i}: {a} vs {b}"
+                );
+            }
+            assert!(
+                (updated.dt - fresh.dt).abs() <= 1e-12 * fresh.dt,
+                "seed {seed}"
+            );
+        }
+    }
+}

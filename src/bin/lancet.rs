@@ -45,6 +45,29 @@ enum BenchWhat {
         #[arg(long)]
         json: bool,
     },
+    /// A local incision into boxes of growing size and with growing length: latency per cut
+    /// event (positions read, cut, engine patched, surface refreshed), bytes uploaded against
+    /// the whole layout, mesh growth per cut area, stable time step before and after.
+    Cut {
+        /// Boxes of N x N x N/2 cells of 1 cm (6 tets each), comma-separated.
+        #[arg(long = "cube", value_delimiter = ',', default_values = ["10", "20", "30"])]
+        cubes: Vec<usize>,
+        /// Cut lengths, m, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["0.03"])]
+        length: Vec<f64>,
+        /// Cut methods, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["separate", "remove"])]
+        method: Vec<MethodArg>,
+        /// Engines, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["fast", "gpu"])]
+        engine: Vec<EngineArg>,
+        /// GPU layouts, comma-separated (one GPU row each).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
+        layout: Vec<LayoutArg>,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Subcommand)]
@@ -368,6 +391,25 @@ fn main() -> ExitCode {
             ..
         } => bench_collide(&triangles, &tools, repeats, json),
         Command::Bench {
+            what:
+                Some(BenchWhat::Cut {
+                    cubes,
+                    length,
+                    method,
+                    engine,
+                    layout,
+                    json,
+                }),
+            ..
+        } => bench_cut(
+            &cubes,
+            &length,
+            &method.iter().map(|&m| m.into()).collect::<Vec<_>>(),
+            &engine.iter().map(|&e| e.into()).collect::<Vec<_>>(),
+            &layout.iter().map(|&l| l.into()).collect::<Vec<_>>(),
+            json,
+        ),
+        Command::Bench {
             what: None,
             cubes,
             mesh,
@@ -675,6 +717,55 @@ fn bench_collide(
          tool-triangle query, us per candidate; p2f: pose to force (cull, read back the \
          candidates' nodes, narrow phase, correction) for a 3 mm probe pressed 0.5 mm, ms"
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Run the cut benchmark and print it.
+fn bench_cut(
+    cubes: &[usize],
+    lengths: &[f64],
+    methods: &[lancet::cut::CutMethod],
+    engines: &[EngineKind],
+    layouts: &[lancet::layout::LayoutKind],
+    json: bool,
+) -> lancet::Result<ExitCode> {
+    let rows = lancet::report::cut_bench::run(cubes, lengths, methods, engines, layouts)?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&rows).unwrap_or_default()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "{:>7} {:>6} {:>9} {:<34} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9}",
+        "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "cut",
+        "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after"
+    );
+    for r in &rows {
+        let mut engine = r.engine.clone();
+        engine.truncate(34);
+        println!(
+            "{:>7} {:>6.1} {:>9} {:<34} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e}",
+            r.tets,
+            r.length * 100.0,
+            r.method,
+            engine,
+            r.cuts,
+            r.p50_ms,
+            r.p99_ms,
+            r.max_ms,
+            r.read_ms,
+            r.cut_ms,
+            r.apply_ms,
+            r.surface_ms,
+            r.bytes_per_cut,
+            100.0 * r.bytes_per_cut / r.layout_bytes.max(1) as f64,
+            r.nodes_per_cm2,
+            r.dt_before,
+            r.dt_after
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 

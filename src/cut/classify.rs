@@ -10,36 +10,38 @@ use nalgebra::Point3;
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
 use super::sweep::Sweep;
-use crate::collide::tool::Aabb;
 use crate::mesh::{TetKey, TetMesh};
 
 /// Current corner positions of a tet.
 pub type Corners = [Point3<f64>; 4];
 
-fn overlaps(a: &Aabb, lo: &Point3<f64>, hi: &Point3<f64>) -> bool {
-    (0..3).all(|k| lo[k] <= a.max[k] && hi[k] >= a.min[k])
-}
-
-/// Tets whose current bounds overlap the sweep's bounds, in key order (the candidates of the
-/// exact tests below).
+/// Tets that may meet the sweep, in key order (the candidates of the exact tests below): the
+/// tets of every node within `reach` of the sweep's bounds, at `positions` (dense order, the
+/// mesh's node order). A tet meeting the sweep has a corner within its longest edge of it, so
+/// `reach` must be at least the longest current edge near the blade; the cutter uses twice the
+/// longest rest edge. Scanning nodes rather than tets reads one position per node.
 pub fn candidates(
     mesh: &TetMesh,
-    corners: &impl Fn(TetKey) -> Corners,
+    faces: &FaceIndex,
+    positions: &[[f64; 3]],
+    reach: f64,
     sweep: &Sweep,
 ) -> Vec<TetKey> {
     let Some(b) = sweep.aabb() else {
         return Vec::new();
     };
-    let mut out: Vec<TetKey> = mesh
-        .tets()
-        .filter_map(|(tk, _)| {
-            let p = corners(tk);
-            let lo = p[1..].iter().fold(p[0], |a, q| a.inf(q));
-            let hi = p[1..].iter().fold(p[0], |a, q| a.sup(q));
-            overlaps(&b, &lo, &hi).then_some(tk)
-        })
-        .collect();
+    let (lo, hi) = (
+        b.min.coords.add_scalar(-reach),
+        b.max.coords.add_scalar(reach),
+    );
+    let mut out: Vec<TetKey> = Vec::new();
+    for ((k, _), p) in mesh.nodes().zip(positions) {
+        if (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
+            out.extend_from_slice(faces.tets_at(k));
+        }
+    }
     out.sort();
+    out.dedup();
     out
 }
 

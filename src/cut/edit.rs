@@ -93,13 +93,13 @@ impl Cutter {
             }
             // Groups in order of their smallest tet (`around` is sorted).
             let mut label: BTreeMap<usize, usize> = BTreeMap::new();
-            for i in 0..around.len() {
+            for (i, &t) in around.iter().enumerate() {
                 let root = uf.find(i);
                 let next = label.len();
                 let g = *label.entry(root).or_insert(next);
                 if g > 0 {
                     replace
-                        .entry(around[i])
+                        .entry(t)
                         .or_default()
                         .push((n, copies.len() + g - 1));
                 }

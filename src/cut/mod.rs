@@ -115,6 +115,8 @@ pub struct Cutter {
     volume_removed: f64,
     /// Nodes displaced less than this from rest are classified at rest (m).
     snap: f64,
+    /// Twice the longest rest edge: how far from the sweep a corner of a tet it meets can be.
+    reach: f64,
 }
 
 impl Cutter {
@@ -126,7 +128,13 @@ impl Cutter {
         let snap = mesh
             .bounds()
             .map_or(0.0, |(lo, hi)| SNAP_RELATIVE * (hi - lo).norm());
+        let reach = 2.0
+            * model
+                .springs()
+                .map(|(_, s)| s.rest_length)
+                .fold(0.0, f64::max);
         Ok(Cutter {
+            reach,
             mesh,
             model,
             faces,
@@ -216,7 +224,7 @@ impl Cutter {
                     }
                 })
         };
-        let candidates = classify::candidates(mesh, &corners, sweep);
+        let candidates = classify::candidates(mesh, &self.faces, positions, self.reach, sweep);
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {

@@ -474,9 +474,9 @@ impl Simulation {
     /// bound is refused (`allow_unstable = false`) or applied anyway (a cut scene whose policy
     /// is to warn).
     pub fn apply_with(&mut self, diff: &ModelDiff, allow_unstable: bool) -> Result<PatchCost> {
-        let mut next = self.model.clone();
-        next.apply(diff)?;
-        let bound = stable_time_step(&next);
+        // Everything below touches only what the diff names, so that a local cut costs the
+        // same on a large mesh as on a small one.
+        let bound = self.bound.after(&self.model, diff);
         if self.config.dt > bound.dt && !allow_unstable {
             return Err(Error::UnstableTimeStep {
                 dt: self.config.dt,
@@ -484,7 +484,11 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let cost = match self.engine.patch(&next, diff)? {
+        let elastic_before = self.diff_elastic_energy(diff, true)?;
+        let before = self.model.node_count();
+        // Validates first: on error nothing has changed.
+        self.model.apply(diff)?;
+        let cost = match self.engine.patch(&self.model, diff)? {
             Some(cost) => cost,
             None => {
                 let (mut x, mut v) = self.engine.state();
@@ -500,7 +504,7 @@ impl Simulation {
                     x.push(p);
                     v.push(u);
                 }
-                let (mut engine, _, _) = make_engine(&next, self.kind, self.config)?;
+                let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
                 engine.set_state(&x, &v);
                 if let Some(t) = &self.surface {
                     engine.set_surface(t)?;
@@ -515,10 +519,55 @@ impl Simulation {
                 }
             }
         };
-        self.model = next;
+        debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
         self.bound = bound;
-        self.reset_energy_reference();
+        // The divergence reference follows the energy the change took out of or put into the
+        // springs it touched (splitting a node shares its mass and keeps its velocity, so the
+        // kinetic and gravitational energies do not change; carving only lowers them).
+        let elastic_after = self.diff_elastic_energy(diff, false)?;
+        self.start_energy += elastic_after - elastic_before;
         Ok(cost)
+    }
+
+    /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
+    /// they are, `before = true`) or adds or changes (as they will be). Reads back only the
+    /// nodes of those springs.
+    fn diff_elastic_energy(&self, diff: &ModelDiff, before: bool) -> Result<f64> {
+        let springs: Vec<crate::model::PackedSpring> = if before {
+            diff.removed_springs
+                .iter()
+                .map(|&[a, b]| (a, b))
+                .chain(
+                    diff.changed_springs
+                        .iter()
+                        .map(|s| (s.nodes[0], s.nodes[1])),
+                )
+                .filter_map(|(a, b)| self.model.spring_index(a, b).map(|i| self.model.springs[i]))
+                .collect()
+        } else {
+            diff.added_springs
+                .iter()
+                .chain(&diff.changed_springs)
+                .copied()
+                .collect()
+        };
+        if springs.is_empty() {
+            return Ok(0.0);
+        }
+        let mut nodes: Vec<u32> = springs.iter().flat_map(|s| s.nodes).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let x = self.engine.node_positions(&nodes)?;
+        let at = |i: u32| x[nodes.binary_search(&i).expect("collected")];
+        Ok(springs
+            .iter()
+            .map(|s| {
+                let (a, b) = (at(s.nodes[0]), at(s.nodes[1]));
+                let l =
+                    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+                0.5 * s.stiffness * (l - s.rest_length).powi(2)
+            })
+            .sum())
     }
 
     /// Change the time step between steps, keeping the state (positions and velocities): the

@@ -115,8 +115,11 @@ pub struct ConnectivityLayout {
 }
 
 impl ConnectivityLayout {
-    /// Pack `model` in node order `order`, with `capacity` slots per node (default: the largest
-    /// valence). A capacity below some node's valence is an error naming that node.
+    /// Pack `model` in node order `order`, with `capacity` slots per node (default: the next
+    /// multiple of 4 above the largest valence, so that every row has a free slot: a cut that
+    /// splits a node gives the nodes on its crack front one more neighbour, and without room
+    /// the first cut would repack the whole layout). A capacity below some node's valence is an
+    /// error naming that node.
     pub fn new(model: &PackedModel, order: NodeOrder, capacity: Option<u32>) -> Result<Self> {
         let n = model.node_count();
         let mut valence = vec![0u32; n];
@@ -125,7 +128,7 @@ impl ConnectivityLayout {
             valence[s.nodes[1] as usize] += 1;
         }
         let widest = valence.iter().copied().max().unwrap_or(0);
-        let k = capacity.unwrap_or(widest).max(1);
+        let k = capacity.unwrap_or_else(|| row_size_class(widest));
         if let Some(node) = valence.iter().position(|&v| v > k) {
             return Err(Error::Model(format!(
                 "node {node} has {} springs but the connectivity layout has {k} slots per node; \

@@ -27,7 +27,7 @@ use super::connectivity::{
 use std::collections::BTreeSet;
 
 use super::connectivity::inv_mass_of;
-use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
+use super::patch::{incidence_room, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder};
 use crate::engine::Integrator;
 use crate::error::{Error, Result};
@@ -357,7 +357,7 @@ impl EdgeLayout {
             self.order.rank.push(node);
             self.nodes.inv_mass.push(0.0);
             let end = *self.incidence_rows.last().expect("n + 1 row starts");
-            let room = row_size_class(degree[i]);
+            let room = incidence_room(degree[i]);
             self.incidence_rows.push(end + room);
             self.incidence
                 .extend(std::iter::repeat_n(NO_SPRING, room as usize));
@@ -713,7 +713,7 @@ fn no_spring(a: u32, b: u32) -> Error {
 }
 
 /// The incidence table of a spring pool (dead records skipped), each row sorted by the other
-/// end and with room to a multiple of four entries ([`row_size_class`]), [`NO_SPRING`] after
+/// end and with at least four free entries ([`incidence_room`]), [`NO_SPRING`] after
 /// the entries.
 fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
     let mut lists: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
@@ -729,7 +729,7 @@ fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
     rows.push(0);
     for mut list in lists {
         list.sort_unstable();
-        let room = row_size_class(list.len() as u32) as usize;
+        let room = incidence_room(list.len() as u32) as usize;
         incidence.extend(list.iter().map(|&(_, e)| e));
         incidence.extend(std::iter::repeat_n(NO_SPRING, room - list.len()));
         rows.push(incidence.len() as u32);

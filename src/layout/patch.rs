@@ -177,8 +177,17 @@ pub(crate) fn check_model(
     )))
 }
 
-/// Slots per row after growing to hold `needed`: the next multiple of four (128 bytes of slots),
-/// so a row that outgrows its capacity by one does not force another repack at the next cut.
+/// Slots for a row of `needed` entries: the next multiple of four strictly above it, so every
+/// row keeps at least one free slot. A cut that splits a node gives each node on its crack front
+/// one more neighbour; without room the first such cut would repack the whole table.
 pub fn row_size_class(needed: u32) -> u32 {
-    needed.max(1).div_ceil(4) * 4
+    (needed / 4 + 1) * 4
+}
+
+/// Entries for an incidence row of `needed` springs in the edge layout: at least four free, in
+/// multiples of four. A node on a crack front gains one spring per neighbour the cut splits,
+/// often several in one cut; an entry costs 4 bytes (a connectivity slot costs 32), so the
+/// edge layout can afford the room that keeps cuts from repacking its incidence table.
+pub fn incidence_room(needed: u32) -> u32 {
+    (needed + 4).div_ceil(4) * 4
 }

@@ -175,16 +175,39 @@ impl PackedModel {
             self.mass[c.node as usize] = c.mass;
             self.fixed[c.node as usize] = c.fixed;
         }
-        if !removed.is_empty() {
-            self.springs.retain(|s| !removed.contains(&s.nodes));
-        }
-        for s in &diff.added_springs {
-            let s = PackedSpring {
+        // One merge pass instead of an insertion per spring: a cut adds tens of springs to a
+        // model of hundreds of thousands.
+        let mut added_sorted: Vec<PackedSpring> = diff
+            .added_springs
+            .iter()
+            .map(|s| PackedSpring {
                 nodes: pair(s.nodes[0], s.nodes[1]),
                 ..*s
-            };
-            let at = self.springs.partition_point(|t| t.nodes < s.nodes);
-            self.springs.insert(at, s);
+            })
+            .collect();
+        added_sorted.sort_by_key(|s| s.nodes);
+        if !removed.is_empty() || !added_sorted.is_empty() {
+            let mut gone: Vec<[u32; 2]> = removed.into_iter().collect();
+            gone.sort_unstable();
+            let mut gone = gone.into_iter().peekable();
+            let old = std::mem::take(&mut self.springs);
+            let mut merged = Vec::with_capacity(old.len() + added_sorted.len());
+            let mut new = added_sorted.into_iter().peekable();
+            for s in old {
+                // Both lists are sorted by end pair: walk them together.
+                while gone.peek().is_some_and(|g| *g < s.nodes) {
+                    gone.next();
+                }
+                if gone.peek() == Some(&s.nodes) {
+                    continue;
+                }
+                while new.peek().is_some_and(|a| a.nodes < s.nodes) {
+                    merged.extend(new.next());
+                }
+                merged.push(s);
+            }
+            merged.extend(new);
+            self.springs = merged;
         }
         for s in &diff.changed_springs {
             let i = self

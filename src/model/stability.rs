@@ -35,6 +35,10 @@ pub struct StabilityBound {
     pub omega_max: f64,
     /// The bound of each node, s (`INFINITY` for fixed nodes).
     pub per_node: Vec<f64>,
+    /// Sum of the stiffnesses of each node's springs, N/m.
+    pub k_sum: Vec<f64>,
+    /// Sum of the dampings of each node's springs, N s/m.
+    pub c_sum: Vec<f64>,
 }
 
 /// `h(w, c)` from the module documentation.
@@ -60,26 +64,110 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         }
     }
     let mut per_node = vec![f64::INFINITY; n];
-    let (mut dt, mut node, mut omega_max) = (f64::INFINITY, 0, 0.0f64);
+    let mut omega_max = 0.0f64;
     for i in 0..n {
         if model.fixed[i] {
             continue;
         }
-        let m = model.mass[i];
-        let omega = (2.0 * k_sum[i] / m).sqrt();
-        let c = 2.0 * c_sum[i] / m + model.mass_damping;
-        let h = damped_bound(omega, c);
+        let (h, omega) = node_bound(k_sum[i], c_sum[i], model.mass[i], model.mass_damping);
         per_node[i] = h;
         omega_max = omega_max.max(omega);
-        if h < dt {
-            dt = h;
-            node = i;
-        }
     }
+    let (dt, node) = smallest(&per_node);
     StabilityBound {
         dt,
         node,
         omega_max,
         per_node,
+        k_sum,
+        c_sum,
+    }
+}
+
+/// The bound of one free node and its Gershgorin frequency.
+fn node_bound(k_sum: f64, c_sum: f64, mass: f64, alpha: f64) -> (f64, f64) {
+    let omega = (2.0 * k_sum / mass).sqrt();
+    let c = 2.0 * c_sum / mass + alpha;
+    (damped_bound(omega, c), omega)
+}
+
+/// The smallest per-node bound and its node (the first of equals).
+fn smallest(per_node: &[f64]) -> (f64, usize) {
+    let (mut dt, mut node) = (f64::INFINITY, 0);
+    for (i, &h) in per_node.iter().enumerate() {
+        if h < dt {
+            dt = h;
+            node = i;
+        }
+    }
+    (dt, node)
+}
+
+impl StabilityBound {
+    /// The bound after `diff` is applied to `before` (the model this bound is of), updating
+    /// only the nodes the diff touches: the same result as [`stable_time_step`] of the changed
+    /// model, without going over every spring. Springs the diff names that do not exist are
+    /// ignored here (applying such a diff fails anyway).
+    pub fn after(&self, before: &PackedModel, diff: &super::ModelDiff) -> StabilityBound {
+        let n0 = before.node_count();
+        let n = n0 + diff.added_nodes.len();
+        let mut b = StabilityBound {
+            per_node: self.per_node.clone(),
+            k_sum: self.k_sum.clone(),
+            c_sum: self.c_sum.clone(),
+            ..*self
+        };
+        b.per_node.resize(n, f64::INFINITY);
+        b.k_sum.resize(n, 0.0);
+        b.c_sum.resize(n, 0.0);
+        let mut add = |s: &super::PackedSpring, sign: f64| {
+            for &i in &s.nodes {
+                if let (Some(k), Some(c)) =
+                    (b.k_sum.get_mut(i as usize), b.c_sum.get_mut(i as usize))
+                {
+                    *k += sign * s.stiffness;
+                    *c += sign * s.damping;
+                }
+            }
+        };
+        for &[a, c] in &diff.removed_springs {
+            if let Some(i) = before.spring_index(a, c) {
+                add(&before.springs[i], -1.0);
+            }
+        }
+        for s in &diff.changed_springs {
+            if let Some(i) = before.spring_index(s.nodes[0], s.nodes[1]) {
+                add(&before.springs[i], -1.0);
+            }
+            add(s, 1.0);
+        }
+        for s in &diff.added_springs {
+            add(s, 1.0);
+        }
+        let mut mass: std::collections::HashMap<u32, (f64, bool)> = diff
+            .added_nodes
+            .iter()
+            .enumerate()
+            .map(|(k, a)| ((n0 + k) as u32, (a.mass, a.fixed)))
+            .collect();
+        for c in &diff.changed_nodes {
+            mass.insert(c.node, (c.mass, c.fixed));
+        }
+        for i in diff.touched_nodes(n0) {
+            let i = i as usize;
+            let (m, fixed) = mass
+                .get(&(i as u32))
+                .copied()
+                .unwrap_or_else(|| (before.mass[i], before.fixed[i]));
+            b.per_node[i] = if fixed {
+                f64::INFINITY
+            } else {
+                let (h, omega) = node_bound(b.k_sum[i], b.c_sum[i], m, before.mass_damping);
+                b.omega_max = b.omega_max.max(omega);
+                h
+            };
+        }
+        (b.dt, b.node) = smallest(&b.per_node);
+        b
     }
 }

@@ -6,5 +6,6 @@ pub mod bandwidth;
 pub mod bench;
 #[cfg(all(feature = "gpu", feature = "collide"))]
 pub mod collide_bench;
+pub mod cut_bench;
 #[cfg(feature = "plot")]
 pub mod plot;

@@ -1,0 +1,217 @@
+//! `lancet bench cut`: what a local incision costs as the mesh grows and as the cut lengthens.
+//!
+//! Each row cuts a box of 1 cm cells (6 tets each) with a blade drawn straight down into the
+//! middle of its top, off the grid, to a depth of two cells, in steps of a fifth of a cell (one
+//! cut event per step), and times every event from the state to the engine being ready for the
+//! next step: reading the positions, classifying, editing the mesh and model, patching the
+//! engine (only dirty ranges are uploaded on the GPU) and refreshing its surface. Reported per
+//! row: latency percentiles and where the median goes, bytes uploaded against the whole layout,
+//! nodes and springs added per square centimetre of cut, and the stable time step before and
+//! after.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use nalgebra::Isometry3;
+
+use crate::collide::ToolShape;
+use crate::cut::{CutMethod, Cutter, Sweep};
+use crate::engine::{EngineKind, SimConfig, Simulation};
+use crate::error::Result;
+use crate::layout::LayoutKind;
+use crate::mesh::generate::BoxGrid;
+use crate::model::{stable_time_step, Material, ModelConfig, SpringModel};
+
+/// One row: a mesh, a cut length, a method and an engine.
+#[derive(Debug, Clone, Serialize)]
+pub struct CutRow {
+    /// Tets before cutting.
+    pub tets: usize,
+    /// Nodes before cutting.
+    pub nodes: usize,
+    /// Cut length along the surface, m.
+    pub length: f64,
+    /// Cut method.
+    pub method: String,
+    /// Engine (with its device) and layout.
+    pub engine: String,
+    /// Cut events that changed the mesh.
+    pub cuts: usize,
+    /// Latency per cut event, ms: median, 99th percentile, largest.
+    pub p50_ms: f64,
+    /// 99th percentile, ms.
+    pub p99_ms: f64,
+    /// Largest, ms.
+    pub max_ms: f64,
+    /// Median of each part, ms: reading the positions back.
+    pub read_ms: f64,
+    /// Classifying and editing (the cutter).
+    pub cut_ms: f64,
+    /// Patching the engine (diff applied, dirty ranges uploaded, time step re-checked).
+    pub apply_ms: f64,
+    /// Giving the engine the new surface.
+    pub surface_ms: f64,
+    /// Mean bytes uploaded per cut event.
+    pub bytes_per_cut: f64,
+    /// Bytes of the whole layout (a rebuild would upload this much per cut).
+    pub layout_bytes: u64,
+    /// Cut area, cm^2.
+    pub area_cm2: f64,
+    /// Nodes added per cm^2 of cut.
+    pub nodes_per_cm2: f64,
+    /// Springs added per cm^2 of cut (net).
+    pub springs_per_cm2: f64,
+    /// Tets removed per cm^2 of cut.
+    pub tets_removed_per_cm2: f64,
+    /// Stable time step before the cut, s.
+    pub dt_before: f64,
+    /// Stable time step after it, s.
+    pub dt_after: f64,
+}
+
+/// The rows for boxes of `cubes` (N x N x N/2 cells of 1 cm), `lengths` (m), `methods` and
+/// `engines` (GPU rows once per layout of `layouts`).
+pub fn run(
+    cubes: &[usize],
+    lengths: &[f64],
+    methods: &[CutMethod],
+    engines: &[EngineKind],
+    layouts: &[LayoutKind],
+) -> Result<Vec<CutRow>> {
+    let mut rows = Vec::new();
+    for &n in cubes {
+        for &length in lengths {
+            for &method in methods {
+                for &engine in engines {
+                    let per_layout = matches!(engine, EngineKind::Gpu | EngineKind::Auto);
+                    let kinds = if per_layout {
+                        layouts
+                    } else {
+                        &layouts[..1.min(layouts.len())]
+                    };
+                    for &layout in kinds {
+                        rows.push(one(n, length, method, engine, layout)?);
+                    }
+                }
+            }
+        }
+    }
+    Ok(rows)
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    sorted[((q * (sorted.len() - 1) as f64).round() as usize).min(sorted.len() - 1)]
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    percentile(&v, 0.5)
+}
+
+fn one(
+    n: usize,
+    length: f64,
+    method: CutMethod,
+    engine: EngineKind,
+    layout: LayoutKind,
+) -> Result<CutRow> {
+    let h = 0.01;
+    let nz = (n / 2).max(2);
+    let mesh = BoxGrid::cube_cells([n, n, nz], h).build()?;
+    let (tets, nodes) = (mesh.tet_count(), mesh.node_count());
+    let mut config = ModelConfig::new(Material::elastic(5e3, 0.3, 1000.0));
+    config.fixed = vec![crate::model::FixedSelector::Box {
+        min: [-1.0; 3],
+        max: [1.0, 1.0, 1e-9],
+    }];
+    let model = SpringModel::build(&mesh, &config)?;
+    let packed = model.pack(&mesh)?;
+    let before = stable_time_step(&packed);
+    let sim_config = SimConfig {
+        layout,
+        allow_unstable: true,
+        ..SimConfig::new(0.5 * before.dt)
+    };
+    let mut sim = Simulation::new(packed, engine, sim_config)?;
+    let engine_name = sim.engine_name();
+    let mut cutter = Cutter::new(mesh, model, method)?;
+    sim.set_surface(cutter.surface())?;
+    let blade = ToolShape::Blade {
+        width: length,
+        length: 0.1,
+        thickness: 2e-4,
+    };
+    // In the plane y = middle + 0.3 h, centred in x, edge from just above the top down two
+    // cells, a fifth of a cell per step.
+    let (x, y, top) = (
+        0.5 * n as f64 * h,
+        (0.5 * n as f64 + 0.3) * h,
+        nz as f64 * h,
+    );
+    let pose = |z: f64| Isometry3::translation(x, y, z);
+    let steps = 11;
+    let (mut total, mut read, mut cutting, mut apply, mut surface) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
+    let mut layout_bytes = 0;
+    for k in 0..steps {
+        sim.run(1)?;
+        let z0 = top + 0.1 * h - 0.2 * h * k as f64;
+        let sweep =
+            Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");
+        let t0 = Instant::now();
+        let positions = sim.positions();
+        let t1 = Instant::now();
+        let outcome = cutter.cut(&sweep, &positions)?;
+        let t2 = Instant::now();
+        if outcome.is_empty() {
+            continue;
+        }
+        let cost = sim.apply(&outcome.diff)?;
+        let t3 = Instant::now();
+        sim.set_surface(cutter.surface())?;
+        let t4 = Instant::now();
+        total.push((t4 - t0).as_secs_f64() * 1e3);
+        read.push((t1 - t0).as_secs_f64() * 1e3);
+        cutting.push((t2 - t1).as_secs_f64() * 1e3);
+        apply.push((t3 - t2).as_secs_f64() * 1e3);
+        surface.push((t4 - t3).as_secs_f64() * 1e3);
+        bytes += cost.uploaded_bytes;
+        layout_bytes = cost.layout_bytes;
+        added += outcome.nodes_added;
+        removed += outcome.tets_removed;
+        springs +=
+            outcome.diff.added_springs.len() as i64 - outcome.diff.removed_springs.len() as i64;
+    }
+    let cuts = total.len();
+    let mut sorted = total.clone();
+    sorted.sort_by(f64::total_cmp);
+    let area_cm2 = length.min(n as f64 * h) * 2.0 * h * 1e4;
+    Ok(CutRow {
+        tets,
+        nodes,
+        length,
+        method: method.to_string(),
+        engine: engine_name,
+        cuts,
+        p50_ms: percentile(&sorted, 0.5),
+        p99_ms: percentile(&sorted, 0.99),
+        max_ms: sorted.last().copied().unwrap_or(0.0),
+        read_ms: median(read),
+        cut_ms: median(cutting),
+        apply_ms: median(apply),
+        surface_ms: median(surface),
+        bytes_per_cut: bytes as f64 / cuts.max(1) as f64,
+        layout_bytes,
+        area_cm2,
+        nodes_per_cm2: added as f64 / area_cm2,
+        springs_per_cm2: springs as f64 / area_cm2,
+        tets_removed_per_cm2: removed as f64 / area_cm2,
+        dt_before: before.dt,
+        dt_after: sim.bound().dt,
+    })
+}
