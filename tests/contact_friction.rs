@@ -177,7 +177,7 @@ fn a_dragged_probe_is_held_back_by_at_most_mu_times_the_press_force_and_not_push
     );
     // Coulomb: node by node the friction move is at most mu times the normal move; the
     // normals fan out over the sphere, so the sum of their magnitudes exceeds the magnitude of
-    // their sum by a few per cent (0.4% measured with Five, 1% with Six).
+    // their sum by a little (0.4% measured with Five; below the bound with Six).
     let normal_part = (rough.force - rough.friction).norm();
     assert!(
         rough.friction.norm() <= 1.05 * mu * normal_part,
