@@ -20,7 +20,8 @@ fn fixture_scene_meets_its_expectations(
         "stiffness_contrast.ron",
         "refused_time_step.ron",
         "forced_unstable.ron",
-        "probe_press.ron"
+        "probe_press.ron",
+        "grasp_lift.ron"
     )]
     file: &str,
     #[values(EngineKind::Reference, EngineKind::Fast)] engine: EngineKind,

@@ -570,6 +570,12 @@ fn print_summary(s: &RunSummary) {
              penetration {:.2e} m, in contact {} steps",
             t.name, t.max_force, f[0], f[1], f[2], t.max_depth, t.contact_steps
         );
+        if t.max_held > 0 {
+            println!(
+                "tool {}: held up to {} nodes, carried them up to {:.4e} m from rest",
+                t.name, t.max_held, t.max_carried
+            );
+        }
     }
     if let Some(c) = &s.cuts {
         println!(

@@ -65,14 +65,19 @@ impl Grasp {
         &self.nodes
     }
 
-    /// Move the held nodes with the tool at its current pose (call once per step, after the
-    /// step, while the grasper stays closed).
-    pub fn hold(&self, sim: &mut Simulation, tool: &Tool) -> Result<()> {
-        let to: Vec<[f64; 3]> = self
-            .local
+    /// Where the held nodes belong with the tool at its current pose, m (in the order of
+    /// [`Grasp::nodes`]).
+    pub fn targets(&self, tool: &Tool) -> Vec<[f64; 3]> {
+        self.local
             .iter()
             .map(|p| tool.pose().transform_point(p).coords.into())
-            .collect();
-        sim.correct_positions(&self.nodes, &to)
+            .collect()
+    }
+
+    /// Move the held nodes with the tool at its current pose (call once per step, after the
+    /// step, while the grasper stays closed). Contacts should leave them alone
+    /// ([`super::response::resolve_contacts_excluding`] with [`Grasp::nodes`]).
+    pub fn hold(&self, sim: &mut Simulation, tool: &Tool) -> Result<()> {
+        sim.correct_positions(&self.nodes, &self.targets(tool))
     }
 }

@@ -99,6 +99,25 @@ pub trait Engine: Send {
             })
             .collect()
     }
+    /// Positions of the nodes `nodes` (model indices) at the start of the last step, m: where
+    /// the step's motion began, after any correction made before it. Both integrators make the
+    /// current position less `dt` times the velocity exactly that (Verlet's velocity is the
+    /// backward difference from the start of the step; symplectic Euler moves by `dt` times
+    /// its new velocity), which is the default; engines whose state lives on a device read
+    /// back only those nodes.
+    fn node_start_positions(&self, nodes: &[u32], dt: f64) -> Result<Vec<[f64; 3]>> {
+        let (x, v) = self.state();
+        nodes
+            .iter()
+            .map(|&i| {
+                let (x, v) = (
+                    x.get(i as usize).ok_or_else(|| bad_node(i, x.len()))?,
+                    v[i as usize],
+                );
+                Ok([0, 1, 2].map(|c| x[c] - dt * v[c]))
+            })
+            .collect()
+    }
     /// Move nodes to new positions between steps (contact response by position correction):
     /// the previous positions stay, so Verlet turns the move into velocity; symplectic Euler
     /// adds `move / dt` to the velocity. Fixed nodes do not move.
@@ -787,6 +806,13 @@ impl Simulation {
     /// Positions of a few nodes (model indices), m: on the GPU only those are read back.
     pub fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
         self.engine.node_positions(nodes)
+    }
+
+    /// Positions of a few nodes at the start of the last step (after the corrections made
+    /// before it), m: with [`Simulation::node_positions`] they give each node's motion over the
+    /// step, which friction needs. On the GPU only those nodes are read back.
+    pub fn node_start_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        self.engine.node_start_positions(nodes, self.config.dt)
     }
 
     /// Move nodes between steps (contact response by position correction); see

@@ -53,6 +53,11 @@ pub struct ToolReport {
     pub max_depth: f64,
     /// Steps with at least one contact.
     pub contact_steps: u64,
+    /// Most surface nodes the tool held at once (graspers with grasp windows).
+    pub max_held: usize,
+    /// How far the tool carried what it held: the largest, over the steps it held nodes, of
+    /// their mean distance from their rest positions, m.
+    pub max_carried: f64,
 }
 
 /// Largest nodal displacement from rest.
@@ -116,6 +121,26 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
                 passed: false,
             },
         },
+        Expectation::GraspCarried { tool, min, max } => {
+            match s.tools.iter().find(|t| &t.name == tool) {
+                Some(t) => ranged(
+                    format!(
+                        "largest mean displacement of the nodes {tool} held (m; it held up to {})",
+                        t.max_held
+                    ),
+                    t.max_carried,
+                    *min,
+                    *max,
+                ),
+                None => ExpectationResult {
+                    expectation: format!(
+                        "displacement of what {tool} held: the scene has no such tool"
+                    ),
+                    measured: None,
+                    passed: false,
+                },
+            }
+        }
         Expectation::MaxDisplacement { min, max } => ranged(
             "max displacement (m)".into(),
             max_displacement(s.model, s.positions),

@@ -8,4 +8,4 @@ pub mod tools;
 
 pub use expect::ExpectationResult;
 pub use runner::{run_scene, RunOptions, RunSummary};
-pub use schema::{Expectation, MeshSource, Scene, SceneTool, TimeStep};
+pub use schema::{Expectation, GraspWindow, MeshSource, Scene, SceneTool, TimeStep};

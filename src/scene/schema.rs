@@ -177,6 +177,19 @@ pub enum Expectation {
         #[serde(default)]
         max: Option<f64>,
     },
+    /// Bounds on how far a grasper carried the tissue it held: the largest, over the steps it
+    /// held nodes, of their mean distance from their rest positions, m. Zero (so a positive
+    /// `min` fails) when it never held anything.
+    GraspCarried {
+        /// The grasper's name.
+        tool: String,
+        /// Lower bound.
+        #[serde(default)]
+        min: Option<f64>,
+        /// Upper bound.
+        #[serde(default)]
+        max: Option<f64>,
+    },
     /// Bounds on how far the incision opened at the end: the largest distance between a node
     /// and a copy of it, m (splitting methods).
     Opening {
@@ -292,6 +305,13 @@ pub struct Scene {
 ///         shape: Probe(radius: 0.0004, length: 0.04),
 ///         trajectory: Velocity(translation: (0.02, 0.01, 0.03), linear: (0.0, 0.0, -0.01)),
 ///     ),
+///     (
+///         name: "grasper",
+///         shape: Grasper(jaw: (0.001, 0.006, 0.003), opening: 0.002),
+///         trajectory: Keyframes([(time: 0.0, translation: (0.022, 0.005, 0.001))]),
+///         // Closed (holding what lies between the jaws) from 0.02 s to 0.3 s.
+///         grasp: [(close: 0.02, open: 0.3)],
+///     ),
 /// ]
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -302,6 +322,77 @@ pub struct SceneTool {
     pub shape: ToolShape,
     /// Keyframed poses or a scripted velocity.
     pub trajectory: Trajectory,
+    /// When a grasper holds the tissue: at each window's `close` time it captures the surface
+    /// nodes between its jaws ([`crate::collide::grasp::Grasp::close`]), carries them with it
+    /// every step, and lets them go at `open`. Only for a `Grasper`; windows in increasing
+    /// time, not overlapping.
+    #[serde(default)]
+    pub grasp: Vec<GraspWindow>,
+}
+
+/// A time window during which a grasper holds what lies between its jaws.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspWindow {
+    /// Time the grasper closes, s.
+    pub close: f64,
+    /// Time it opens again, s (after `close`).
+    pub open: f64,
+    /// How far outside the space between the jaws' inner faces a node may lie and still be
+    /// captured, m; by default the jaw's half-thickness (`jaw.0`).
+    #[serde(default)]
+    pub reach: Option<f64>,
+}
+
+impl SceneTool {
+    /// The grasp window holding time `t` (closed on `close <= t < open`), if any.
+    pub fn grasp_at(&self, t: f64) -> Option<&GraspWindow> {
+        self.grasp.iter().find(|w| w.close <= t && t < w.open)
+    }
+
+    /// Check the grasp windows against the shape: only a grasper grasps, times are finite and
+    /// increasing, a reach is positive.
+    fn validate_grasp(&self) -> std::result::Result<(), String> {
+        if self.grasp.is_empty() {
+            return Ok(());
+        }
+        let ToolShape::Grasper { .. } = self.shape else {
+            return Err(
+                "only a grasper can grasp: remove `grasp` or make the shape a Grasper".into(),
+            );
+        };
+        for (k, w) in self.grasp.iter().enumerate() {
+            if !(w.close.is_finite() && w.open.is_finite()) {
+                return Err(format!(
+                    "grasp window {k}: close ({}) and open ({}) must be finite times in seconds",
+                    w.close, w.open
+                ));
+            }
+            if w.open <= w.close {
+                return Err(format!(
+                    "grasp window {k}: opens at {} s, not after it closes at {} s; give open >                      close",
+                    w.open, w.close
+                ));
+            }
+            if let Some(prev) = k.checked_sub(1).map(|j| self.grasp[j]) {
+                if w.close < prev.open {
+                    return Err(format!(
+                        "grasp window {k} closes at {} s, before window {} opens at {} s; list                          windows in increasing time without overlap",
+                        w.close,
+                        k - 1,
+                        prev.open
+                    ));
+                }
+            }
+            if let Some(r) = w.reach {
+                if !(r.is_finite() && r >= 0.0) {
+                    return Err(format!(
+                        "grasp window {k}: reach must be zero or positive and finite, got {r} m"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The scene lancet runs when given none: a soft beam, clamped at one end, sagging under
@@ -342,6 +433,7 @@ impl Scene {
             };
             tool.shape.validate().map_err(|e| fail(detail(e)))?;
             tool.trajectory.validate().map_err(|e| fail(detail(e)))?;
+            tool.validate_grasp().map_err(fail)?;
             if self.tools[..i].iter().any(|t| t.name == tool.name) {
                 return Err(fail(
                     "another tool has this name; give each tool its own".into(),

@@ -1,7 +1,9 @@
 //! Tools in a scene run: each step the tools take their poses from their trajectories, the
-//! simulation steps, and penetrating tissue is pushed out of them
-//! ([`crate::collide::response::resolve_contacts`]); what each tool felt is kept for the
-//! summary and the `ToolForce` expectation.
+//! simulation steps, graspers whose grasp window has begun close on the tissue between their
+//! jaws (and let go when it ends) and carry what they hold, and penetrating tissue is pushed
+//! out of the tools ([`crate::collide::response::resolve_contacts_excluding`], held nodes left
+//! to their grasp); what each tool felt is kept for the summary and the `ToolForce` and
+//! `GraspCarried` expectations.
 
 use super::expect::ToolReport;
 use super::schema::Scene;
@@ -12,15 +14,18 @@ use crate::mesh::TetMesh;
 #[cfg(feature = "collide")]
 use crate::collide::{
     broad::Surface,
-    response::{resolve_contacts, ContactSettings},
-    Tool, Trajectory,
+    grasp::Grasp,
+    response::{resolve_contacts_excluding, ContactSettings},
+    Tool, ToolShape,
 };
 
 /// The tools of a running scene.
 #[cfg(feature = "collide")]
 pub struct ToolStage {
     tools: Vec<Tool>,
-    trajectories: Vec<Trajectory>,
+    scene_tools: Vec<super::schema::SceneTool>,
+    /// What each tool holds now (graspers inside a grasp window).
+    grasps: Vec<Option<Grasp>>,
     settings: ContactSettings,
     /// What each tool felt so far.
     pub reports: Vec<ToolReport>,
@@ -45,7 +50,8 @@ impl ToolStage {
             .collect::<Result<Vec<_>>>()?;
         Ok(Some(ToolStage {
             tools,
-            trajectories: scene.tools.iter().map(|t| t.trajectory.clone()).collect(),
+            scene_tools: scene.tools.clone(),
+            grasps: vec![None; scene.tools.len()],
             settings: ContactSettings::default(),
             reports: scene
                 .tools
@@ -56,29 +62,74 @@ impl ToolStage {
                     final_force: [0.0; 3],
                     max_depth: 0.0,
                     contact_steps: 0,
+                    max_held: 0,
+                    max_carried: 0.0,
                 })
                 .collect(),
             cut: None,
         }))
     }
 
-    /// Pose the tools for the end of the next step, step once (with the divergence check) and
-    /// resolve the contacts.
+    /// Pose the tools for the end of the next step, step once (with the divergence check),
+    /// close, hold or release the graspers by their grasp windows, and resolve the contacts
+    /// of the nodes no grasper holds.
     pub fn step(&mut self, sim: &mut Simulation) -> Result<()> {
         let t = sim.time() + sim.config().dt;
-        for (tool, trajectory) in self.tools.iter_mut().zip(&self.trajectories) {
-            tool.set_pose(trajectory.pose_at(t));
+        for (tool, scene_tool) in self.tools.iter_mut().zip(&self.scene_tools) {
+            tool.set_pose(scene_tool.trajectory.pose_at(t));
         }
         sim.run(1)?;
         if let Some(cut) = self.cut.as_mut() {
             cut.after_step(sim, &self.tools)?;
         }
+        let mut held: Vec<u32> = Vec::new();
+        for (k, (tool, scene_tool)) in self.tools.iter().zip(&self.scene_tools).enumerate() {
+            let window = scene_tool.grasp_at(t);
+            match (window, &self.grasps[k]) {
+                (Some(w), None) => {
+                    let reach = match (w.reach, tool.shape) {
+                        (Some(r), _) => r,
+                        (None, ToolShape::Grasper { jaw, .. }) => jaw[0],
+                        (None, _) => 0.0,
+                    };
+                    self.grasps[k] = Some(Grasp::close(sim, tool, reach)?);
+                }
+                (None, Some(_)) => self.grasps[k] = None,
+                _ => {}
+            }
+            if let Some(grasp) = &self.grasps[k] {
+                grasp.hold(sim, tool)?;
+                let report = &mut self.reports[k];
+                report.max_held = report.max_held.max(grasp.nodes().len());
+                if !grasp.nodes().is_empty() {
+                    let rest = &sim.model().rest;
+                    let targets = grasp.targets(tool);
+                    let carried = grasp
+                        .nodes()
+                        .iter()
+                        .zip(&targets)
+                        .map(|(&n, p)| {
+                            let r = rest[n as usize];
+                            ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2))
+                                .sqrt()
+                        })
+                        .sum::<f64>()
+                        / targets.len() as f64;
+                    report.max_carried = report.max_carried.max(carried);
+                }
+                held.extend_from_slice(grasp.nodes());
+            }
+        }
         // Cutting blades pass through the tissue; the other tools push it.
         let pushing: Vec<usize> = (0..self.tools.len())
             .filter(|&i| !self.cut.as_ref().is_some_and(|c| c.cuts_with(i)))
             .collect();
-        let tools: Vec<Tool> = pushing.iter().map(|&i| self.tools[i].clone()).collect();
-        let forces = resolve_contacts(sim, &tools, &self.settings)?;
+        let forces = if pushing.len() == self.tools.len() {
+            resolve_contacts_excluding(sim, &self.tools, &self.settings, &held)?
+        } else {
+            let tools: Vec<Tool> = pushing.iter().map(|&i| self.tools[i].clone()).collect();
+            resolve_contacts_excluding(sim, &tools, &self.settings, &held)?
+        };
         for (&i, f) in pushing.iter().zip(forces) {
             let r = &mut self.reports[i];
             r.max_force = r.max_force.max(f.force.norm());

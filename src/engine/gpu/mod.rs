@@ -921,6 +921,43 @@ impl Engine for GpuEngine {
             .collect())
     }
 
+    fn node_start_positions(&self, nodes: &[u32], dt: f64) -> Result<Vec<[f64; 3]>> {
+        let n = self.rest.len();
+        if let Some(&i) = nodes.iter().find(|&&i| i as usize >= n) {
+            return Err(super::bad_node(i, n));
+        }
+        let rank = &self.layout.order().rank;
+        let idx: Vec<u32> = nodes.iter().map(|&i| rank[i as usize]).collect();
+        let b = self.state.bindings(self.phase);
+        // Verlet keeps the previous displacements: the start of the step, read as they are.
+        // Symplectic Euler: the current displacement less dt times the velocity.
+        let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
+        let euler = self.state.integrator == Integrator::SymplecticEuler;
+        let cur = if euler {
+            buffers::read_entries(&self.ctx, b.cur, &idx)?
+        } else {
+            Vec::new()
+        };
+        Ok(nodes
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                let r = self.rest[i as usize];
+                if self.fixed[i as usize] {
+                    return r;
+                }
+                [0, 1, 2].map(|c| {
+                    let u = if euler {
+                        cur[k][c] as f64 - dt * second[k][c] as f64
+                    } else {
+                        second[k][c] as f64
+                    };
+                    r[c] + u
+                })
+            })
+            .collect())
+    }
+
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
         super::check_correction(nodes, positions, self.rest.len())?;
         let rank = &self.layout.order().rank;
