@@ -192,7 +192,7 @@ fn run_sequence(seed: u64, method: CutMethod, mesh: TetMesh) -> (Cutter, usize) 
 
 #[rstest]
 fn random_cut_sequences_keep_every_invariant(
-    #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,
+    #[values(CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide)] method: CutMethod,
     #[values(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)] seed: u64,
 ) {
     let mesh = random_box(&mut Rng(seed * 977));
@@ -209,7 +209,7 @@ fn random_cut_sequences_keep_every_invariant(
 
 #[rstest]
 fn random_cuts_of_the_liver_keep_every_invariant(
-    #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,
+    #[values(CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide)] method: CutMethod,
     #[values(31, 32, 33)] seed: u64,
 ) {
     let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {

@@ -38,9 +38,14 @@ fn run(name: &str, engine: EngineKind, layout: LayoutKind, method: CutMethod) ->
 
 #[rstest]
 fn cut_fixtures_pass_on_the_gpu_in_every_layout(
-    #[values("cut_box_through.ron", "cut_partial_opens.ron", "cut_two_crossing.ron")] name: &str,
+    #[values(
+        "cut_box_through_nodes.ron",
+        "cut_partial_opens.ron",
+        "cut_two_crossing.ron"
+    )]
+    name: &str,
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
-    #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,
+    #[values(CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide)] method: CutMethod,
 ) {
     if common::gpu().is_none() {
         return;
@@ -93,7 +98,7 @@ fn the_gpu_and_the_cpu_cut_the_same_and_move_the_same() {
 
 #[test]
 fn the_same_cut_scene_gives_the_same_topology_and_state_twice() {
-    for method in [CutMethod::Separate, CutMethod::Remove] {
+    for method in [CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide] {
         let a = run(
             "cut_partial_opens.ron",
             EngineKind::Fast,

@@ -56,7 +56,7 @@ enum BenchWhat {
         #[arg(long, value_delimiter = ',', default_values = ["0.03"])]
         length: Vec<f64>,
         /// Cut methods, comma-separated.
-        #[arg(long, value_enum, value_delimiter = ',', default_values = ["separate", "remove"])]
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["separate", "remove", "subdivide"])]
         method: Vec<MethodArg>,
         /// Engines, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["fast", "gpu"])]
@@ -312,6 +312,8 @@ enum MethodArg {
     Remove,
     /// Open the faces the blade passes, duplicating nodes.
     Separate,
+    /// Split the tets the blade crosses along its sweep, then open the cut.
+    Subdivide,
 }
 
 impl From<MethodArg> for lancet::cut::CutMethod {
@@ -319,6 +321,7 @@ impl From<MethodArg> for lancet::cut::CutMethod {
         match m {
             MethodArg::Remove => lancet::cut::CutMethod::Remove,
             MethodArg::Separate => lancet::cut::CutMethod::Separate,
+            MethodArg::Subdivide => lancet::cut::CutMethod::Subdivide,
         }
     }
 }
@@ -469,8 +472,18 @@ fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<Ex
         }
         Some(p) => vec![(Scene::read(p)?, p.to_path_buf())],
     };
+    let folder = scene.is_some_and(|p| p.is_dir());
     let mut summaries = Vec::with_capacity(scenes.len());
     for (scene, path) in &scenes {
+        // In a folder run, a scene on a real mesh is skipped (with a note) when the folder of
+        // real meshes is not configured; run on its own it is an error that says so.
+        if folder && needs_mesh_dir(scene) && std::env::var_os("LANCET_MESH_DIR").is_none() {
+            eprintln!(
+                "skipped {}: its mesh is under $LANCET_MESH_DIR, which is not set",
+                path.display()
+            );
+            continue;
+        }
         // A scene that cuts runs once per method it names, unless --method picks one.
         let methods: Vec<Option<lancet::cut::CutMethod>> = match (&scene.cut, opts.cut_method) {
             (Some(_), Some(m)) => vec![Some(m)],
@@ -516,6 +529,11 @@ fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<Ex
     })
 }
 
+/// Whether a scene reads its mesh from the folder of real meshes.
+fn needs_mesh_dir(scene: &Scene) -> bool {
+    matches!(&scene.mesh, lancet::scene::MeshSource::File(f) if f.starts_with("$LANCET_MESH_DIR/"))
+}
+
 /// A progress bar on stderr for long runs; hidden for short runs, JSON output, or when stderr
 /// is not a terminal (indicatif checks that).
 fn progress_bar(scene: &Scene, opts: &RunOptions, json: bool) -> ProgressBar {
@@ -547,7 +565,14 @@ fn print_summary(s: &RunSummary) {
         println!("note: {n}");
     }
     if let Some(m) = &s.message {
-        println!("{}: {m}", if s.refused { "refused" } else { "diverged" });
+        let what = if s.refused {
+            "refused"
+        } else if s.stopped {
+            "stopped after a cut"
+        } else {
+            "diverged"
+        };
+        println!("{what}: {m}");
     }
     println!(
         "ran {} steps ({:.4} s simulated) in {:.3} s wall, {:.0} steps/s",

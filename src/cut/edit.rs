@@ -50,6 +50,28 @@ impl Cutter {
         crossed: &[(TetKey, TetKey)],
         outcome: &mut CutOutcome,
     ) -> Result<()> {
+        outcome.faces_cut = crossed.len();
+        let plan = self.plan_split(crossed);
+        if plan.copies.is_empty() {
+            return Ok(());
+        }
+        let before: Vec<[NodeKey; 4]> = plan
+            .replace
+            .keys()
+            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
+            .collect();
+        let snapshot = Snapshot::take(&self.model, &before);
+        let (added, after) = self.apply_split(&plan, &|n| n)?;
+        outcome.tets_touched = plan.replace.len();
+        outcome.nodes_added = added.len();
+        outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
+        Ok(())
+    }
+
+    /// Put `crossed` on the crack and find, for every node of their shared faces, the groups of
+    /// its tets still joined across uncut faces (on the topology before any split, so the order
+    /// in which nodes are visited does not matter).
+    pub(super) fn plan_split(&mut self, crossed: &[(TetKey, TetKey)]) -> SplitPlan {
         let mut nodes: Vec<NodeKey> = Vec::new();
         for &(a, b) in crossed {
             self.crack.insert((a, b));
@@ -59,14 +81,9 @@ impl Cutter {
             );
             nodes.extend(ta.nodes.iter().filter(|n| tb.nodes.contains(n)));
         }
-        outcome.faces_cut = crossed.len();
         nodes.sort();
         nodes.dedup();
-
-        // Groups are found on the topology before any node is split, so the order in which
-        // nodes are visited does not matter.
-        let mut replace: BTreeMap<TetKey, Vec<(NodeKey, usize)>> = BTreeMap::new();
-        let mut copies: Vec<NodeKey> = Vec::new(); // the node each new copy duplicates
+        let mut plan = SplitPlan::default();
         for &n in &nodes {
             let around = self.faces.tets_at(n);
             let slot = |t: TetKey| around.binary_search(&t).ok();
@@ -98,38 +115,49 @@ impl Cutter {
                 let next = label.len();
                 let g = *label.entry(root).or_insert(next);
                 if g > 0 {
-                    replace
+                    plan.replace
                         .entry(t)
                         .or_default()
-                        .push((n, copies.len() + g - 1));
+                        .push((n, plan.copies.len() + g - 1));
                 }
             }
             for _ in 1..label.len() {
-                copies.push(n);
+                plan.copies.push(n);
             }
         }
-        if copies.is_empty() {
-            return Ok(());
-        }
+        plan
+    }
 
-        let before: Vec<[NodeKey; 4]> = replace
+    /// Make the copies of `plan` and give the tets their new corners (mesh, model and face
+    /// index). Returns the copies with the node whose state each starts from
+    /// (`state_source` of the node it copies: itself for an old node) and the touched tets'
+    /// new corners. Pairs whose face opened leave the crack.
+    pub(super) fn apply_split(
+        &mut self,
+        plan: &SplitPlan,
+        state_source: &dyn Fn(NodeKey) -> NodeKey,
+    ) -> Result<(Copies, Vec<[NodeKey; 4]>)> {
+        let mut added = Vec::with_capacity(plan.copies.len());
+        let mut new_keys = Vec::with_capacity(plan.copies.len());
+        for &n in &plan.copies {
+            let k = self.mesh.add_node(self.mesh.rest(n));
+            self.dense.insert(k, self.dense.len() as u32);
+            if self.on_cut.contains(&n) {
+                self.on_cut.insert(k);
+            }
+            added.push((k, state_source(n)));
+            new_keys.push(k);
+        }
+        let before: Vec<[NodeKey; 4]> = plan
+            .replace
             .keys()
             .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .collect();
-        let snapshot = Snapshot::take(&self.model, &before);
-        let mut added = Vec::with_capacity(copies.len());
-        let mut new_keys = Vec::with_capacity(copies.len());
-        for &n in &copies {
-            let k = self.mesh.add_node(self.mesh.rest(n));
-            self.dense.insert(k, self.dense.len() as u32);
-            added.push((k, n));
-            new_keys.push(k);
-        }
-        for &t in replace.keys() {
+        for &t in plan.replace.keys() {
             self.faces.remove(t, self.mesh.tet(t).expect("a tet"));
         }
         let mut after = Vec::with_capacity(before.len());
-        for ((&t, subs), old) in replace.iter().zip(&before) {
+        for ((&t, subs), old) in plan.replace.iter().zip(&before) {
             let mut new = *old;
             for &(n, c) in subs {
                 for k in new.iter_mut().filter(|k| **k == n) {
@@ -140,7 +168,7 @@ impl Cutter {
             self.model.renode_tet(t, *old, new)?;
             after.push(new);
         }
-        for &t in replace.keys() {
+        for &t in plan.replace.keys() {
             let tet = *self.mesh.tet(t).expect("a tet");
             self.faces.insert(t, &tet)?;
         }
@@ -151,9 +179,17 @@ impl Cutter {
             let ta = mesh.tet(a).expect("a tet");
             (0..4).any(|l| faces.neighbour(a, ta, l) == Some(b))
         });
-        outcome.tets_touched = replace.len();
-        outcome.nodes_added = copies.len();
-        outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
-        Ok(())
+        Ok((added, after))
     }
+}
+
+/// Nodes made by a split, each with the node whose state it starts from.
+pub(super) type Copies = Vec<(NodeKey, NodeKey)>;
+
+/// Which tets get which copies: `replace[t]` lists (node, copy number) pairs, `copies[c]` is
+/// the node copy `c` duplicates.
+#[derive(Debug, Default)]
+pub(super) struct SplitPlan {
+    pub replace: BTreeMap<TetKey, Vec<(NodeKey, usize)>>,
+    pub copies: Vec<NodeKey>,
 }

@@ -26,6 +26,7 @@ pub mod exact;
 pub mod faces;
 pub mod invariants;
 mod snapshot;
+pub mod subdivide;
 pub mod sweep;
 
 use std::collections::BTreeSet;
@@ -58,6 +59,10 @@ pub enum CutMethod {
     /// lost; the cut follows the existing faces.
     #[default]
     Separate,
+    /// Split the tets the blade crosses along its sweep, with new nodes on the crossed edges
+    /// (snapped to a node when the crossing is near it), then open the faces on the sweep. The
+    /// cut follows the blade, at the price of new nodes and tets.
+    Subdivide,
 }
 
 impl std::fmt::Display for CutMethod {
@@ -65,6 +70,7 @@ impl std::fmt::Display for CutMethod {
         f.write_str(match self {
             CutMethod::Remove => "remove",
             CutMethod::Separate => "separate",
+            CutMethod::Subdivide => "subdivide",
         })
     }
 }
@@ -117,6 +123,9 @@ pub struct Cutter {
     snap: f64,
     /// Twice the longest rest edge: how far from the sweep a corner of a tet it meets can be.
     reach: f64,
+    /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
+    /// may open.
+    on_cut: BTreeSet<NodeKey>,
 }
 
 impl Cutter {
@@ -143,6 +152,7 @@ impl Cutter {
             crack: BTreeSet::new(),
             volume_removed: 0.0,
             snap,
+            on_cut: BTreeSet::new(),
         })
     }
 
@@ -245,6 +255,26 @@ impl Cutter {
                 if !new.is_empty() {
                     self.separate(&new, &mut outcome)?;
                 }
+            }
+            CutMethod::Subdivide => {
+                outcome.classify_s = start.elapsed().as_secs_f64();
+                let position = |k: NodeKey| {
+                    let (x, rest) = (Point3::from(positions[dense[k] as usize]), mesh.rest(k));
+                    if (x - rest).norm_squared() <= snap2 {
+                        rest
+                    } else {
+                        x
+                    }
+                };
+                let position: Vec<Point3<f64>> =
+                    self.mesh.nodes().map(|(k, _)| position(k)).collect();
+                let dense = self.dense.clone();
+                self.subdivide(
+                    sweep,
+                    &|k| position[dense[k] as usize],
+                    &candidates,
+                    &mut outcome,
+                )?;
             }
         }
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;

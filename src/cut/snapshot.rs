@@ -51,6 +51,29 @@ impl Snapshot {
         snap
     }
 
+    /// Record more tets, keeping what is already recorded (the first record of a spring or
+    /// node is its state before the whole edit).
+    /// Springs or nodes involving a node that did not exist before the edit (`existed` false)
+    /// are left out: they are new, and the diff adds them.
+    pub fn extend(
+        &mut self,
+        model: &SpringModel,
+        tets: &[[NodeKey; 4]],
+        existed: &dyn Fn(NodeKey) -> bool,
+    ) {
+        let more = Snapshot::take(model, tets);
+        for (e, p) in more.springs {
+            if existed(e[0]) && existed(e[1]) {
+                self.springs.entry(e).or_insert(p);
+            }
+        }
+        for (n, p) in more.nodes {
+            if existed(n) {
+                self.nodes.entry(n).or_insert(p);
+            }
+        }
+    }
+
     /// The diff from the recorded state to `model` now. `after` are the touched tets' nodes
     /// after the edit (their new edges are compared too); `added` are the nodes the edit
     /// created, in creation order, with the node each copies (its state is carried over);

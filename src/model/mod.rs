@@ -380,6 +380,29 @@ impl SpringModel {
         Ok(removed)
     }
 
+    /// Add what a new tet `tk` of `mesh` contributes (a cut that subdivides adds tets). Material
+    /// stiffness and density shares depend only on the tet's geometry, so they are exact; the
+    /// "per spring" and "per node" parameterisations split their value among the tets holding
+    /// an edge or node counted now, this one included (earlier tets keep their shares).
+    pub fn add_tet(&mut self, mesh: &TetMesh, tk: TetKey) -> Result<()> {
+        let t = *mesh
+            .tet(tk)
+            .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
+        let mut at_node: SecondaryMap<NodeKey, u32> = SecondaryMap::new();
+        for &n in &t.nodes {
+            at_node.insert(n, self.tets_at_node(n) + 1);
+        }
+        let mut at_edge: HashMap<[NodeKey; 2], u32> = HashMap::new();
+        for [a, b] in TET_EDGES {
+            let key = edge_key(t.nodes[a], t.nodes[b]);
+            let held = self.by_edge.get(&key).map_or(0, |s| self.springs[*s].tets);
+            at_edge.insert(key, held + 1);
+        }
+        let share = self.tet_share(mesh, tk, &at_node, &at_edge)?;
+        self.apply_share(mesh, tk, share, 1.0);
+        Ok(())
+    }
+
     /// Number of tets holding node `n`.
     pub fn tets_at_node(&self, n: NodeKey) -> u32 {
         self.tets_at_node.get(n).copied().unwrap_or(0)

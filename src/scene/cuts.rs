@@ -206,11 +206,6 @@ impl CutStage {
             }
             self.touching[slot] = true;
             let first = sim.model().node_count() as u32;
-            for (k, a) in outcome.diff.added_nodes.iter().enumerate() {
-                if let Some(from) = a.state_from {
-                    self.copies.push((first + k as u32, from));
-                }
-            }
             let cost = match sim.apply_with(&outcome.diff, false) {
                 Ok(cost) => cost,
                 Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
@@ -241,6 +236,15 @@ impl CutStage {
             };
             sim.set_surface(self.cutter.surface())?;
             self.latencies.push(start.elapsed().as_secs_f64());
+            // Copies of a node (splitting) sit at its rest position; nodes a subdivision puts
+            // on an edge do not, and are not openings.
+            for (k, a) in outcome.diff.added_nodes.iter().enumerate() {
+                if let Some(from) = a.state_from {
+                    if sim.model().rest[from as usize] == a.rest {
+                        self.copies.push((first + k as u32, from));
+                    }
+                }
+            }
             let r = &mut self.report;
             r.cuts += 1;
             r.tets_touched += outcome.tets_touched;

@@ -74,6 +74,9 @@ pub struct RunSummary {
     pub diverged: bool,
     /// Whether the time step was refused.
     pub refused: bool,
+    /// Whether the run stopped early because a cut lowered the stable bound below dt (cut
+    /// policy `Stop`).
+    pub stopped: bool,
     /// The divergence or refusal message.
     pub message: Option<String>,
     /// Frames written (VTU files).
@@ -209,6 +212,7 @@ pub fn run_scene(
         },
         diverged: false,
         refused: false,
+        stopped: false,
         message: None,
         frames_written: 0,
         pvd: None,
@@ -281,8 +285,11 @@ pub fn run_scene(
         done = sim.steps();
         if let Err(e) = result {
             summary.diverged = matches!(e, Error::Diverged { .. });
+            // A cut that lowered the stable bound below dt under the `Stop` policy ends the run
+            // here; it is reported, and fails the scene, like a divergence.
+            summary.stopped = matches!(e, Error::UnstableTimeStep { .. });
             summary.message = Some(e.to_string());
-            if !summary.diverged {
+            if !(summary.diverged || summary.stopped) {
                 return Err(e);
             }
             break;
@@ -356,6 +363,7 @@ fn finish(
         )
     });
     let clean = !(summary.diverged || summary.refused) || expected_failure;
+    let clean = clean && !summary.stopped;
     summary.expectations_passed = clean && summary.expectations.iter().all(|r| r.passed);
 }
 
