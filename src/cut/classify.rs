@@ -45,6 +45,28 @@ pub fn candidates(
     out
 }
 
+/// Keep the candidates whose bounds (at their classification corners, grown by `margin`)
+/// overlap the sweep's bounds: a cheap test that spares most of them the exact ones.
+pub fn overlapping(
+    candidates: &mut Vec<TetKey>,
+    corners: &impl Fn(TetKey) -> Corners,
+    sweep: &Sweep,
+    margin: f64,
+) {
+    let Some(b) = sweep.aabb() else {
+        candidates.clear();
+        return;
+    };
+    candidates.retain(|&tk| {
+        let p = corners(tk);
+        (0..3).all(|c| {
+            let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
+            let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
+            lo <= b.max[c] + margin && hi >= b.min[c] - margin
+        })
+    });
+}
+
 /// The candidate tets that the sweep meets (exact test), in key order.
 pub fn tets_met(
     candidates: &[TetKey],

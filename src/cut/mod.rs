@@ -234,7 +234,8 @@ impl Cutter {
                     }
                 })
         };
-        let candidates = classify::candidates(mesh, &self.faces, positions, self.reach, sweep);
+        let mut candidates = classify::candidates(mesh, &self.faces, positions, self.reach, sweep);
+        classify::overlapping(&mut candidates, &corners, sweep, self.snap);
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {

@@ -503,7 +503,7 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let elastic_before = self.diff_elastic_energy(diff, true)?;
+        let (elastic_before, elastic_after) = self.diff_elastic_energy(diff)?;
         let before = self.model.node_count();
         // Validates first: on error nothing has changed.
         self.model.apply(diff)?;
@@ -543,50 +543,77 @@ impl Simulation {
         // The divergence reference follows the energy the change took out of or put into the
         // springs it touched (splitting a node shares its mass and keeps its velocity, so the
         // kinetic and gravitational energies do not change; carving only lowers them).
-        let elastic_after = self.diff_elastic_energy(diff, false)?;
         self.start_energy += elastic_after - elastic_before;
         Ok(cost)
     }
 
     /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
-    /// they are, `before = true`) or adds or changes (as they will be). Reads back only the
-    /// nodes of those springs.
-    fn diff_elastic_energy(&self, diff: &ModelDiff, before: bool) -> Result<f64> {
-        let springs: Vec<crate::model::PackedSpring> = if before {
-            diff.removed_springs
-                .iter()
-                .map(|&[a, b]| (a, b))
-                .chain(
-                    diff.changed_springs
-                        .iter()
-                        .map(|s| (s.nodes[0], s.nodes[1])),
-                )
-                .filter_map(|(a, b)| self.model.spring_index(a, b).map(|i| self.model.springs[i]))
-                .collect()
-        } else {
-            diff.added_springs
-                .iter()
-                .chain(&diff.changed_springs)
-                .copied()
-                .collect()
+    /// they are) and of those it adds or changes (as they will be; a new node is where the node
+    /// it copies is, shifted by their rest offset). Reads back only the existing nodes of those
+    /// springs, once.
+    fn diff_elastic_energy(&self, diff: &ModelDiff) -> Result<(f64, f64)> {
+        let n = self.model.node_count() as u32;
+        let old: Vec<crate::model::PackedSpring> = diff
+            .removed_springs
+            .iter()
+            .map(|&[a, b]| (a, b))
+            .chain(
+                diff.changed_springs
+                    .iter()
+                    .map(|s| (s.nodes[0], s.nodes[1])),
+            )
+            .filter_map(|(a, b)| self.model.spring_index(a, b).map(|i| self.model.springs[i]))
+            .collect();
+        let new: Vec<crate::model::PackedSpring> = diff
+            .added_springs
+            .iter()
+            .chain(&diff.changed_springs)
+            .copied()
+            .collect();
+        // An added node stands where its source stands plus the rest offset between them; one
+        // without a source starts at rest.
+        let source = |i: u32| -> Option<(u32, [f64; 3])> {
+            if i < n {
+                return Some((i, [0.0; 3]));
+            }
+            let a = diff.added_nodes.get((i - n) as usize)?;
+            let s = a.state_from?;
+            let r = self.model.rest[s as usize];
+            Some((s, [a.rest[0] - r[0], a.rest[1] - r[1], a.rest[2] - r[2]]))
         };
-        if springs.is_empty() {
-            return Ok(0.0);
-        }
-        let mut nodes: Vec<u32> = springs.iter().flat_map(|s| s.nodes).collect();
+        let mut nodes: Vec<u32> = old
+            .iter()
+            .chain(&new)
+            .flat_map(|s| s.nodes)
+            .filter_map(|i| source(i).map(|(s, _)| s))
+            .collect();
         nodes.sort_unstable();
         nodes.dedup();
+        if nodes.is_empty() {
+            return Ok((0.0, 0.0));
+        }
         let x = self.engine.node_positions(&nodes)?;
-        let at = |i: u32| x[nodes.binary_search(&i).expect("collected")];
-        Ok(springs
-            .iter()
-            .map(|s| {
-                let (a, b) = (at(s.nodes[0]), at(s.nodes[1]));
-                let l =
-                    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
-                0.5 * s.stiffness * (l - s.rest_length).powi(2)
-            })
-            .sum())
+        let at = |i: u32| -> [f64; 3] {
+            match source(i) {
+                Some((s, d)) => {
+                    let p = x[nodes.binary_search(&s).expect("collected")];
+                    [p[0] + d[0], p[1] + d[1], p[2] + d[2]]
+                }
+                None => diff.added_nodes[(i - n) as usize].rest,
+            }
+        };
+        let energy = |springs: &[crate::model::PackedSpring]| -> f64 {
+            springs
+                .iter()
+                .map(|s| {
+                    let (a, b) = (at(s.nodes[0]), at(s.nodes[1]));
+                    let l = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2))
+                        .sqrt();
+                    0.5 * s.stiffness * (l - s.rest_length).powi(2)
+                })
+                .sum()
+        };
+        Ok((energy(&old), energy(&new)))
     }
 
     /// Change the time step between steps, keeping the state (positions and velocities): the
