@@ -3,14 +3,15 @@
 //! stated tolerance, and the force on the tool points away from the tissue and grows with
 //! depth. On the fast CPU engine and, where there is an adapter, on the GPU.
 
+#[path = "common/tissue.rs"]
+mod tissue;
+
 mod common;
 
-use lancet::collide::broad::Surface;
 use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolPart, ToolShape};
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
-use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rstest::rstest;
 
@@ -21,22 +22,8 @@ const TOLERANCE: f64 = 2e-5;
 
 /// A 24 x 24 x 12 mm block of soft tissue (2 mm cells) on a fixed base, and its surface.
 fn block(kind: EngineKind) -> Simulation {
-    let mesh = BoxGrid::cube_cells([12, 12, 6], 0.002).build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
-    config.mass_damping = 80.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
-        tolerance: 1e-9,
-    });
-    let model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim = Simulation::new(model, kind, SimConfig::new(dt)).unwrap();
-    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
-    sim
+    let grid = BoxGrid::cube_cells([12, 12, 6], 0.002);
+    tissue::tissue(grid, &tissue::clamped([0.0, 0.0, 1.0], 80.0), kind)
 }
 
 /// How deep `p` lies inside a box part of the tool (negative outside).

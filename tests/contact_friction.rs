@@ -4,14 +4,15 @@
 //! and a small drag the surface under the probe sticks to it and goes along; with no friction
 //! nothing changes. On the fast CPU engine and, where there is an adapter, on the GPU.
 
+#[path = "common/tissue.rs"]
+mod tissue;
+
 mod common;
 
-use lancet::collide::broad::Surface;
 use lancet::collide::response::{resolve_contacts, ContactSettings, ToolForce};
 use lancet::collide::{Tool, ToolShape};
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::{BoxGrid, TetSplit};
-use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Vector3};
 use rstest::rstest;
 
@@ -25,22 +26,7 @@ const PRESS: f64 = 0.75e-3;
 fn block(kind: EngineKind, split: TetSplit) -> Simulation {
     let mut grid = BoxGrid::cube_cells([12, 12, 6], 0.002);
     grid.split = split;
-    let mesh = grid.build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
-    config.mass_damping = 80.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
-        tolerance: 1e-9,
-    });
-    let model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim = Simulation::new(model, kind, SimConfig::new(dt)).unwrap();
-    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
-    sim
+    tissue::tissue(grid, &tissue::clamped([0.0, 0.0, 1.0], 80.0), kind)
 }
 
 /// The sphere `x` along the drag from the block's centre, its lowest point `depth` below the

@@ -1,33 +1,25 @@
 //! Nodes a grasper holds belong to the grasp: contact resolution leaves them where the grasp
 //! put them, even where the jaws squeeze into the tissue, and pushes only the others.
 
-use lancet::collide::broad::Surface;
+#[path = "common/tissue.rs"]
+mod tissue;
+
 use lancet::collide::grasp::Grasp;
 use lancet::collide::response::{resolve_contacts, resolve_contacts_excluding, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
-use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Vector3};
 
 /// A 20 x 10 x 2 mm flap clamped at x = 0 and a grasper whose jaws (1.6 mm apart) squeeze its
 /// free end 0.2 mm deep from above and below.
 fn squeezed() -> (Simulation, Tool) {
-    let mesh = BoxGrid::cube_cells([10, 5, 1], 0.002).build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
-    config.mass_damping = 40.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [1.0, 0.0, 0.0],
-        tolerance: 1e-9,
-    });
-    let model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim = Simulation::new(model, EngineKind::Fast, SimConfig::new(dt)).unwrap();
-    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
+    let grid = BoxGrid::cube_cells([10, 5, 1], 0.002);
+    let sim = tissue::tissue(
+        grid,
+        &tissue::clamped([1.0, 0.0, 0.0], 40.0),
+        EngineKind::Fast,
+    );
     // The tool's z axis along -x, its x axis along +z: the jaws close along z on the flap's
     // last 6 mm.
     let jaws = ToolShape::Grasper {

@@ -4,14 +4,15 @@
 //! fast CPU engine and, where there is an adapter, on the GPU (whose broad phase then runs on
 //! the device).
 
+#[path = "common/tissue.rs"]
+mod tissue;
+
 mod common;
 
-use lancet::collide::broad::Surface;
 use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::{BoxGrid, TetSplit};
-use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Vector3};
 use rstest::rstest;
 
@@ -27,22 +28,7 @@ fn block(kind: EngineKind) -> Simulation {
 fn block_split(kind: EngineKind, split: TetSplit) -> Simulation {
     let mut grid = BoxGrid::cube_cells([12, 12, 6], 0.002);
     grid.split = split;
-    let mesh = grid.build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
-    config.mass_damping = 80.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
-        tolerance: 1e-9,
-    });
-    let model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim = Simulation::new(model, kind, SimConfig::new(dt)).unwrap();
-    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
-    sim
+    tissue::tissue(grid, &tissue::clamped([0.0, 0.0, 1.0], 80.0), kind)
 }
 
 /// The sphere's pose with its lowest point `depth` below the block's top, over its centre.

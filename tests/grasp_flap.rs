@@ -2,12 +2,13 @@
 //! the surface nodes between its jaws, carries them 5 mm up with it (the flap bends, the
 //! clamped end stays), and once opened the flap falls back to where it hung before.
 
-use lancet::collide::broad::Surface;
+#[path = "common/tissue.rs"]
+mod tissue;
+
 use lancet::collide::grasp::Grasp;
 use lancet::collide::{Tool, ToolShape};
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
-use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Vector3};
 
 /// Mean z of the nodes at the free end (x = 20 mm).
@@ -24,23 +25,12 @@ fn tip_z(sim: &Simulation) -> f64 {
 #[test]
 fn a_grasper_lifts_a_flap_and_releases_it() {
     // A 20 x 10 x 2 mm flap of soft tissue clamped at x = 0, under gravity.
-    let mesh = BoxGrid::cube_cells([10, 5, 1], 0.002).build().unwrap();
-    let mut config = ModelConfig::new(Material::elastic(20e3, 0.3, 1000.0));
+    let grid = BoxGrid::cube_cells([10, 5, 1], 0.002);
+    let mut config = tissue::clamped([1.0, 0.0, 0.0], 40.0);
     config.gravity = [0.0, 0.0, -9.81];
-    config.mass_damping = 40.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [1.0, 0.0, 0.0],
-        tolerance: 1e-9,
-    });
-    let model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    let dt = 0.5 * stable_time_step(&model).dt;
+    let mut sim = tissue::tissue(grid, &config, EngineKind::Fast);
+    let dt = sim.config().dt;
     let steps = |t: f64| (t / dt) as usize;
-    let mut sim = Simulation::new(model, EngineKind::Fast, SimConfig::new(dt)).unwrap();
-    sim.set_surface(Surface::of(&mesh).triangles).unwrap();
     sim.run(steps(0.3) as u64).unwrap();
     let hanging = tip_z(&sim);
     assert!(
