@@ -24,6 +24,11 @@
 //! - `grasp.rs` (feature `collide`): a closed grasper holds the surface nodes between its jaws.
 //! - `response.rs` (feature `collide`): penetrating surface triangles pushed out of the tools by
 //!   position correction, and the reaction force on each tool.
+//! - `self_narrow.rs` (feature `collide`): triangle against triangle through parry3d (in a
+//!   unit frame centred on the pair), and the float64 node–triangle and edge–edge proximity
+//!   primitives.
+//! - `self_response.rs` (feature `collide`): self-contacts (surfaces closer than a thickness or
+//!   a little inside each other) separated by equal and opposite, mass-weighted corrections.
 
 pub mod broad;
 #[cfg(feature = "collide")]
@@ -33,6 +38,10 @@ pub mod narrow;
 #[cfg(feature = "collide")]
 pub mod response;
 pub mod self_broad;
+#[cfg(feature = "collide")]
+pub mod self_narrow;
+#[cfg(feature = "collide")]
+pub mod self_response;
 pub mod tool;
 
 pub use tool::{Aabb, Keyframe, Tool, ToolPart, ToolShape, Trajectory};

@@ -206,6 +206,49 @@ impl FastEngine {
     }
 
     /// A vector of the state in model order, `f` mapping (internal index) to a value.
+    /// Position of packed node `i`, m (fixed nodes exactly at rest).
+    fn position_at(&self, i: usize) -> [f64; 3] {
+        let r = self.rest[self.order[i] as usize];
+        if self.graph.fixed[i] {
+            r
+        } else {
+            let u = to_f64(self.x[i]);
+            [r[0] + u[0], r[1] + u[1], r[2] + u[2]]
+        }
+    }
+
+    /// Velocity of packed node `i`, m/s.
+    fn velocity_at(&self, i: usize) -> [f64; 3] {
+        match self.integrator {
+            Integrator::Verlet => {
+                let inv_h = 1.0 / self.params.h as f64;
+                let (x, p) = (to_f64(self.x[i]), to_f64(self.second[i]));
+                [
+                    (x[0] - p[0]) * inv_h,
+                    (x[1] - p[1]) * inv_h,
+                    (x[2] - p[2]) * inv_h,
+                ]
+            }
+            Integrator::SymplecticEuler => to_f64(self.second[i]),
+        }
+    }
+
+    /// `f` of the packed index of each model node in `nodes`.
+    fn at_nodes(
+        &self,
+        nodes: &[u32],
+        f: impl Fn(usize) -> [f64; 3],
+    ) -> crate::Result<Vec<[f64; 3]>> {
+        let n = self.order.len();
+        nodes
+            .iter()
+            .map(|&o| match self.rank.get(o as usize) {
+                Some(&i) => Ok(f(i as usize)),
+                None => Err(super::bad_node(o, n)),
+            })
+            .collect()
+    }
+
     fn in_model_order(&self, f: impl Fn(usize) -> [f64; 3]) -> Vec<[f64; 3]> {
         let mut out = vec![[0.0; 3]; self.order.len()];
         for (i, &o) in self.order.iter().enumerate() {
@@ -262,31 +305,19 @@ impl Engine for FastEngine {
     }
 
     fn positions(&self) -> Vec<[f64; 3]> {
-        self.in_model_order(|i| {
-            let r = self.rest[self.order[i] as usize];
-            if self.graph.fixed[i] {
-                // Exactly the rest position.
-                r
-            } else {
-                let u = to_f64(self.x[i]);
-                [r[0] + u[0], r[1] + u[1], r[2] + u[2]]
-            }
-        })
+        self.in_model_order(|i| self.position_at(i))
     }
 
     fn velocities(&self) -> Vec<[f64; 3]> {
-        let inv_h = 1.0 / self.params.h as f64;
-        self.in_model_order(|i| match self.integrator {
-            Integrator::Verlet => {
-                let (x, p) = (to_f64(self.x[i]), to_f64(self.second[i]));
-                [
-                    (x[0] - p[0]) * inv_h,
-                    (x[1] - p[1]) * inv_h,
-                    (x[2] - p[2]) * inv_h,
-                ]
-            }
-            Integrator::SymplecticEuler => to_f64(self.second[i]),
-        })
+        self.in_model_order(|i| self.velocity_at(i))
+    }
+
+    fn node_positions(&self, nodes: &[u32]) -> crate::Result<Vec<[f64; 3]>> {
+        self.at_nodes(nodes, |i| self.position_at(i))
+    }
+
+    fn node_velocities(&self, nodes: &[u32]) -> crate::Result<Vec<[f64; 3]>> {
+        self.at_nodes(nodes, |i| self.velocity_at(i))
     }
 
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> crate::Result<()> {

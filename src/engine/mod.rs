@@ -118,6 +118,19 @@ pub trait Engine: Send {
             })
             .collect()
     }
+    /// Velocities of the nodes `nodes` (model indices), m/s, as [`Engine::velocities`] gives
+    /// them, reading back only those where the state lives on a device.
+    fn node_velocities(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        let v = self.velocities();
+        nodes
+            .iter()
+            .map(|&i| {
+                v.get(i as usize)
+                    .copied()
+                    .ok_or_else(|| bad_node(i, v.len()))
+            })
+            .collect()
+    }
     /// Move nodes to new positions between steps (contact response by position correction):
     /// the previous positions stay, so Verlet turns the move into velocity; symplectic Euler
     /// adds `move / dt` to the velocity. Fixed nodes do not move.
@@ -135,6 +148,14 @@ pub trait Engine: Send {
         boxes: &[crate::collide::broad::ToolBox],
     ) -> Result<Option<Vec<crate::collide::broad::Candidate>>> {
         let _ = boxes;
+        Ok(None)
+    }
+    /// Broad phase of the surface given to [`Engine::set_surface`] against itself where the
+    /// state lives (the GPU engine): pairs of surface triangles (t < u, sorted) sharing no node
+    /// whose boxes, widened by `margin / 2` (m), overlap; `Ok(None)` where the caller should
+    /// cull on the CPU.
+    fn cull_self(&mut self, margin: f64) -> Result<Option<Vec<[u32; 2]>>> {
+        let _ = margin;
         Ok(None)
     }
     /// A cheap divergence probe computed where the state lives (the GPU engine reduces it on
@@ -329,6 +350,12 @@ impl Energy {
 /// absorbs the oscillation of the discrete energy near the bound.
 pub const ENERGY_GROWTH_LIMIT: f64 = 100.0;
 
+/// Steps between exact energy checks (a readback of the whole state) on engines with a cheap
+/// divergence probe, while position corrections hold the reference above where it was taken:
+/// the probe sees only kinetic and gravitational energy, so only an exact check brings the
+/// reference back down to the energy left after damping.
+pub const EXACT_CHECK_EVERY: u64 = 500;
+
 type Made = (Box<dyn Engine>, EngineKind, Option<String>);
 
 /// Build the engine of `kind`; `Auto` resolves to the GPU or, failing that, the fast CPU engine
@@ -401,9 +428,53 @@ pub struct Simulation {
     /// Simulated time and step count when the time step last changed.
     time_at_dt_change: f64,
     steps_at_dt_change: u64,
+    /// The divergence check's reference total energy, J.
     start_energy: f64,
+    /// The energy scale the allowed growth is a multiple of, J.
     energy_scale: f64,
+    /// The reference and scale as last taken from the state (before any correction's work).
+    base_energy: f64,
+    base_scale: f64,
+    /// Steps since the total energy was last measured exactly.
+    steps_since_exact: u64,
+    /// The springs at each node, built at the first position correction.
+    node_springs: Option<NodeSprings>,
     note: Option<String>,
+}
+
+/// The springs at each node (indices into the model's springs), packed.
+struct NodeSprings {
+    offsets: Vec<u32>,
+    springs: Vec<u32>,
+}
+
+impl NodeSprings {
+    fn of(model: &PackedModel) -> Self {
+        let n = model.node_count();
+        let mut offsets = vec![0u32; n + 1];
+        for s in &model.springs {
+            for i in s.nodes {
+                offsets[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut springs = vec![0u32; offsets[n] as usize];
+        for (k, s) in model.springs.iter().enumerate() {
+            for i in s.nodes {
+                springs[fill[i as usize] as usize] = k as u32;
+                fill[i as usize] += 1;
+            }
+        }
+        NodeSprings { offsets, springs }
+    }
+
+    fn of_node(&self, i: u32) -> &[u32] {
+        let i = i as usize;
+        &self.springs[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
 }
 
 impl Simulation {
@@ -446,6 +517,10 @@ impl Simulation {
             steps_at_dt_change: 0,
             start_energy: 0.0,
             energy_scale: 0.0,
+            base_energy: 0.0,
+            base_scale: 0.0,
+            steps_since_exact: 0,
+            node_springs: None,
             note,
         };
         sim.reset_energy_reference();
@@ -477,6 +552,8 @@ impl Simulation {
             .sum();
         self.start_energy = e.total();
         self.energy_scale = e.kinetic.abs() + e.elastic.abs() + gravity_scale + strain_floor;
+        self.base_energy = self.start_energy;
+        self.base_scale = self.energy_scale;
     }
 
     /// Apply a change to the model between steps (what a cut produces): the GPU engine patches
@@ -540,10 +617,13 @@ impl Simulation {
         };
         debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
         self.bound = bound;
+        self.node_springs = None;
         // The divergence reference follows the energy the change took out of or put into the
         // springs it touched (splitting a node shares its mass and keeps its velocity, so the
         // kinetic and gravitational energies do not change; carving only lowers them).
-        self.start_energy += elastic_after - elastic_before;
+        let delta = elastic_after - elastic_before;
+        self.start_energy += delta;
+        self.base_energy += delta;
         Ok(cost)
     }
 
@@ -649,6 +729,10 @@ impl Simulation {
     }
 
     /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.
+    /// A check that measures the total energy exactly also lowers the reference that position
+    /// corrections raised (see [`Simulation::correct_positions`]): every check on the CPU
+    /// engines; on the GPU, whose checks read a cheap probe, one every [`EXACT_CHECK_EVERY`]
+    /// steps while corrections hold the reference up.
     pub fn run(&mut self, steps: u64) -> Result<()> {
         self.run_with(steps, |_| {})
     }
@@ -661,7 +745,20 @@ impl Simulation {
             self.engine.step(chunk);
             self.steps += chunk as u64;
             done += chunk as u64;
-            self.check()?;
+            let mut exact = self.check_total()?;
+            self.steps_since_exact += chunk as u64;
+            // Engines with a cheap probe measure the total only now and then, while
+            // corrections hold the reference more than a scale above where it was taken.
+            if exact.is_none()
+                && self.steps_since_exact >= EXACT_CHECK_EVERY
+                && self.start_energy > self.base_energy + self.base_scale
+            {
+                exact = Some(self.check_exact()?);
+            }
+            if let Some(total) = exact {
+                self.tighten_reference(total);
+                self.steps_since_exact = 0;
+            }
             progress(done);
         }
         Ok(())
@@ -698,15 +795,25 @@ impl Simulation {
     /// nothing more is read; otherwise, or when a node is not finite, the whole state is read
     /// and checked exactly, which names the node.
     pub fn check(&self) -> Result<()> {
+        self.check_total().map(|_| ())
+    }
+
+    /// [`Simulation::check`], returning the total energy where it was computed exactly.
+    fn check_total(&self) -> Result<Option<f64>> {
         if let Some(h) = self.engine.health()? {
             let lower = h.kinetic + h.gravity;
             if h.non_finite.is_none()
                 && lower.is_finite()
                 && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale
             {
-                return Ok(());
+                return Ok(None);
             }
         }
+        self.check_exact().map(Some)
+    }
+
+    /// The exact check over the whole state; returns the total energy.
+    fn check_exact(&self) -> Result<f64> {
         let (x, v) = self.engine.state();
         let bad = x
             .iter()
@@ -743,7 +850,20 @@ impl Simulation {
                 ),
             });
         }
-        Ok(())
+        Ok(total)
+    }
+
+    /// Corrections raise the reference by their work, an upper bound of the energy (damping
+    /// only takes energy out); where a check has measured the total exactly (every check on
+    /// the CPU engines; on the GPU a failed lower bound, or every [`EXACT_CHECK_EVERY`] steps
+    /// while the reference is up) and found it lower, the reference comes
+    /// down to it, never below where it was last taken from the state. The scale keeps the
+    /// growth of the reference above that level.
+    fn tighten_reference(&mut self, total: f64) {
+        if total < self.start_energy {
+            self.start_energy = total.max(self.base_energy.min(self.start_energy));
+            self.energy_scale = self.base_scale + (self.start_energy - self.base_energy).max(0.0);
+        }
     }
 
     fn energy_of(&self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Energy {
@@ -752,6 +872,14 @@ impl Simulation {
             elastic: self.model.elastic_energy(x),
             gravity: self.model.gravity_energy(x),
         }
+    }
+
+    /// What the divergence check compares against: the reference total energy, J (the energy
+    /// when the run started or its state was last set, plus the work of every position
+    /// correction since), and the energy scale, J, of which [`ENERGY_GROWTH_LIMIT`] times is
+    /// the allowed growth above the reference.
+    pub fn energy_reference(&self) -> (f64, f64) {
+        (self.start_energy, self.energy_scale)
     }
 
     /// Energies of the current state.
@@ -830,6 +958,54 @@ impl Simulation {
         ))
     }
 
+    /// Broad phase, tissue against itself: pairs of surface triangles (indices into the
+    /// surface given to [`Simulation::set_surface`], t < u, sorted) that share no node and whose
+    /// boxes, widened by `margin / 2` (m) on every side, overlap. On the GPU engine the spatial
+    /// hash runs on the device and only the pairs come back; elsewhere its CPU twin
+    /// ([`crate::collide::self_broad::self_pairs_cpu`]) runs over the current positions. Either
+    /// way no pair the float64 brute force finds is missed.
+    pub fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>> {
+        use crate::collide::self_broad::{self_pairs_cpu, GridParams};
+        if !(margin.is_finite() && margin >= 0.0) {
+            return Err(Error::Options(format!(
+                "self-contact margin must be zero or positive and finite, got {margin} m"
+            )));
+        }
+        let Some(triangles) = &self.surface else {
+            return Err(Error::Model(
+                "no surface to cull: call set_surface with the boundary triangles first".into(),
+            ));
+        };
+        if let Some(pairs) = self.engine.cull_self(margin)? {
+            return Ok(pairs);
+        }
+        // The twin over float32 rest positions plus float32 displacements, as on the device.
+        let rest = &self.model.rest;
+        let x = self.engine.positions();
+        let f4 = |p: [f64; 3]| [p[0] as f32, p[1] as f32, p[2] as f32, 0.0];
+        let rest32: Vec<[f32; 4]> = rest.iter().map(|&r| f4(r)).collect();
+        let disp32: Vec<[f32; 4]> = x
+            .iter()
+            .zip(rest)
+            .map(|(p, r)| f4([p[0] - r[0], p[1] - r[1], p[2] - r[2]]))
+            .collect();
+        let mut grid = GridParams::for_surface(rest, triangles, margin);
+        for _ in 0..40 {
+            if let Some(pairs) = self_pairs_cpu(&grid, &rest32, &disp32, triangles) {
+                return Ok(pairs);
+            }
+            // The surface stretched past the grid: coarser cells, as the device does.
+            grid.inv_cell *= 0.5;
+        }
+        Err(Error::Diverged {
+            step: self.steps,
+            node: 0,
+            reason: "the tissue surface stretched beyond any grid cell (non-finite or enormous \
+                     positions)"
+                .into(),
+        })
+    }
+
     /// Positions of a few nodes (model indices), m: on the GPU only those are read back.
     pub fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
         self.engine.node_positions(nodes)
@@ -845,15 +1021,78 @@ impl Simulation {
     /// Move nodes between steps (contact response by position correction); see
     /// [`Engine::correct_positions`].
     ///
-    /// The move is work done on the tissue from outside (a tool's push), so the energy the
-    /// divergence check compares against is taken again from the corrected state (on the GPU a
-    /// readback of the state, once per correcting step).
+    /// The move is work done on the tissue from outside (a tool's push, a self-contact
+    /// separation), so the energy the divergence check compares against grows by that work:
+    /// the change of the total energy the move makes, computed from the moved nodes alone (their
+    /// positions and velocities before, and the springs at them with their other ends), with
+    /// the velocity the integrator gives the move (`dx / dt`). The energy scale grows with the
+    /// reference above where it was last taken from the state, so that the check's margin stays
+    /// in proportion to the energy brought in; a later check that measures the total exactly
+    /// lowers both again where the energy went (see [`Simulation::run`]). On the GPU only the
+    /// moved nodes and their spring neighbours are read back, not the state.
     pub fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
+        check_correction(nodes, positions, self.model.node_count())?;
+        let work = self.correction_work(nodes, positions)?;
         self.engine.correct_positions(nodes, positions)?;
-        if !nodes.is_empty() {
-            self.reset_energy_reference();
-        }
+        self.start_energy += work;
+        self.energy_scale = self.base_scale + (self.start_energy - self.base_energy).max(0.0);
         Ok(())
+    }
+
+    /// The change of total energy (kinetic, elastic, gravitational, as [`Simulation::energy`]
+    /// counts them) that moving `nodes` to `positions` makes, J. Fixed nodes do not move; a
+    /// node listed twice takes its last position, as the engines do.
+    pub fn correction_work(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<f64> {
+        let m = &self.model;
+        let mut to: std::collections::BTreeMap<u32, [f64; 3]> = Default::default();
+        for (&i, &p) in nodes.iter().zip(positions) {
+            if !m.fixed[i as usize] {
+                to.insert(i, p);
+            }
+        }
+        if to.is_empty() {
+            return Ok(0.0);
+        }
+        let moved: Vec<u32> = to.keys().copied().collect();
+        let node_springs = self.node_springs.get_or_insert_with(|| NodeSprings::of(m));
+        let mut springs: Vec<u32> = moved
+            .iter()
+            .flat_map(|&i| node_springs.of_node(i).iter().copied())
+            .collect();
+        springs.sort_unstable();
+        springs.dedup();
+        let mut ends: Vec<u32> = springs
+            .iter()
+            .flat_map(|&s| m.springs[s as usize].nodes)
+            .chain(moved.iter().copied())
+            .collect();
+        ends.sort_unstable();
+        ends.dedup();
+        let x = self.engine.node_positions(&ends)?;
+        let v = self.engine.node_velocities(&moved)?;
+        let at = |i: u32| x[ends.binary_search(&i).expect("every end was read")];
+        let g = m.gravity;
+        let inv_h = 1.0 / self.config.dt;
+        let mut work = 0.0;
+        for (k, (&i, p)) in to.iter().enumerate() {
+            let (old, mass) = (at(i), m.mass[i as usize]);
+            let dx = [0, 1, 2].map(|c| p[c] - old[c]);
+            let v1 = [0, 1, 2].map(|c| v[k][c] + dx[c] * inv_h);
+            let sq = |a: [f64; 3]| a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+            work += 0.5 * mass * (sq(v1) - sq(v[k]));
+            work -= mass * (dx[0] * g[0] + dx[1] * g[1] + dx[2] * g[2]);
+        }
+        let spring_energy = |s: &crate::model::PackedSpring, a: [f64; 3], b: [f64; 3]| {
+            let l = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+            0.5 * s.stiffness * (l - s.rest_length).powi(2)
+        };
+        for &s in &springs {
+            let s = &m.springs[s as usize];
+            let [a, b] = s.nodes;
+            let after = |i: u32| to.get(&i).copied().unwrap_or_else(|| at(i));
+            work += spring_energy(s, after(a), after(b)) - spring_energy(s, at(a), at(b));
+        }
+        Ok(work)
     }
 
     /// Current positions, m, in packed node order.

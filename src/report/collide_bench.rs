@@ -20,7 +20,7 @@ use crate::engine::{Engine, EngineKind, SimConfig, Simulation};
 use crate::error::Result;
 use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;
-use crate::model::{Material, ModelConfig, SpringModel};
+use crate::model::{Material, ModelConfig, PackedModel, SpringModel};
 
 /// One row: a surface size and a tool count.
 #[derive(Debug, Clone, Serialize)]
@@ -55,6 +55,54 @@ pub struct CollideRow {
     pub cpu_pose_to_force_ms: f64,
 }
 
+/// A benchmark surface: a thin slab of `cells x cells x 1` cells of 2 mm (so that the boundary
+/// is large for its volume), its model and its boundary.
+pub struct Slab {
+    /// Cells along x and y.
+    pub cells: usize,
+    /// The spring model (soft tissue, no gravity, nothing fixed).
+    pub model: PackedModel,
+    /// Its boundary triangles.
+    pub surface: Surface,
+}
+
+impl Slab {
+    /// The slab with about `triangles` boundary triangles (about `4 n^2` for `n x n` cells).
+    pub fn with_triangles(triangles: usize) -> Result<Self> {
+        let n = ((triangles as f64 / 4.0).sqrt().ceil() as usize).max(2);
+        let mesh = BoxGrid::cube_cells([n, n, 1], 0.002).build()?;
+        let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))?
+            .pack(&mesh)?;
+        Ok(Slab {
+            cells: n,
+            model,
+            surface: Surface::of(&mesh),
+        })
+    }
+
+    /// `k` tool boxes of 2 mm half-size at spread-out surface points of positions `x` (a
+    /// probe's contact region).
+    pub fn tool_boxes(&self, x: &[[f64; 3]], k: usize) -> Vec<ToolBox> {
+        let tris = &self.surface.triangles;
+        (0..k)
+            .map(|i| {
+                let t = tris[(i * 7919 + 13) % tris.len()];
+                let p = x[t[0] as usize];
+                ToolBox::containing(p.map(|c| c - 2e-3), p.map(|c| c + 2e-3))
+            })
+            .collect()
+    }
+
+    /// A 3 mm sphere pressed 0.5 mm into the slab's top, over its centre.
+    pub fn pressed_probe(&self) -> Result<Tool> {
+        let centre = 0.5 * self.cells as f64 * 0.002;
+        Tool::new(
+            ToolShape::Sphere { radius: 3e-3 },
+            Isometry3::translation(centre, centre, 0.002 + 2.5e-3),
+        )
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -70,16 +118,12 @@ pub fn run(
     let mut rows = Vec::new();
     let mut device = String::new();
     for &want in triangles {
-        // A slab of n x n x 1 cells of 2 mm: its boundary has about 4 n^2 triangles.
-        let n = ((want as f64 / 4.0).sqrt().ceil() as usize).max(2);
-        let mesh = BoxGrid::cube_cells([n, n, 1], 0.002).build()?;
-        let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))?
-            .pack(&mesh)?;
-        let surface = Surface::of(&mesh);
+        let slab = Slab::with_triangles(want)?;
+        let (model, surface) = (&slab.model, &slab.surface);
         let ctx = GpuContext::new()?;
         device = ctx.describe();
         let mut engine =
-            GpuEngine::with_context(ctx, &model, SimConfig::new(1e-5), LayoutKind::Connectivity)?;
+            GpuEngine::with_context(ctx, model, SimConfig::new(1e-5), LayoutKind::Connectivity)?;
         engine.set_surface(&surface.triangles)?;
         engine.step(1);
         engine.wait();
@@ -89,13 +133,7 @@ pub fn run(
         let x = engine.positions();
         for &k in tools {
             // Tools of 2 mm half-size at spread-out surface points: a probe's contact region.
-            let boxes: Vec<ToolBox> = (0..k)
-                .map(|i| {
-                    let t = surface.triangles[(i * 7919 + 13) % surface.triangles.len()];
-                    let p = x[t[0] as usize];
-                    ToolBox::containing(p.map(|c| c - 2e-3), p.map(|c| c + 2e-3))
-                })
-                .collect();
+            let boxes = slab.tool_boxes(&x, k);
             let (mut gpu, mut cpu, mut found) = (Vec::new(), Vec::new(), 0usize);
             engine.cull_tools(&boxes)?; // warm-up: pipeline compilation
             for _ in 0..repeats {
@@ -160,11 +198,7 @@ pub fn run(
             }
             // A 3 mm sphere pressed 0.5 mm into the slab's top: time the narrow phase per
             // candidate and the whole response, from pose to force.
-            let centre = 0.5 * n as f64 * 0.002;
-            let probe = Tool::new(
-                ToolShape::Sphere { radius: 3e-3 },
-                Isometry3::translation(centre, centre, 0.002 + 2.5e-3),
-            )?;
+            let probe = slab.pressed_probe()?;
             let b = probe.step_bounds(1e-5);
             let probe_box = [ToolBox::containing(
                 b.min.coords.into(),

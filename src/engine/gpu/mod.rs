@@ -958,6 +958,38 @@ impl Engine for GpuEngine {
             .collect())
     }
 
+    fn node_velocities(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        if nodes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let n = self.rest.len();
+        if let Some(&i) = nodes.iter().find(|&&i| i as usize >= n) {
+            return Err(super::bad_node(i, n));
+        }
+        let rank = &self.layout.order().rank;
+        let idx: Vec<u32> = nodes.iter().map(|&i| rank[i as usize]).collect();
+        let b = self.state.bindings(self.phase);
+        let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
+        let cur = match self.state.integrator {
+            Integrator::Verlet => buffers::read_entries(&self.ctx, b.cur, &idx)?,
+            Integrator::SymplecticEuler => Vec::new(),
+        };
+        let dt = self.config.dt;
+        Ok(nodes
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                if self.fixed[i as usize] {
+                    return [0.0; 3];
+                }
+                [0, 1, 2].map(|c| match self.state.integrator {
+                    Integrator::Verlet => (cur[k][c] as f64 - second[k][c] as f64) / dt,
+                    Integrator::SymplecticEuler => second[k][c] as f64,
+                })
+            })
+            .collect())
+    }
+
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
         super::check_correction(nodes, positions, self.rest.len())?;
         let rank = &self.layout.order().rank;
@@ -1006,6 +1038,10 @@ impl Engine for GpuEngine {
 
     fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<Option<Vec<[u32; 2]>>> {
         GpuEngine::cull_tools(self, boxes).map(|r| Some(r.candidates))
+    }
+
+    fn cull_self(&mut self, margin: f64) -> Result<Option<Vec<[u32; 2]>>> {
+        GpuEngine::cull_self(self, margin).map(|r| Some(r.pairs))
     }
 
     fn health(&self) -> Result<Option<Health>> {
