@@ -602,6 +602,12 @@ fn print_summary(s: &RunSummary) {
             );
         }
     }
+    if s.self_contact_steps > 0 {
+        println!(
+            "self-contact: {} steps in contact, deepest penetration {:.2e} m before resolution",
+            s.self_contact_steps, s.self_contact_deepest
+        );
+    }
     if let Some(c) = &s.cuts {
         println!(
             "cuts ({}): {} steps cut, {} tets touched ({} removed), {} nodes added, {} springs \

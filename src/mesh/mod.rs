@@ -222,6 +222,18 @@ impl TetMesh {
         Ok(())
     }
 
+    /// Add every node and tet of `other` (as a separate piece; nothing is merged).
+    pub fn append(&mut self, other: &TetMesh) -> Result<()> {
+        let mut map: SecondaryMap<NodeKey, NodeKey> = SecondaryMap::new();
+        for (k, n) in other.nodes() {
+            map.insert(k, self.add_node(n.rest));
+        }
+        for (_, t) in other.tets() {
+            self.add_tet(t.nodes.map(|k| map[k]), t.region)?;
+        }
+        Ok(())
+    }
+
     /// Move a node's rest position (used by cuts that snap nodes). Does not re-check tets.
     pub fn set_rest(&mut self, key: NodeKey, p: Point3<f64>) -> Option<()> {
         self.nodes.get_mut(key).map(|n| n.rest = p)

@@ -89,6 +89,10 @@ pub struct RunSummary {
     pub cut_method: Option<String>,
     /// What the cuts did (scenes that cut).
     pub cuts: Option<super::cuts::CutReport>,
+    /// Steps at which the tissue's surfaces touched each other (scenes with self-contact).
+    pub self_contact_steps: u64,
+    /// Deepest self-penetration found before it was resolved, m.
+    pub self_contact_deepest: f64,
     /// Each expectation's outcome.
     pub expectations: Vec<ExpectationResult>,
     /// Whether all expectations held (and the run neither diverged nor was refused, unless
@@ -105,6 +109,13 @@ pub fn build_mesh(scene: &Scene, scene_path: &Path) -> Result<TetMesh> {
             crate::mesh::io::read(&p)?.mesh
         }
         MeshSource::Box(b) => b.build()?,
+        MeshSource::Boxes(boxes) => {
+            let mut mesh = TetMesh::new();
+            for b in boxes {
+                mesh.append(&b.build()?)?;
+            }
+            mesh
+        }
         MeshSource::Beam {
             length,
             width,
@@ -219,6 +230,8 @@ pub fn run_scene(
         tools: Vec::new(),
         cut_method: None,
         cuts: None,
+        self_contact_steps: 0,
+        self_contact_deepest: 0.0,
         expectations: Vec::new(),
         expectations_passed: false,
     };
@@ -313,6 +326,8 @@ pub fn run_scene(
     let mut mesh = mesh;
     if let Some(stage) = stage {
         summary.tools = stage.reports;
+        summary.self_contact_steps = stage.self_contact_steps;
+        summary.self_contact_deepest = stage.self_contact_deepest;
         if let Some(cut) = stage.cut {
             let (cut_mesh, report) = cut.finish(&x);
             mesh = cut_mesh;

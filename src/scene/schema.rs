@@ -36,6 +36,8 @@ pub enum MeshSource {
     File(String),
     /// A generated box of cells.
     Box(BoxGrid),
+    /// Several generated boxes in one mesh (separate pieces, e.g. a block dropped on another).
+    Boxes(Vec<BoxGrid>),
     /// A generated beam along x.
     Beam {
         /// Length along x, m.
@@ -286,6 +288,31 @@ pub struct Scene {
     /// Cutting: the blades among `tools` cut the mesh as they sweep through it.
     #[serde(default)]
     pub cut: Option<super::cuts::SceneCut>,
+    /// Tissue against itself: each step its surfaces that come closer than `thickness` are
+    /// pushed apart symmetrically (`collide::self_response`).
+    #[serde(default)]
+    pub self_contact: Option<SceneSelfContact>,
+}
+
+/// Self-contact settings of a scene.
+///
+/// ```ron
+/// self_contact: Some((thickness: 1e-4, max_depth: 1e-3)),
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SceneSelfContact {
+    /// Surfaces are kept this far apart, m.
+    pub thickness: f64,
+    /// How far behind the other surface a node may be and still be pushed back out, m (keep it
+    /// below the size of a surface element).
+    pub max_depth: f64,
+    /// Sweeps over the contacts per step.
+    #[serde(default = "default_self_contact_iterations")]
+    pub iterations: usize,
+}
+
+fn default_self_contact_iterations() -> usize {
+    8
 }
 
 /// A tool in a scene: a name for reports, a rigid shape, and how it moves.

@@ -16,6 +16,7 @@ use crate::collide::{
     broad::Surface,
     grasp::Grasp,
     response::{resolve_contacts_excluding, ContactSettings},
+    self_response::{resolve_self_contacts, SelfContactSettings},
     Tool, ToolShape,
 };
 
@@ -31,6 +32,12 @@ pub struct ToolStage {
     pub reports: Vec<ToolReport>,
     /// Cutting, for scenes with a `cut` section: its blades cut instead of pushing.
     pub cut: Option<super::cuts::CutStage>,
+    /// Self-contact, for scenes with a `self_contact` section.
+    self_contact: Option<SelfContactSettings>,
+    /// Steps at which surfaces of the tissue touched each other.
+    pub self_contact_steps: u64,
+    /// Deepest self-penetration found before it was resolved, m.
+    pub self_contact_deepest: f64,
 }
 
 #[cfg(feature = "collide")]
@@ -38,7 +45,7 @@ impl ToolStage {
     /// The stage for `scene`'s tools (`None` when it has none), with the mesh's boundary given
     /// to the simulation for culling.
     pub fn new(scene: &Scene, mesh: &TetMesh, sim: &mut Simulation) -> Result<Option<Self>> {
-        if scene.tools.is_empty() {
+        if scene.tools.is_empty() && scene.self_contact.is_none() {
             return Ok(None);
         }
         sim.set_surface(Surface::of(mesh).triangles)?;
@@ -67,6 +74,13 @@ impl ToolStage {
                 })
                 .collect(),
             cut: None,
+            self_contact: scene.self_contact.map(|s| SelfContactSettings {
+                thickness: s.thickness,
+                max_depth: s.max_depth,
+                iterations: s.iterations,
+            }),
+            self_contact_steps: 0,
+            self_contact_deepest: 0.0,
         }))
     }
 
@@ -137,6 +151,11 @@ impl ToolStage {
             r.max_depth = r.max_depth.max(f.deepest);
             r.contact_steps += u64::from(f.contacts > 0);
         }
+        if let Some(settings) = &self.self_contact {
+            let r = resolve_self_contacts(sim, settings)?;
+            self.self_contact_steps += u64::from(r.vertex_face + r.edge_edge > 0);
+            self.self_contact_deepest = self.self_contact_deepest.max(r.deepest);
+        }
         Ok(())
     }
 }
@@ -148,13 +167,17 @@ pub struct ToolStage {
     pub reports: Vec<ToolReport>,
     /// Never made.
     pub cut: Option<super::cuts::CutStage>,
+    /// Never counted.
+    pub self_contact_steps: u64,
+    /// Never measured.
+    pub self_contact_deepest: f64,
 }
 
 #[cfg(not(feature = "collide"))]
 impl ToolStage {
     /// `None` for a scene without tools; an error otherwise.
     pub fn new(scene: &Scene, _: &TetMesh, _: &mut Simulation) -> Result<Option<Self>> {
-        if scene.tools.is_empty() {
+        if scene.tools.is_empty() && scene.self_contact.is_none() {
             return Ok(None);
         }
         Err(crate::Error::Unsupported(
