@@ -1,8 +1,11 @@
 //! # lancet
 //!
 //! Soft-tissue simulation with cutting, for surgical simulators: unstructured tetrahedral
-//! meshes, a mass-spring engine (float64 reference and fast float32 CPU engines; GPU layouts
-//! to come), scenes with checked expectations.
+//! meshes ([`mesh`]), a mass-spring model ([`model`]) stepped by a float64 reference engine, a
+//! fast float32 CPU engine or a wgpu engine in three memory layouts ([`engine`], [`layout`]),
+//! surgical tools with GPU broad phase, parry3d narrow phase and contact response
+//! ([`collide`]), incisions that edit the mesh and patch the engine ([`cut`]), scenes with
+//! checked expectations and reports.
 //!
 //! ```
 //! use lancet::mesh::generate::BoxGrid;
