@@ -378,8 +378,15 @@ impl GpuEngine {
     /// build a new one.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<PatchCost> {
         let patch = self.layout.patch(model, diff)?;
-        self.rest = model.rest.clone();
-        self.fixed = model.fixed.clone();
+        // A diff only appends nodes and changes the fixed flags it names: copy just those, not
+        // the whole arrays (a local cut on a large mesh).
+        let before = self.rest.len();
+        self.rest.extend_from_slice(&model.rest[before..]);
+        self.fixed.extend_from_slice(&model.fixed[before..]);
+        for c in &diff.changed_nodes {
+            self.fixed[c.node as usize] = model.fixed[c.node as usize];
+        }
+        debug_assert_eq!(self.fixed, model.fixed);
         let slots = self.layout.node_slots();
         let mut realloc = patch.repacked;
         if slots > self.state.capacity() {
