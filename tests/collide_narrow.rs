@@ -207,23 +207,7 @@ fn point_tet_signed(p: &P, tet: &[P; 4]) -> f64 {
 
 #[path = "common/splitmix.rs"]
 mod splitmix;
-use splitmix::Rng;
-
-const ORIGIN: [f64; 3] = [0.3, -0.2, 0.5];
-
-/// A triangle with edges of 2 to 5 mm near (0.3, -0.2, 0.5) m.
-fn random_triangle(rng: &mut Rng) -> [P; 3] {
-    let centre = P::from(ORIGIN) + rng.unit() * rng.range(0.0, 0.01);
-    loop {
-        let tri = [0; 3].map(|_| centre + rng.unit() * rng.range(0.0, 0.003));
-        let edges = [0, 1, 2].map(|i| (tri[(i + 1) % 3] - tri[i]).norm());
-        let area = 0.5 * (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).norm();
-        let longest = edges.iter().cloned().fold(0.0, f64::max);
-        if edges.iter().all(|&e| (0.002..=0.005).contains(&e)) && area > 0.2 * longest * longest {
-            return tri;
-        }
-    }
-}
+use splitmix::{random_triangle, Rng, ORIGIN};
 
 /// A probe (or sphere when `length == 0`) of radius 1 to 3 mm placed so that its surface is
 /// about `sep` from a random point of the triangle; the exact distance is computed separately.

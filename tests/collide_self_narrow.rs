@@ -22,23 +22,7 @@ const TOLERANCE: f64 = 1e-6;
 
 #[path = "common/splitmix.rs"]
 mod splitmix;
-use splitmix::Rng;
-
-const ORIGIN: [f64; 3] = [0.3, -0.2, 0.5];
-
-/// A triangle with edges of 2 to 5 mm near (0.3, -0.2, 0.5) m.
-fn random_triangle(rng: &mut Rng) -> [P; 3] {
-    let centre = P::from(ORIGIN) + rng.unit() * rng.range(0.0, 0.01);
-    loop {
-        let tri = [0; 3].map(|_| centre + rng.unit() * rng.range(0.0, 0.003));
-        let edges = [0, 1, 2].map(|i| (tri[(i + 1) % 3] - tri[i]).norm());
-        let area = 0.5 * (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).norm();
-        let longest = edges.iter().cloned().fold(0.0, f64::max);
-        if edges.iter().all(|&e| (0.002..=0.005).contains(&e)) && area > 0.2 * longest * longest {
-            return tri;
-        }
-    }
-}
+use splitmix::{random_triangle, Rng, ORIGIN};
 
 fn at(t: &[P; 3], w: [f64; 3]) -> P {
     P::from(t[0].coords * w[0] + t[1].coords * w[1] + t[2].coords * w[2])

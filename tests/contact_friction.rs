@@ -41,20 +41,7 @@ fn step(
     to: Isometry3<f64>,
     s: &ContactSettings,
 ) -> ToolForce {
-    tool.set_pose(to);
-    sim.run(1).unwrap();
-    let f = resolve_contacts(sim, std::slice::from_ref(tool), s).unwrap()[0];
-    // No node ends the step inside the sphere by more than 20 um (as in the press test).
-    let centre = tool.pose().translation.vector;
-    for p in sim.positions() {
-        let d = (Vector3::from(p) - centre).norm();
-        assert!(
-            d > RADIUS - 2e-5,
-            "a node is {:.2e} m inside the probe",
-            RADIUS - d
-        );
-    }
-    f
+    tissue::step_sphere(sim, tool, to, s, RADIUS)
 }
 
 /// Press the sphere in slowly (1 um per step) and let the block settle under it.

@@ -9,7 +9,7 @@ mod tissue;
 
 mod common;
 
-use lancet::collide::response::{resolve_contacts, ContactSettings};
+use lancet::collide::response::ContactSettings;
 use lancet::collide::{Tool, ToolShape};
 use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::{BoxGrid, TetSplit};
@@ -43,21 +43,7 @@ fn step(
     to: Isometry3<f64>,
     s: &ContactSettings,
 ) -> Vector3<f64> {
-    tool.set_pose(to);
-    sim.run(1).unwrap();
-    let f = resolve_contacts(sim, std::slice::from_ref(tool), s).unwrap()[0];
-    let centre = tool.pose().translation.vector;
-    // Tolerance: the probe advances at most 1 um per step; corrections leave a node at most
-    // a few um inside where several contacts pull on it.
-    for p in sim.positions() {
-        let d = (Vector3::from(p) - centre).norm();
-        assert!(
-            d > RADIUS - 2e-5,
-            "a node is {:.2e} m inside the probe",
-            RADIUS - d
-        );
-    }
-    f.force
+    tissue::step_sphere(sim, tool, to, s, RADIUS).force
 }
 
 #[rstest]

@@ -267,15 +267,10 @@ impl Cutter {
                         x
                     }
                 };
-                let position: Vec<Point3<f64>> =
-                    self.mesh.nodes().map(|(k, _)| position(k)).collect();
-                let dense = self.dense.clone();
-                self.subdivide(
-                    sweep,
-                    &|k| position[dense[k] as usize],
-                    &candidates,
-                    &mut outcome,
-                )?;
+                // Taken out of `self` before the edit borrows it mutably.
+                let at: SecondaryMap<NodeKey, Point3<f64>> =
+                    self.mesh.nodes().map(|(k, _)| (k, position(k))).collect();
+                self.subdivide(sweep, &|k| at[k], &candidates, &mut outcome)?;
             }
         }
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;

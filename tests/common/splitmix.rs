@@ -1,9 +1,10 @@
-//! SplitMix64: a small seeded generator for the narrow-phase tests, so that failures
-//! reproduce.
+//! SplitMix64, a small seeded generator for the narrow-phase tests (so that failures
+//! reproduce), and the random millimetre triangles they are built from.
 #![allow(dead_code)] // each test file uses a different subset
 
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 
+type P = Point3<f64>;
 type V = Vector3<f64>;
 
 /// The generator's state.
@@ -42,5 +43,22 @@ impl Rng {
             (u, v)
         };
         [1.0 - u - v, u, v]
+    }
+}
+
+/// Where the random configurations lie, m: half a metre from the origin of the scene.
+pub const ORIGIN: [f64; 3] = [0.3, -0.2, 0.5];
+
+/// A triangle with edges of 2 to 5 mm near (0.3, -0.2, 0.5) m.
+pub fn random_triangle(rng: &mut Rng) -> [P; 3] {
+    let centre = P::from(ORIGIN) + rng.unit() * rng.range(0.0, 0.01);
+    loop {
+        let tri = [0; 3].map(|_| centre + rng.unit() * rng.range(0.0, 0.003));
+        let edges = [0, 1, 2].map(|i| (tri[(i + 1) % 3] - tri[i]).norm());
+        let area = 0.5 * (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).norm();
+        let longest = edges.iter().cloned().fold(0.0, f64::max);
+        if edges.iter().all(|&e| (0.002..=0.005).contains(&e)) && area > 0.2 * longest * longest {
+            return tri;
+        }
     }
 }
