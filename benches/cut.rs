@@ -76,9 +76,7 @@ impl Incision {
         let outcome = self.cutter.cut(&sweep, &positions).expect("cut");
         if !outcome.is_empty() {
             self.sim.apply(&outcome.diff).expect("patch");
-            self.sim
-                .set_surface(self.cutter.surface())
-                .expect("surface");
+            self.sim.edit_surface(&outcome.surface).expect("surface");
         }
         Some(start.elapsed())
     }

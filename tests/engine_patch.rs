@@ -88,6 +88,7 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
     let mut sim = Simulation::new(model.clone(), EngineKind::Fast, SimConfig::new(dt)).unwrap();
     sim.run(5).unwrap();
     let x = sim.positions();
+    let bound = sim.bound().clone();
     // A spring a thousand times stiffer than any other across a free node.
     let s = model
         .springs
@@ -107,4 +108,29 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
     }
     assert_eq!(sim.model(), &model);
     assert_eq!(sim.positions(), x);
+    assert_eq!(
+        sim.bound(),
+        &bound,
+        "the refused change moved the stable bound"
+    );
+
+    // An invalid diff (a spring that does not exist, next to a valid change) is refused with
+    // nothing changed either, bound included.
+    let n = model.node_count() as u32;
+    let invalid = ModelDiff {
+        changed_springs: vec![PackedSpring {
+            stiffness: s.stiffness * 0.5,
+            ..*s
+        }],
+        removed_springs: vec![[0, n + 7]],
+        ..ModelDiff::default()
+    };
+    assert!(matches!(sim.apply(&invalid), Err(Error::Model(_))));
+    assert_eq!(sim.model(), &model);
+    assert_eq!(sim.positions(), x);
+    assert_eq!(
+        sim.bound(),
+        &bound,
+        "the invalid change moved the stable bound"
+    );
 }

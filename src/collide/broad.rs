@@ -30,6 +30,25 @@ impl Surface {
     }
 }
 
+/// A change to the boundary surface, as a cut produces it
+/// ([`crate::cut::CutOutcome::surface`]): triangles (dense node indices, outward) that left
+/// the boundary and triangles that joined it. [`crate::Simulation::edit_surface`] applies it in
+/// place, so a local cut writes a few triangles rather than the whole surface.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SurfaceEdit {
+    /// Triangles no longer on the boundary, as they were given.
+    pub removed: Vec<[u32; 3]>,
+    /// Triangles now on the boundary.
+    pub added: Vec<[u32; 3]>,
+}
+
+impl SurfaceEdit {
+    /// Whether the edit changes nothing.
+    pub fn is_empty(&self) -> bool {
+        self.removed.is_empty() && self.added.is_empty()
+    }
+}
+
 /// An axis-aligned box, m. Mirrors `struct ToolBox` in `shaders/broad_tool.wgsl` (32 bytes:
 /// the fourth lanes are padding).
 #[repr(C)]

@@ -6,6 +6,7 @@
 //! material the blade actually passed through.
 
 use nalgebra::Point3;
+use slotmap::SecondaryMap;
 
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
@@ -16,16 +17,23 @@ use crate::mesh::{TetKey, TetMesh};
 pub type Corners = [Point3<f64>; 4];
 
 /// Tets that may meet the sweep, in key order (the candidates of the exact tests below): the
-/// tets of every node within `reach` of the sweep's bounds, at `positions` (dense order, the
-/// mesh's node order). A tet meeting the sweep has a corner within its longest edge of it, so
-/// `reach` must be at least the longest current edge near the blade; the cutter uses twice the
-/// longest rest edge. Scanning nodes rather than tets reads one position per node.
+/// tets at nodes within `reach` of the sweep's bounds (at `positions`, dense order, the mesh's
+/// node order) whose own bounds, at their classification `corners` grown by `margin`, overlap
+/// the sweep's. A tet meeting the sweep has a corner within its longest edge of it, so `reach`
+/// must be at least the longest current edge near the blade; the cutter uses twice the longest
+/// rest edge. Scanning nodes rather than tets reads one position per node; `visited` (stamped
+/// with `epoch`, which must differ from every earlier call's) tests each tet once.
+#[allow(clippy::too_many_arguments)]
 pub fn candidates(
     mesh: &TetMesh,
     faces: &FaceIndex,
     positions: &[[f64; 3]],
     reach: f64,
     sweep: &Sweep,
+    corners: &impl Fn(TetKey) -> Corners,
+    margin: f64,
+    visited: &mut SecondaryMap<TetKey, u32>,
+    epoch: u32,
 ) -> Vec<TetKey> {
     let Some(b) = sweep.aabb() else {
         return Vec::new();
@@ -34,37 +42,27 @@ pub fn candidates(
         b.min.coords.add_scalar(-reach),
         b.max.coords.add_scalar(reach),
     );
-    let mut out: Vec<TetKey> = Vec::new();
-    for ((k, _), p) in mesh.nodes().zip(positions) {
-        if (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
-            out.extend_from_slice(faces.tets_at(k));
-        }
-    }
-    out.sort();
-    out.dedup();
-    out
-}
-
-/// Keep the candidates whose bounds (at their classification corners, grown by `margin`)
-/// overlap the sweep's bounds: a cheap test that spares most of them the exact ones.
-pub fn overlapping(
-    candidates: &mut Vec<TetKey>,
-    corners: &impl Fn(TetKey) -> Corners,
-    sweep: &Sweep,
-    margin: f64,
-) {
-    let Some(b) = sweep.aabb() else {
-        candidates.clear();
-        return;
-    };
-    candidates.retain(|&tk| {
+    let overlaps = |tk: TetKey| {
         let p = corners(tk);
         (0..3).all(|c| {
             let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
             let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
             lo <= b.max[c] + margin && hi >= b.min[c] - margin
         })
-    });
+    };
+    let mut out: Vec<TetKey> = Vec::new();
+    for ((k, _), p) in mesh.nodes().zip(positions) {
+        if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
+            continue;
+        }
+        for &tk in faces.tets_at(k) {
+            if visited.insert(tk, epoch) != Some(epoch) && overlaps(tk) {
+                out.push(tk);
+            }
+        }
+    }
+    out.sort();
+    out
 }
 
 /// The candidate tets that the sweep meets (exact test), in key order.

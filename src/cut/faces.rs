@@ -4,6 +4,10 @@
 //!
 //! Ordered maps keep every iteration in key order, so the same history of edits gives the same
 //! boundary in the same order (bit-identical runs).
+//!
+//! Boundary changes are journaled: [`FaceIndex::take_boundary_changes`] says which boundary
+//! triangles a cut removed and added, so the simulation's copy of the surface (and the device's)
+//! is edited in place rather than rebuilt.
 
 use std::collections::BTreeMap;
 
@@ -29,12 +33,44 @@ struct FaceUse {
     count: u8,
 }
 
+/// A boundary face: the tet it belongs to, its local face, and its corners as that tet
+/// orients them (outward).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct BoundaryFace {
+    tet: TetKey,
+    local: u8,
+    corners: [NodeKey; 3],
+}
+
+impl BoundaryFace {
+    fn of(tk: TetKey, tet: &Tet, local: usize) -> Self {
+        BoundaryFace {
+            tet: tk,
+            local: local as u8,
+            corners: TET_FACES[local].map(|i| tet.nodes[i]),
+        }
+    }
+}
+
+/// How the boundary changed since the journal was last taken: outward triangles removed and
+/// added (a face whose owning tet or orientation changed is in both).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct BoundaryChanges {
+    /// Triangles no longer on the boundary (as they were).
+    pub removed: Vec<[NodeKey; 3]>,
+    /// Triangles now on the boundary.
+    pub added: Vec<[NodeKey; 3]>,
+}
+
 /// Face adjacency, node-to-tet incidence and the boundary of a mesh.
 #[derive(Debug, Clone, Default)]
 pub struct FaceIndex {
     faces: BTreeMap<FaceId, FaceUse>,
-    boundary: BTreeMap<FaceId, (TetKey, u8)>,
+    boundary: BTreeMap<FaceId, BoundaryFace>,
     node_tets: SecondaryMap<NodeKey, Vec<TetKey>>,
+    /// Each face touched since the journal was last taken, with its boundary triangle before
+    /// the first touch (`None`: it was not on the boundary).
+    journal: BTreeMap<FaceId, Option<[NodeKey; 3]>>,
 }
 
 impl FaceIndex {
@@ -45,6 +81,7 @@ impl FaceIndex {
         for (tk, tet) in mesh.tets() {
             index.insert(tk, tet)?;
         }
+        index.journal.clear();
         Ok(index)
     }
 
@@ -52,6 +89,7 @@ impl FaceIndex {
     pub fn insert(&mut self, tk: TetKey, tet: &Tet) -> Result<()> {
         for local in 0..4 {
             let id = face_id(tet, local);
+            self.note(id);
             match self.faces.get_mut(&id) {
                 None => {
                     self.faces.insert(
@@ -61,7 +99,7 @@ impl FaceIndex {
                             count: 1,
                         },
                     );
-                    self.boundary.insert(id, (tk, local as u8));
+                    self.boundary.insert(id, BoundaryFace::of(tk, tet, local));
                 }
                 Some(u) if u.count == 1 => {
                     u.tets[1] = (tk, local as u8);
@@ -87,10 +125,13 @@ impl FaceIndex {
         Ok(())
     }
 
-    /// Remove a tet's faces and incidences (`tet` as it was when inserted).
-    pub fn remove(&mut self, tk: TetKey, tet: &Tet) {
+    /// Remove a tet's faces and incidences (`tet` as it was when inserted). The faces it
+    /// shared come back on the boundary, oriented by the tet left holding them; `mesh` gives
+    /// that tet's corners.
+    pub fn remove(&mut self, tk: TetKey, tet: &Tet, mesh: &TetMesh) {
         for local in 0..4 {
             let id = face_id(tet, local);
+            self.note(id);
             let Some(u) = self.faces.get_mut(&id) else {
                 continue;
             };
@@ -104,7 +145,9 @@ impl FaceIndex {
                     tets: [keep, keep],
                     count: 1,
                 };
-                self.boundary.insert(id, keep);
+                let other = mesh.tet(keep.0).expect("a face's tets are in the mesh");
+                self.boundary
+                    .insert(id, BoundaryFace::of(keep.0, other, keep.1 as usize));
             } else {
                 self.faces.remove(&id);
                 self.boundary.remove(&id);
@@ -147,7 +190,29 @@ impl FaceIndex {
 
     /// The boundary faces as (tet, local face), in face-id order.
     pub fn boundary(&self) -> impl ExactSizeIterator<Item = (TetKey, u8)> + '_ {
-        self.boundary.values().copied()
+        self.boundary.values().map(|b| (b.tet, b.local))
+    }
+
+    /// Record the boundary state of `id` before its first change since the last take.
+    fn note(&mut self, id: FaceId) {
+        if !self.journal.contains_key(&id) {
+            let before = self.boundary.get(&id).map(|b| b.corners);
+            self.journal.insert(id, before);
+        }
+    }
+
+    /// The boundary triangles removed and added since the last call (or since the index was
+    /// built), in face-id order; the journal is emptied.
+    pub fn take_boundary_changes(&mut self) -> BoundaryChanges {
+        let mut changes = BoundaryChanges::default();
+        for (id, before) in std::mem::take(&mut self.journal) {
+            let after = self.boundary.get(&id).map(|b| b.corners);
+            if before != after {
+                changes.removed.extend(before);
+                changes.added.extend(after);
+            }
+        }
+        changes
     }
 
     /// Number of boundary faces.

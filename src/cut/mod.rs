@@ -36,6 +36,7 @@ use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 use slotmap::SecondaryMap;
 
+use crate::collide::broad::SurfaceEdit;
 use crate::error::{Error, Result};
 use crate::mesh::{NodeKey, TetKey, TetMesh, TET_FACES};
 use crate::model::{ModelDiff, SpringModel};
@@ -80,6 +81,8 @@ impl std::fmt::Display for CutMethod {
 pub struct CutOutcome {
     /// The change to the packed model (empty when the sweep cut nothing new).
     pub diff: ModelDiff,
+    /// The change to the boundary surface, for [`crate::Simulation::edit_surface`].
+    pub surface: SurfaceEdit,
     /// Tets removed or given new corners.
     pub tets_touched: usize,
     /// Tets removed (carving).
@@ -103,7 +106,7 @@ pub struct CutOutcome {
 impl CutOutcome {
     /// Whether the sweep changed nothing.
     pub fn is_empty(&self) -> bool {
-        self.diff.is_empty()
+        self.diff.is_empty() && self.surface.is_empty()
     }
 }
 
@@ -126,6 +129,9 @@ pub struct Cutter {
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
     on_cut: BTreeSet<NodeKey>,
+    /// Scratch for finding candidates: the last cut that looked at each tet.
+    visited: SecondaryMap<TetKey, u32>,
+    epoch: u32,
 }
 
 impl Cutter {
@@ -153,6 +159,8 @@ impl Cutter {
             volume_removed: 0.0,
             snap,
             on_cut: BTreeSet::new(),
+            visited: SecondaryMap::new(),
+            epoch: 0,
         })
     }
 
@@ -192,7 +200,8 @@ impl Cutter {
     }
 
     /// The boundary triangles as dense node indices, outward oriented, for
-    /// [`crate::Simulation::set_surface`].
+    /// [`crate::Simulation::set_surface`] (once; after that each cut's
+    /// [`CutOutcome::surface`] edits it).
     pub fn surface(&self) -> Vec<[u32; 3]> {
         self.faces
             .boundary()
@@ -209,8 +218,8 @@ impl Cutter {
 
     /// Cut with `sweep`, classifying at `positions` (current positions of every node, dense
     /// order, as [`crate::Simulation::positions`] gives them). The mesh and model are edited;
-    /// give the returned diff to [`crate::Simulation::apply`] and the new
-    /// [`Cutter::surface`] to the simulation.
+    /// give the returned diff to [`crate::Simulation::apply`] and its surface change to
+    /// [`crate::Simulation::edit_surface`].
     pub fn cut(&mut self, sweep: &Sweep, positions: &[[f64; 3]]) -> Result<CutOutcome> {
         if positions.len() != self.mesh.node_count() {
             return Err(Error::Model(format!(
@@ -234,8 +243,23 @@ impl Cutter {
                     }
                 })
         };
-        let mut candidates = classify::candidates(mesh, &self.faces, positions, self.reach, sweep);
-        classify::overlapping(&mut candidates, &corners, sweep, self.snap);
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            // Wrapped: stale stamps could equal the new epoch.
+            self.visited.clear();
+            self.epoch = 1;
+        }
+        let candidates = classify::candidates(
+            mesh,
+            &self.faces,
+            positions,
+            self.reach,
+            sweep,
+            &corners,
+            self.snap,
+            &mut self.visited,
+            self.epoch,
+        );
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {
@@ -273,6 +297,15 @@ impl Cutter {
                 self.subdivide(sweep, &|k| at[k], &candidates, &mut outcome)?;
             }
         }
+        let changes = self.faces.take_boundary_changes();
+        let dense = &self.dense;
+        let to_dense = |t: Vec<[NodeKey; 3]>| -> Vec<[u32; 3]> {
+            t.into_iter().map(|f| f.map(|k| dense[k])).collect()
+        };
+        outcome.surface = SurfaceEdit {
+            removed: to_dense(changes.removed),
+            added: to_dense(changes.added),
+        };
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;
         let d = &outcome.diff;
         outcome.springs_touched =

@@ -124,7 +124,7 @@ impl Cutter {
                 let tet = *self.mesh.tet(tk).expect("a tet");
                 let one = tet.nodes.map(|n| if n == b { k } else { n });
                 let two = tet.nodes.map(|n| if n == a { k } else { n });
-                self.faces.remove(tk, &tet);
+                self.faces.remove(tk, &tet, &self.mesh);
                 self.model.remove_tet(&self.mesh, tk)?;
                 self.mesh.set_tet_nodes(tk, one)?;
                 self.model.add_tet(&self.mesh, tk)?;

@@ -11,6 +11,8 @@ pub mod fast;
 pub mod gpu;
 pub mod reference;
 
+use std::collections::{HashMap, HashSet};
+
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -81,7 +83,8 @@ pub trait Engine: Send {
     fn memory(&self) -> EngineMemory;
     /// Apply a change to the model in place, between steps (`model` is the model after
     /// `diff`), and say what it cost; `Ok(None)` where the engine cannot patch itself and must
-    /// be rebuilt (the CPU engines, which [`Simulation::apply`] rebuilds with their state).
+    /// be rebuilt (the float64 reference engine, which [`Simulation::apply`] rebuilds with its
+    /// state).
     fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<Option<PatchCost>> {
         let _ = (model, diff);
         Ok(None)
@@ -415,6 +418,13 @@ fn verlet_precision_note(kind: EngineKind, config: &SimConfig, bound: f64) -> Op
         })
 }
 
+/// A surface triangle's corners in ascending order: the same key whichever way it is oriented.
+fn surface_key(t: &[u32; 3]) -> [u32; 3] {
+    let mut k = *t;
+    k.sort_unstable();
+    k
+}
+
 /// An engine with safety checks around it.
 pub struct Simulation {
     engine: Box<dyn Engine>,
@@ -425,6 +435,8 @@ pub struct Simulation {
     steps: u64,
     /// The boundary triangles for tool culling, once given.
     surface: Option<Vec<[u32; 3]>>,
+    /// Where each surface triangle (by its sorted corners) sits in `surface`, built with it.
+    surface_slots: Option<HashMap<[u32; 3], u32>>,
     /// Simulated time and step count when the time step last changed.
     time_at_dt_change: f64,
     steps_at_dt_change: u64,
@@ -505,6 +517,15 @@ impl Simulation {
                 None => precision,
             });
         }
+        // Room for the first cuts' springs and nodes, so that a patch does not start by copying
+        // the whole model into a larger array (as the device buffers keep an eighth spare).
+        let mut model = model;
+        model.springs.reserve(model.springs.len() / 8);
+        let extra = model.node_count() / 8;
+        model.rest.reserve(extra);
+        model.mass.reserve(extra);
+        model.fixed.reserve(extra);
+        model.node_keys.reserve(extra);
         let mut sim = Simulation {
             engine,
             model,
@@ -513,6 +534,7 @@ impl Simulation {
             bound,
             steps: 0,
             surface: None,
+            surface_slots: None,
             time_at_dt_change: 0.0,
             steps_at_dt_change: 0,
             start_energy: 0.0,
@@ -557,8 +579,8 @@ impl Simulation {
     }
 
     /// Apply a change to the model between steps (what a cut produces): the GPU engine patches
-    /// its layout and uploads only what changed; the CPU engines are rebuilt with their state
-    /// carried over. New nodes start with the state of the node they copy, or at rest. The
+    /// its layout and uploads only what changed, the fast CPU engine rewrites the rows of the
+    /// touched nodes, the float64 reference engine is rebuilt with its state carried over. New nodes start with the state of the node they copy, or at rest. The
     /// stable time step is recomputed; a change that puts `dt` above it is refused (unless
     /// `allow_unstable`). A refused change (an invalid diff, an unstable step) leaves the model
     /// and engine as they were; a device failure while patching leaves the engine unusable.
@@ -572,18 +594,28 @@ impl Simulation {
     pub fn apply_with(&mut self, diff: &ModelDiff, allow_unstable: bool) -> Result<PatchCost> {
         // Everything below touches only what the diff names, so that a local cut costs the
         // same on a large mesh as on a small one.
-        let bound = self.bound.after(&self.model, diff);
-        if self.config.dt > bound.dt && !allow_unstable {
-            return Err(Error::UnstableTimeStep {
+        let undo = self.bound.update(&self.model, diff);
+        if self.config.dt > self.bound.dt && !allow_unstable {
+            let err = Error::UnstableTimeStep {
                 dt: self.config.dt,
-                bound: bound.dt,
-                node: bound.node,
-            });
+                bound: self.bound.dt,
+                node: self.bound.node,
+            };
+            self.bound.undo(undo);
+            return Err(err);
         }
-        let (elastic_before, elastic_after) = self.diff_elastic_energy(diff)?;
         let before = self.model.node_count();
-        // Validates first: on error nothing has changed.
-        self.model.apply(diff)?;
+        // Validates first: on error nothing has changed (the bound is put back).
+        let energies = self
+            .diff_elastic_energy(diff)
+            .and_then(|e| self.model.apply(diff).map(|()| e));
+        let (elastic_before, elastic_after) = match energies {
+            Ok(e) => e,
+            Err(e) => {
+                self.bound.undo(undo);
+                return Err(e);
+            }
+        };
         let cost = match self.engine.patch(&self.model, diff)? {
             Some(cost) => cost,
             None => {
@@ -616,7 +648,6 @@ impl Simulation {
             }
         };
         debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
-        self.bound = bound;
         self.node_springs = None;
         // The divergence reference follows the energy the change took out of or put into the
         // springs it touched (splitting a node shares its mass and keeps its velocity, so the
@@ -917,7 +948,82 @@ impl Simulation {
             )));
         }
         self.engine.set_surface(&triangles)?;
+        // Built here, not at the first edit, so that the first cut does not pay for it.
+        self.surface_slots = Some(
+            triangles
+                .iter()
+                .enumerate()
+                .map(|(i, t)| (surface_key(t), i as u32))
+                .collect(),
+        );
         self.surface = Some(triangles);
+        Ok(())
+    }
+
+    /// Apply a cut's change to the surface given to [`Simulation::set_surface`] in place: a
+    /// removed triangle's slot takes the last triangle, added ones go at the end, so only a
+    /// few slots change and the GPU engine writes only those. Triangle indices reported by
+    /// [`Simulation::cull_tools`] refer to the edited list ([`Simulation::surface`]). On error
+    /// (a removed triangle not on the surface, an added one already on it, a node out of range)
+    /// nothing changes.
+    pub fn edit_surface(&mut self, edit: &crate::collide::broad::SurfaceEdit) -> Result<()> {
+        let n = self.model.node_count();
+        let Some(triangles) = &mut self.surface else {
+            return Err(Error::Model(
+                "no surface to edit: call set_surface with the boundary triangles first".into(),
+            ));
+        };
+        if edit.is_empty() {
+            return Ok(());
+        }
+        let key = surface_key;
+        let slots = self.surface_slots.as_mut().expect("built with the surface");
+        // Validate everything before changing anything.
+        let mut gone = HashSet::new();
+        for t in &edit.removed {
+            if !slots.contains_key(&key(t)) || !gone.insert(key(t)) {
+                return Err(Error::Model(format!(
+                    "surface edit removes triangle {t:?}, which is not on the surface (or is \
+                     removed twice)"
+                )));
+            }
+        }
+        let mut new = HashSet::new();
+        for t in &edit.added {
+            if let Some(&i) = t.iter().find(|&&i| i as usize >= n) {
+                return Err(Error::Model(format!(
+                    "surface edit adds triangle {t:?}, whose node {i} is past the model's {n} \
+                     nodes"
+                )));
+            }
+            let k = key(t);
+            if (slots.contains_key(&k) && !gone.contains(&k)) || !new.insert(k) {
+                return Err(Error::Model(format!(
+                    "surface edit adds triangle {t:?}, which is already on the surface"
+                )));
+            }
+        }
+        let old = triangles.clone();
+        for t in &edit.removed {
+            let slot = slots.remove(&key(t)).expect("validated") as usize;
+            triangles.swap_remove(slot);
+            if let Some(moved) = triangles.get(slot) {
+                slots.insert(key(moved), slot as u32);
+            }
+        }
+        for t in &edit.added {
+            slots.insert(key(t), triangles.len() as u32);
+            triangles.push(*t);
+        }
+        if let Err(e) = self.engine.set_surface(triangles) {
+            *slots = old
+                .iter()
+                .enumerate()
+                .map(|(i, t)| (key(t), i as u32))
+                .collect();
+            *triangles = old;
+            return Err(e);
+        }
         Ok(())
     }
 

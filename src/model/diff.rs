@@ -175,8 +175,6 @@ impl PackedModel {
             self.mass[c.node as usize] = c.mass;
             self.fixed[c.node as usize] = c.fixed;
         }
-        // One merge pass instead of an insertion per spring: a cut adds tens of springs to a
-        // model of hundreds of thousands.
         let mut added_sorted: Vec<PackedSpring> = diff
             .added_springs
             .iter()
@@ -186,29 +184,10 @@ impl PackedModel {
             })
             .collect();
         added_sorted.sort_by_key(|s| s.nodes);
-        if !removed.is_empty() || !added_sorted.is_empty() {
-            let mut gone: Vec<[u32; 2]> = removed.into_iter().collect();
-            gone.sort_unstable();
-            let mut gone = gone.into_iter().peekable();
-            let old = std::mem::take(&mut self.springs);
-            let mut merged = Vec::with_capacity(old.len() + added_sorted.len());
-            let mut new = added_sorted.into_iter().peekable();
-            for s in old {
-                // Both lists are sorted by end pair: walk them together.
-                while gone.peek().is_some_and(|g| *g < s.nodes) {
-                    gone.next();
-                }
-                if gone.peek() == Some(&s.nodes) {
-                    continue;
-                }
-                while new.peek().is_some_and(|a| a.nodes < s.nodes) {
-                    merged.extend(new.next());
-                }
-                merged.push(s);
-            }
-            merged.extend(new);
-            self.springs = merged;
-        }
+        let mut gone: Vec<[u32; 2]> = removed.into_iter().collect();
+        gone.sort_unstable();
+        remove_sorted(&mut self.springs, &gone);
+        insert_sorted(&mut self.springs, &added_sorted);
         for s in &diff.changed_springs {
             let i = self
                 .spring_index(s.nodes[0], s.nodes[1])
@@ -217,5 +196,109 @@ impl PackedModel {
             self.springs[i] = PackedSpring { nodes, ..*s };
         }
         Ok(())
+    }
+}
+
+/// Remove the springs with end pairs `gone` (sorted, all present) from `springs` (sorted by end
+/// pair), in place: only the part after the first removed spring moves, and nothing is
+/// allocated, so a cut that changes tens of springs of a model of hundreds of thousands costs a
+/// move of the tail, not a new array.
+fn remove_sorted(springs: &mut Vec<PackedSpring>, gone: &[[u32; 2]]) {
+    let Some(first) = gone.first() else {
+        return;
+    };
+    let from = springs.partition_point(|s| s.nodes < *first);
+    let mut write = from;
+    let mut gone = gone.iter().peekable();
+    for read in from..springs.len() {
+        let s = springs[read];
+        while gone.peek().is_some_and(|g| **g < s.nodes) {
+            gone.next();
+        }
+        if gone.peek() == Some(&&s.nodes) {
+            gone.next();
+            continue;
+        }
+        springs[write] = s;
+        write += 1;
+    }
+    springs.truncate(write);
+}
+
+/// Insert `added` (sorted by end pair, none present) into `springs` (sorted), in place, merging
+/// from the back so that only the part after the first inserted spring moves.
+fn insert_sorted(springs: &mut Vec<PackedSpring>, added: &[PackedSpring]) {
+    let Some(first) = added.first() else {
+        return;
+    };
+    let stop = springs.partition_point(|s| s.nodes < first.nodes);
+    let old_len = springs.len();
+    springs.resize(old_len + added.len(), *first);
+    // Walking down from the end, the write index stays above the read index until every
+    // addition is placed, so no unread spring is overwritten.
+    let (mut read, mut write, mut next) = (old_len, old_len + added.len(), added.len());
+    while next > 0 {
+        write -= 1;
+        if read > stop && springs[read - 1].nodes > added[next - 1].nodes {
+            read -= 1;
+            springs[write] = springs[read];
+        } else {
+            next -= 1;
+            springs[write] = added[next];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::collections::BTreeSet;
+
+    fn spring(nodes: [u32; 2], tag: f64) -> PackedSpring {
+        PackedSpring {
+            nodes,
+            rest_length: tag,
+            stiffness: 1.0,
+            damping: 0.0,
+        }
+    }
+
+    proptest! {
+        /// The in-place removal and merge give the sorted set a rebuild gives.
+        #[test]
+        fn in_place_edits_equal_a_sorted_rebuild(
+            start in proptest::collection::btree_set((0u32..40, 0u32..40), 0..200),
+            remove_mask in proptest::collection::vec(any::<bool>(), 200),
+            add in proptest::collection::btree_set((0u32..40, 0u32..40), 0..60),
+        ) {
+            let start: BTreeSet<[u32; 2]> =
+                start.into_iter().filter(|(a, b)| a < b).map(|(a, b)| [a, b]).collect();
+            let gone: Vec<[u32; 2]> = start
+                .iter()
+                .zip(&remove_mask)
+                .filter(|(_, &r)| r)
+                .map(|(p, _)| *p)
+                .collect();
+            let kept: BTreeSet<[u32; 2]> =
+                start.iter().filter(|p| !gone.contains(p)).copied().collect();
+            let added: Vec<PackedSpring> = add
+                .into_iter()
+                .filter(|(a, b)| a < b)
+                .map(|(a, b)| [a, b])
+                .filter(|p| !kept.contains(p))
+                .map(|p| spring(p, 2.0))
+                .collect();
+            let mut springs: Vec<PackedSpring> = start.iter().map(|&p| spring(p, 1.0)).collect();
+            remove_sorted(&mut springs, &gone);
+            insert_sorted(&mut springs, &added);
+            let mut expected: Vec<PackedSpring> = kept
+                .iter()
+                .map(|&p| spring(p, 1.0))
+                .chain(added.iter().copied())
+                .collect();
+            expected.sort_by_key(|s| s.nodes);
+            prop_assert_eq!(springs, expected);
+        }
     }
 }

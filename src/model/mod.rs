@@ -22,7 +22,7 @@ use crate::mesh::{NodeKey, TetKey, TetMesh, TET_EDGES};
 pub use constraints::FixedSelector;
 pub use diff::{AddedNode, ModelDiff, NodeChange};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
-pub use stability::{stable_time_step, StabilityBound};
+pub use stability::{stable_time_step, BoundUndo, StabilityBound};
 
 new_key_type! {
     /// Stable identity of a spring.

@@ -109,22 +109,39 @@ impl StabilityBound {
     /// model, without going over every spring. Springs the diff names that do not exist are
     /// ignored here (applying such a diff fails anyway).
     pub fn after(&self, before: &PackedModel, diff: &super::ModelDiff) -> StabilityBound {
+        let mut b = self.clone();
+        b.update(before, diff);
+        b
+    }
+
+    /// [`StabilityBound::after`] in place, touching only the diff's nodes (and one pass over
+    /// the per-node bounds for the smallest). Returns what [`StabilityBound::undo`] needs to
+    /// put the bound back, for a change that is then refused.
+    pub fn update(&mut self, before: &PackedModel, diff: &super::ModelDiff) -> BoundUndo {
         let n0 = before.node_count();
         let n = n0 + diff.added_nodes.len();
-        let mut b = StabilityBound {
-            per_node: self.per_node.clone(),
-            k_sum: self.k_sum.clone(),
-            c_sum: self.c_sum.clone(),
-            ..*self
+        let touched = diff.touched_nodes(n0);
+        let undo = BoundUndo {
+            len: self.per_node.len(),
+            dt: self.dt,
+            node: self.node,
+            omega_max: self.omega_max,
+            saved: touched
+                .iter()
+                .filter(|&&i| (i as usize) < self.per_node.len())
+                .map(|&i| {
+                    let i = i as usize;
+                    (i, self.per_node[i], self.k_sum[i], self.c_sum[i])
+                })
+                .collect(),
         };
-        b.per_node.resize(n, f64::INFINITY);
-        b.k_sum.resize(n, 0.0);
-        b.c_sum.resize(n, 0.0);
+        self.per_node.resize(n, f64::INFINITY);
+        self.k_sum.resize(n, 0.0);
+        self.c_sum.resize(n, 0.0);
+        let (k_sum, c_sum) = (&mut self.k_sum, &mut self.c_sum);
         let mut add = |s: &super::PackedSpring, sign: f64| {
             for &i in &s.nodes {
-                if let (Some(k), Some(c)) =
-                    (b.k_sum.get_mut(i as usize), b.c_sum.get_mut(i as usize))
-                {
+                if let (Some(k), Some(c)) = (k_sum.get_mut(i as usize), c_sum.get_mut(i as usize)) {
                     *k += sign * s.stiffness;
                     *c += sign * s.damping;
                 }
@@ -153,21 +170,49 @@ impl StabilityBound {
         for c in &diff.changed_nodes {
             mass.insert(c.node, (c.mass, c.fixed));
         }
-        for i in diff.touched_nodes(n0) {
+        for i in touched {
             let i = i as usize;
+            if i >= n {
+                // Out of range: applying such a diff fails, and the bound is put back.
+                continue;
+            }
             let (m, fixed) = mass
                 .get(&(i as u32))
                 .copied()
                 .unwrap_or_else(|| (before.mass[i], before.fixed[i]));
-            b.per_node[i] = if fixed {
+            self.per_node[i] = if fixed {
                 f64::INFINITY
             } else {
-                let (h, omega) = node_bound(b.k_sum[i], b.c_sum[i], m, before.mass_damping);
-                b.omega_max = b.omega_max.max(omega);
+                let (h, omega) = node_bound(self.k_sum[i], self.c_sum[i], m, before.mass_damping);
+                self.omega_max = self.omega_max.max(omega);
                 h
             };
         }
-        (b.dt, b.node) = smallest(&b.per_node);
-        b
+        (self.dt, self.node) = smallest(&self.per_node);
+        undo
     }
+
+    /// Put the bound back as it was before the [`StabilityBound::update`] that gave `undo`.
+    pub fn undo(&mut self, undo: BoundUndo) {
+        for (i, h, k, c) in undo.saved {
+            self.per_node[i] = h;
+            self.k_sum[i] = k;
+            self.c_sum[i] = c;
+        }
+        self.per_node.truncate(undo.len);
+        self.k_sum.truncate(undo.len);
+        self.c_sum.truncate(undo.len);
+        (self.dt, self.node, self.omega_max) = (undo.dt, undo.node, undo.omega_max);
+    }
+}
+
+/// What [`StabilityBound::undo`] restores: the bound's scalars, its length and the touched
+/// nodes' entries.
+#[derive(Debug, Clone)]
+pub struct BoundUndo {
+    len: usize,
+    dt: f64,
+    node: usize,
+    omega_max: f64,
+    saved: Vec<(usize, f64, f64, f64)>,
 }

@@ -173,7 +173,7 @@ fn one(
         }
         let cost = sim.apply(&outcome.diff)?;
         let t3 = Instant::now();
-        sim.set_surface(cutter.surface())?;
+        sim.edit_surface(&outcome.surface)?;
         let t4 = Instant::now();
         total.push((t4 - t0).as_secs_f64() * 1e3);
         read.push((t1 - t0).as_secs_f64() * 1e3);

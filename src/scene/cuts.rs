@@ -234,7 +234,7 @@ impl CutStage {
                 },
                 Err(e) => return Err(e),
             };
-            sim.set_surface(self.cutter.surface())?;
+            sim.edit_surface(&outcome.surface)?;
             self.latencies.push(start.elapsed().as_secs_f64());
             // Copies of a node (splitting) sit at its rest position; nodes a subdivision puts
             // on an edge do not, and are not openings.

@@ -1,7 +1,8 @@
 //! The tool broad phase on the device: pairs with `shaders/broad_tool.wgsl`. Built only when a
 //! program asks for culling (no tool, no pass). The surface (triangles in layout order and the
-//! rest positions) is uploaded once; each cull uploads the tool boxes, runs one dispatch over
-//! the triangles and reads back the counter and the candidates, nothing else.
+//! rest positions) is uploaded once, then only what a cut or patch changed is written; each
+//! cull uploads the tool boxes, runs one dispatch over the triangles and reads back the counter
+//! and the candidates, nothing else.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -40,6 +41,9 @@ pub struct ToolCuller {
     params: wgpu::Buffer,
     triangles: wgpu::Buffer,
     rest: wgpu::Buffer,
+    /// What `triangles` and `rest` hold, so that an update writes only what changed.
+    triangles_host: Vec<[u32; 4]>,
+    rest_host: Vec<[f32; 4]>,
     triangle_count: u32,
     boxes: wgpu::Buffer,
     candidates: wgpu::Buffer,
@@ -63,13 +67,13 @@ impl ToolCuller {
             ctx,
             "surface triangles",
             bytemuck::cast_slice(&tris),
-            Sizing::Exact,
+            Sizing::Headroom,
         )?;
         let rest_buf = buffers::storage_buffer(
             ctx,
             "rest positions",
             bytemuck::cast_slice(rest),
-            Sizing::Exact,
+            Sizing::Headroom,
         )?;
         let params = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("cull params"),
@@ -92,6 +96,8 @@ impl ToolCuller {
             params,
             triangles: triangles_buf,
             rest: rest_buf,
+            triangles_host: tris,
+            rest_host: rest.to_vec(),
             triangle_count: triangles.len() as u32,
             boxes,
             candidates,
@@ -102,31 +108,36 @@ impl ToolCuller {
         Ok(culler)
     }
 
-    /// Replace the surface (after a patch renumbered nodes or reallocated the node state, or
-    /// a cut changed the surface), keeping the pipeline and output buffers.
+    /// Bring the surface up to date (after a cut changed it, or a patch renumbered nodes or
+    /// reallocated the node state), keeping the pipeline and output buffers: only triangles and
+    /// rest positions that differ from what the device holds are written. Returns the bytes
+    /// written.
     pub fn set_surface(
         &mut self,
         ctx: &GpuContext,
         triangles: &[[u32; 3]],
         rest: &[[f32; 4]],
         state: &NodeState,
-    ) -> Result<()> {
+    ) -> Result<u64> {
         let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
-        self.triangles = buffers::storage_buffer(
+        let (a, _) = buffers::write_changed(
             ctx,
             "surface triangles",
-            bytemuck::cast_slice(&tris),
-            Sizing::Exact,
+            &mut self.triangles,
+            &mut self.triangles_host,
+            &tris,
         )?;
-        self.rest = buffers::storage_buffer(
+        let (b, _) = buffers::write_changed(
             ctx,
             "rest positions",
-            bytemuck::cast_slice(rest),
-            Sizing::Exact,
+            &mut self.rest,
+            &mut self.rest_host,
+            rest,
         )?;
         self.triangle_count = triangles.len() as u32;
+        // The state buffers may have been reallocated by a patch: bind afresh (cheap).
         self.rebind(ctx, state);
-        Ok(())
+        Ok(a + b)
     }
 
     /// Rebuild the bind groups (after the node state or an output buffer was reallocated).

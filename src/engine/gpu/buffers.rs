@@ -169,6 +169,60 @@ pub fn storage_buffer(
     Ok(buffer)
 }
 
+/// Bring `buffer` (whose contents are `host`) to `data`, writing only the runs of elements that
+/// differ; a buffer too small is replaced by one of the next size class holding all of `data`.
+/// Returns the bytes written and whether the buffer was replaced (bind groups must then be
+/// rebuilt). Comparing on the host costs a pass over `data`, far less than uploading it.
+pub fn write_changed<T: bytemuck::Pod + PartialEq>(
+    ctx: &GpuContext,
+    label: &str,
+    buffer: &mut wgpu::Buffer,
+    host: &mut Vec<T>,
+    data: &[T],
+) -> Result<(u64, bool)> {
+    let elem = std::mem::size_of::<T>();
+    let bytes = std::mem::size_of_val(data) as u64;
+    if bytes > buffer.size() {
+        *buffer = storage_buffer(ctx, label, bytemuck::cast_slice(data), Sizing::SizeClass)?;
+        host.clear();
+        host.extend_from_slice(data);
+        return Ok((bytes, true));
+    }
+    let mut written = 0u64;
+    for run in changed_runs(host, data, 16) {
+        ctx.queue.write_buffer(
+            buffer,
+            (run.start * elem) as u64,
+            bytemuck::cast_slice(&data[run.clone()]),
+        );
+        written += (run.len() * elem) as u64;
+    }
+    host.clear();
+    host.extend_from_slice(data);
+    Ok((written, false))
+}
+
+/// The element ranges where `data` differs from `old` (elements past the end of `old` differ),
+/// ascending; runs separated by at most `gap` equal elements are merged into one (fewer,
+/// larger copies).
+pub fn changed_runs<T: PartialEq>(
+    old: &[T],
+    data: &[T],
+    gap: usize,
+) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, d) in data.iter().enumerate() {
+        if old.get(i) == Some(d) {
+            continue;
+        }
+        match runs.last_mut() {
+            Some(r) if i - r.end <= gap => r.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
 /// Copy `src` into a mappable buffer and read it back as vec4s.
 pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> {
     Ok(bytemuck::pod_collect_to_vec(&read_bytes(
@@ -241,4 +295,34 @@ pub fn read_bytes(ctx: &GpuContext, src: &wgpu::Buffer, size: u64) -> Result<Vec
         .to_vec();
     staging.unmap();
     Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::changed_runs;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Writing the runs over the old contents gives the new ones, runs are ascending and
+        /// apart by more than the gap, and every run starts and ends on a changed element.
+        #[test]
+        fn runs_cover_exactly_the_changes(
+            old in proptest::collection::vec(0u8..3, 0..80),
+            new in proptest::collection::vec(0u8..3, 0..80),
+            gap in 0usize..5,
+        ) {
+            let runs = changed_runs(&old, &new, gap);
+            let mut copy = old.clone();
+            copy.resize(new.len(), 255);
+            for r in &runs {
+                copy[r.clone()].copy_from_slice(&new[r.clone()]);
+                prop_assert!(old.get(r.start) != Some(&new[r.start]));
+                prop_assert!(old.get(r.end - 1) != Some(&new[r.end - 1]));
+            }
+            prop_assert_eq!(&copy[..], &new[..]);
+            for w in runs.windows(2) {
+                prop_assert!(w[1].start > w[0].end + gap);
+            }
+        }
+    }
 }

@@ -259,9 +259,10 @@ pub struct GpuEngine {
     dispatch: Dispatch,
     /// Fixed-point constants (used by the atomic fixed-point variant only).
     fixed_point: FixedPoint,
-    memory: EngineMemory,
     /// Device timing of the step pass, where the adapter has timestamp queries.
     timer: Option<timing::PassTimer>,
+    /// Whether a patch changed nodes under the surface since it was last written.
+    surface_stale: bool,
     /// The tissue surface and its cullers, built only once a program culls.
     surface: Option<SurfaceCulling>,
 }
@@ -345,11 +346,11 @@ impl GpuEngine {
             fixed_point,
             Sizing::Headroom,
         )?;
-        let memory = layout_memory(&ctx, &layout, config);
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         let timer = timing::PassTimer::new(&ctx);
         Ok(GpuEngine {
             timer,
+            surface_stale: false,
             surface: None,
             ctx,
             config,
@@ -364,7 +365,6 @@ impl GpuEngine {
             phase: 0,
             dispatch,
             fixed_point,
-            memory,
         })
     }
 
@@ -467,11 +467,9 @@ impl GpuEngine {
             )?;
         }
         self.state.apply_moves(&self.ctx, &patch.moves);
-        // Node indices and state buffers may have changed under the surface.
-        if let Some(surface) = self.surface.take() {
-            self.set_surface(&surface.triangles)?;
-        }
-        self.memory = layout_memory(&self.ctx, &self.layout, self.config);
+        // Node indices and state buffers may have changed under the surface: the culler is
+        // brought up to date when next used (a cut usually edits the surface right after).
+        self.surface_stale = self.surface.is_some();
         Ok(PatchCost {
             uploaded_bytes: uploaded,
             layout_bytes,
@@ -481,8 +479,9 @@ impl GpuEngine {
     }
 
     /// Give the engine the tissue's boundary triangles (dense model indices, as
-    /// `collide::broad::Surface` makes them) for [`GpuEngine::cull_tools`]: they and the rest
-    /// positions are uploaded once (again after a patch, which may renumber nodes).
+    /// `collide::broad::Surface` makes them) for [`GpuEngine::cull_tools`]. The first call
+    /// uploads them and the rest positions; later calls (a cut edited the surface, a patch
+    /// renumbered or appended nodes) write only the triangles and positions that changed.
     pub fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
         let n = self.rest.len();
         if let Some(t) = triangles
@@ -494,19 +493,36 @@ impl GpuEngine {
             )));
         }
         let (tris, rest) = (self.in_layout_order(triangles), self.rest_f32());
-        // A culler that exists keeps its pipeline: only the surface is uploaded again.
-        let tool = match self.surface.take() {
-            Some(mut s) => {
+        // A culler that exists keeps its pipeline: only what changed is written. On error the
+        // old surface stays.
+        match &mut self.surface {
+            Some(s) => {
                 s.tool.set_surface(&self.ctx, &tris, &rest, &self.state)?;
-                s.tool
+                s.triangles = triangles.to_vec();
+                s.self_contact = None;
             }
-            None => broad_tool::ToolCuller::new(&self.ctx, &tris, &rest, &self.state)?,
-        };
-        self.surface = Some(SurfaceCulling {
-            triangles: triangles.to_vec(),
-            tool,
-            self_contact: None,
-        });
+            None => {
+                let tool = broad_tool::ToolCuller::new(&self.ctx, &tris, &rest, &self.state)?;
+                self.surface = Some(SurfaceCulling {
+                    triangles: triangles.to_vec(),
+                    tool,
+                    self_contact: None,
+                });
+            }
+        }
+        self.surface_stale = false;
+        Ok(())
+    }
+
+    /// Bring the culler up to date after a patch (nodes appended or renumbered, state
+    /// reallocated), before it is used.
+    fn refresh_surface(&mut self) -> Result<()> {
+        if self.surface_stale {
+            if let Some(triangles) = self.surface.as_ref().map(|s| s.triangles.clone()) {
+                self.set_surface(&triangles)?;
+            }
+            self.surface_stale = false;
+        }
         Ok(())
     }
 
@@ -540,6 +556,7 @@ impl GpuEngine {
     /// overlap at the current state, triangle indices into the surface given to
     /// [`GpuEngine::set_surface`]. Reads back only the candidate list.
     pub fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<broad_tool::CullResult> {
+        self.refresh_surface()?;
         let Some(surface) = &mut self.surface else {
             return Err(no_surface());
         };
@@ -550,6 +567,7 @@ impl GpuEngine {
     /// share no node and whose boxes, widened by `margin / 2` (m), overlap at the current
     /// state. The passes are built at the first call (and again when the margin changes).
     pub fn cull_self(&mut self, margin: f64) -> Result<broad_self::SelfCullResult> {
+        self.refresh_surface()?;
         let Some(surface) = &self.surface else {
             return Err(no_surface());
         };
@@ -895,7 +913,8 @@ impl Engine for GpuEngine {
     }
 
     fn memory(&self) -> EngineMemory {
-        self.memory.clone()
+        // Counted when asked (a pass over the slot table), not at every patch.
+        layout_memory(&self.ctx, &self.layout, self.config)
     }
 
     fn name(&self) -> String {

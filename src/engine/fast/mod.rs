@@ -1,8 +1,9 @@
 //! The fast float32 CPU engine: node-centric gather, nodes reordered for locality,
 //! multi-threaded over blocks of nodes (feature `parallel`).
 //!
-//! Every node owns its row of a CSR adjacency in which each spring appears twice, once in the
-//! row of each end. A node sums the forces of its row and integrates itself in the same pass,
+//! Every node owns its row of an adjacency in which each spring appears twice, once in the row
+//! of each end (rows as (start, end) pairs, so that a cut can rewrite a row where it is or move
+//! it to the end: `patch.rs`). A node sums the forces of its row and integrates itself in the same pass,
 //! so that threads write disjoint nodes and need no atomics; the price is that every spring's
 //! length is computed twice. Positions are read from buffers nobody writes during the pass:
 //! Verlet rotates three position buffers (previous, current, next), symplectic Euler writes
@@ -21,8 +22,10 @@
 //! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
 //! precision of each edge).
 
+mod patch;
+
 use super::{Engine, Integrator, SimConfig};
-use crate::model::PackedModel;
+use crate::model::{PackedModel, PackedSpring};
 
 /// A position or velocity, padded to 16 bytes so that a node is one aligned load.
 type P = [f32; 4];
@@ -58,9 +61,13 @@ struct Params {
 
 /// Read-only model data in internal order.
 struct Graph {
-    /// Row starts into `adj`, `n + 1` entries.
-    rows: Vec<u32>,
+    /// Each node's row of `adj`, as (start, end). Rows are laid out in node order when built;
+    /// a patch rewrites a row in place when it does not grow and appends it otherwise, leaving
+    /// a hole (`holes` entries in all) until the next rebuild.
+    rows: Vec<[u32; 2]>,
     adj: Vec<Entry>,
+    /// Entries of `adj` no row uses.
+    holes: usize,
     /// Damping along each spring of `adj`, N s/m, kept apart so that the undamped kernel
     /// streams 24-byte entries (empty when no spring is damped).
     damping: Vec<f32>,
@@ -112,25 +119,34 @@ impl FastEngine {
             gravity: [g[0] as f32, g[1] as f32, g[2] as f32],
             alpha: model.mass_damping as f32,
         };
-        let x: Vec<P> = vec![[0.0; 4]; n];
-        let second = match config.integrator {
-            Integrator::Verlet => x.clone(),
-            Integrator::SymplecticEuler => vec![[0.0; 4]; n],
+        // Node arrays keep an eighth spare, so that the first cuts' new nodes do not copy them.
+        let zeros = || {
+            let mut v: Vec<P> = Vec::with_capacity(n + n / 8);
+            v.resize(n, [0.0; 4]);
+            v
         };
-        FastEngine {
+        let x = zeros();
+        let second = zeros();
+        let mut engine = FastEngine {
             damped: model.springs.iter().any(|s| s.damping != 0.0),
             wide: wide_simd(),
             graph,
             params,
             integrator: config.integrator,
+            x_next: zeros(),
+            second_next: zeros(),
+            x,
+            second,
             order,
             rank,
             rest: model.rest.clone(),
-            x_next: x.clone(),
-            second_next: second.clone(),
-            x,
-            second,
-        }
+        };
+        engine.order.reserve(n / 8);
+        engine.rank.reserve(n / 8);
+        engine.rest.reserve(n / 8);
+        engine.graph.inv_mass.reserve(n / 8);
+        engine.graph.fixed.reserve(n / 8);
+        engine
     }
 
     /// Use the AVX2/FMA kernels or not (for comparing them with the baseline ones); they are
@@ -270,7 +286,7 @@ impl Engine for FastEngine {
         let p = std::mem::size_of::<P>() as u64;
         let buffers = vec![
             ("adjacency".to_string(), slots * entry),
-            ("row starts".to_string(), (n + 1) * 4),
+            ("row bounds".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
             ("fixed flags".to_string(), n),
             ("displacements (3 buffers)".to_string(), 3 * n * p),
@@ -288,11 +304,24 @@ impl Engine for FastEngine {
             Integrator::Verlet => 3 * n * p,
             Integrator::SymplecticEuler => 4 * n * p,
         };
-        let bytes_per_step = slots * entry + (n + 1) * 4 + n * 5 + state;
+        let bytes_per_step = slots * entry + n * 8 + n * 5 + state;
         super::EngineMemory {
-            stats: crate::layout::MemoryStats::new(buffers, 0, n as usize, slots as usize / 2),
+            stats: crate::layout::MemoryStats::new(
+                buffers,
+                self.graph.holes as u64 * entry,
+                n as usize,
+                (slots as usize - self.graph.holes) / 2,
+            ),
             bytes_per_step,
         }
+    }
+
+    fn patch(
+        &mut self,
+        model: &PackedModel,
+        diff: &crate::model::ModelDiff,
+    ) -> crate::Result<Option<super::PatchCost>> {
+        Ok(self.patch_in_place(model, diff))
     }
 
     fn step(&mut self, steps: u32) {
@@ -361,8 +390,24 @@ impl Engine for FastEngine {
 
 impl Graph {
     fn row(&self, i: usize) -> &[Entry] {
-        &self.adj[self.rows[i] as usize..self.rows[i + 1] as usize]
+        let [start, end] = self.rows[i];
+        &self.adj[start as usize..end as usize]
     }
+}
+
+/// Spring `s` as seen from its end `end` (0 or 1), whose other end has internal index `other`,
+/// with its damping. The rest edge vector is formed in float64 from the first end to the second
+/// and negated for the second, so both ends (and a patch) round it the same way.
+fn entry_of(s: &PackedSpring, end: usize, other: u32, rest: &[[f64; 3]]) -> (Entry, f32) {
+    let (ra, rb) = (rest[s.nodes[0] as usize], rest[s.nodes[1] as usize]);
+    let sign = if end == 0 { 1.0 } else { -1.0 };
+    let e = Entry {
+        other,
+        edge: [0, 1, 2].map(|c| (sign * (rb[c] - ra[c])) as f32),
+        rest: s.rest_length as f32,
+        k: s.stiffness as f32,
+    };
+    (e, s.damping as f32)
 }
 
 /// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
@@ -372,38 +417,26 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     let mut rows_of: Vec<Vec<(Entry, f32)>> = vec![Vec::new(); n];
     for s in &model.springs {
         let (a, b) = (rank[s.nodes[0] as usize], rank[s.nodes[1] as usize]);
-        let (ra, rb) = (
-            model.rest[s.nodes[0] as usize],
-            model.rest[s.nodes[1] as usize],
-        );
-        let ab = [rb[0] - ra[0], rb[1] - ra[1], rb[2] - ra[2]];
-        let entry = |other, sign: f64| {
-            let e = Entry {
-                other,
-                edge: ab.map(|c| (sign * c) as f32),
-                rest: s.rest_length as f32,
-                k: s.stiffness as f32,
-            };
-            (e, s.damping as f32)
-        };
-        rows_of[a as usize].push(entry(b, 1.0));
-        rows_of[b as usize].push(entry(a, -1.0));
+        rows_of[a as usize].push(entry_of(s, 0, b, &model.rest));
+        rows_of[b as usize].push(entry_of(s, 1, a, &model.rest));
     }
-    let mut rows = Vec::with_capacity(n + 1);
-    let mut adj = Vec::with_capacity(2 * model.springs.len());
+    // An eighth spare, so that the first cuts' appended rows do not copy the whole array.
+    let mut rows = Vec::with_capacity(n + n / 8);
+    let mut adj = Vec::with_capacity(2 * model.springs.len() + model.springs.len() / 4);
     let mut damping = Vec::new();
     let damped = model.springs.iter().any(|s| s.damping != 0.0);
-    rows.push(0u32);
     for mut r in rows_of {
         r.sort_by_key(|(e, _)| e.other);
+        let start = adj.len() as u32;
         adj.extend(r.iter().map(|(e, _)| *e));
         if damped {
             damping.extend(r.iter().map(|(_, c)| *c));
         }
-        rows.push(adj.len() as u32);
+        rows.push([start, adj.len() as u32]);
     }
     Graph {
         rows,
+        holes: 0,
         adj,
         damping,
         inv_mass: order
@@ -450,7 +483,7 @@ fn spring_force<const DAMP: u8>(
     let ui = x[i];
     let wi = w_of::<DAMP>(wa, wb, i);
     let mut acc = [[0.0f32; LANES]; 3];
-    let first = g.rows[i] as usize;
+    let first = g.rows[i][0] as usize;
     for (n, chunk) in g.row(i).chunks(LANES).enumerate() {
         let mut d = [[0.0f32; LANES]; 3];
         let mut dw = [[0.0f32; LANES]; 3];

@@ -1,0 +1,211 @@
+//! The surface a simulation culls against, edited in place by each cut's `CutOutcome::surface`
+//! (`Simulation::edit_surface`) instead of being rebuilt: it stays the cutter's boundary, as a
+//! set of outward triangles, on every engine and layout; the device culler over the edited
+//! surface finds exactly what the float64 brute force finds (up to float32 rounding); and an
+//! edit that does not fit the surface is refused with nothing changed.
+
+mod common;
+
+use std::collections::BTreeSet;
+
+use lancet::collide::broad::{cull_exact, SurfaceEdit, ToolBox};
+use lancet::collide::ToolShape;
+use lancet::cut::{CutMethod, Cutter, Sweep};
+use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::layout::LayoutKind;
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
+use nalgebra::Isometry3;
+use rstest::rstest;
+
+/// A triangle rotated so that its smallest index comes first: the same orientation, one
+/// spelling.
+fn canonical(t: [u32; 3]) -> [u32; 3] {
+    let k = (0..3).min_by_key(|&i| t[i]).expect("three corners");
+    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+}
+
+fn oriented_set(triangles: &[[u32; 3]]) -> BTreeSet<[u32; 3]> {
+    triangles.iter().map(|&t| canonical(t)).collect()
+}
+
+/// A clamped 6 x 6 x 3 cm box under gravity and a cutter for it.
+fn setup(method: CutMethod, kind: EngineKind, layout: LayoutKind) -> (Simulation, Cutter) {
+    let mesh = BoxGrid::cube_cells([6, 6, 3], 0.01).build().unwrap();
+    let mut config = ModelConfig::new(Material::elastic(5e3, 0.3, 1000.0));
+    config.gravity = [0.0, 0.0, -9.81];
+    config.fixed = vec![FixedSelector::Box {
+        min: [-1.0; 3],
+        max: [1.0, 1.0, 1e-9],
+    }];
+    let model = SpringModel::build(&mesh, &config).unwrap();
+    let packed = model.pack(&mesh).unwrap();
+    let sim_config = SimConfig {
+        layout,
+        allow_unstable: true,
+        ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
+    };
+    let mut sim = Simulation::new(packed, kind, sim_config).unwrap();
+    let cutter = Cutter::new(mesh, model, method).unwrap();
+    sim.set_surface(cutter.surface()).unwrap();
+    (sim, cutter)
+}
+
+/// Draw a blade through the box in strokes (along x, then down across it), editing the
+/// surface after every cut and checking it against the cutter's and the culling against the
+/// brute force.
+fn edited_surface_stays_the_boundary(method: CutMethod, kind: EngineKind, layout: LayoutKind) {
+    let (mut sim, mut cutter) = setup(method, kind, layout);
+    let blade = ToolShape::Blade {
+        width: 0.01,
+        length: 0.1,
+        thickness: 2e-4,
+    };
+    let along = |x: f64| Isometry3::translation(x, 0.0317, 0.0153);
+    let across = |z: f64| {
+        Isometry3::translation(0.0213, 0.03, z)
+            * Isometry3::rotation(nalgebra::Vector3::z() * std::f64::consts::FRAC_PI_2)
+    };
+    let strokes: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..8)
+        .map(|k| (along(0.0069 * k as f64), along(0.0069 * (k + 1) as f64)))
+        .chain((0..4).map(|k| {
+            let z = 0.035 - 0.006 * k as f64;
+            (across(z), across(z - 0.006))
+        }))
+        .collect();
+    let mut cuts = 0;
+    for (from, to) in strokes {
+        sim.run(5).unwrap();
+        let sweep = Sweep::of_blade(&blade, &from, &to).unwrap();
+        let outcome = cutter.cut(&sweep, &sim.positions()).unwrap();
+        if outcome.is_empty() {
+            continue;
+        }
+        cuts += 1;
+        sim.apply(&outcome.diff).unwrap();
+        sim.edit_surface(&outcome.surface).unwrap();
+        let edited = sim.surface().unwrap().to_vec();
+        let boundary = cutter.surface();
+        assert_eq!(edited.len(), boundary.len(), "cut {cuts}: triangle count");
+        assert_eq!(
+            oriented_set(&edited),
+            oriented_set(&boundary),
+            "cut {cuts}: the edited surface is not the cutter's boundary"
+        );
+
+        // Boxes around the blade's path and over the whole box: the culler over the edited
+        // surface (on the device for the GPU engine) against the float64 brute force.
+        let x = sim.positions();
+        let exact_boxes = [
+            ([0.0, 0.025, 0.005], [0.06, 0.038, 0.04]),
+            ([0.015, -0.01, -0.01], [0.028, 0.07, 0.04]),
+            ([-0.01, -0.01, -0.01], [0.07, 0.07, 0.04]),
+        ];
+        let boxes: Vec<ToolBox> = exact_boxes
+            .iter()
+            .map(|&(lo, hi)| ToolBox::containing(lo, hi))
+            .collect();
+        let got: BTreeSet<([u32; 3], u32)> = sim
+            .cull_tools(&boxes)
+            .unwrap()
+            .into_iter()
+            .map(|[t, b]| (canonical(edited[t as usize]), b))
+            .collect();
+        let named = |c: Vec<[u32; 2]>| -> BTreeSet<([u32; 3], u32)> {
+            c.into_iter()
+                .map(|[t, b]| (canonical(edited[t as usize]), b))
+                .collect()
+        };
+        let exact = named(cull_exact(&x, &edited, &exact_boxes));
+        // Float32 rounding may add triangles within a micrometre of a box, never more.
+        let grown: Vec<([f64; 3], [f64; 3])> = exact_boxes
+            .iter()
+            .map(|(lo, hi)| (lo.map(|v| v - 1e-6), hi.map(|v| v + 1e-6)))
+            .collect();
+        let loose = named(cull_exact(&x, &edited, &grown));
+        assert!(
+            exact.is_subset(&got),
+            "cut {cuts}: the culler missed {:?}",
+            exact.difference(&got).take(3).collect::<Vec<_>>()
+        );
+        assert!(
+            got.is_subset(&loose),
+            "cut {cuts}: the culler found triangles not on the surface or far from the boxes: {:?}",
+            got.difference(&loose).take(3).collect::<Vec<_>>()
+        );
+    }
+    assert!(cuts >= 3, "the blade cut {cuts} times");
+}
+
+#[rstest]
+fn cpu_engine_surface_follows_the_cuts(
+    #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
+) {
+    edited_surface_stays_the_boundary(method, EngineKind::Fast, LayoutKind::Connectivity);
+}
+
+#[rstest]
+fn gpu_surface_follows_the_cuts(
+    #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+) {
+    if common::gpu().is_none() {
+        return;
+    }
+    edited_surface_stays_the_boundary(method, EngineKind::Gpu, layout);
+}
+
+#[test]
+fn an_edit_that_does_not_fit_changes_nothing() {
+    let (mut sim, cutter) = setup(
+        CutMethod::Separate,
+        EngineKind::Fast,
+        LayoutKind::Connectivity,
+    );
+    let before = sim.surface().unwrap().to_vec();
+    let on = before[0];
+    let n = sim.model().node_count() as u32;
+    let bad = [
+        // Not on the surface.
+        SurfaceEdit {
+            removed: vec![[0, 1, n - 1]],
+            added: vec![],
+        },
+        // Removed twice.
+        SurfaceEdit {
+            removed: vec![on, [on[1], on[2], on[0]]],
+            added: vec![],
+        },
+        // Already on the surface (in the other orientation).
+        SurfaceEdit {
+            removed: vec![],
+            added: vec![[on[0], on[2], on[1]]],
+        },
+        // A node past the model.
+        SurfaceEdit {
+            removed: vec![on],
+            added: vec![[0, 1, n]],
+        },
+    ];
+    for edit in bad {
+        let err = sim.edit_surface(&edit).unwrap_err().to_string();
+        assert!(err.contains("surface edit"), "{err}");
+        assert_eq!(
+            sim.surface().unwrap(),
+            &before[..],
+            "{edit:?} changed the surface"
+        );
+    }
+    // The cutter's own boundary fits: removing a triangle and adding it back reversed is
+    // accepted, and swaps it into the place of the last.
+    let flip = SurfaceEdit {
+        removed: vec![on],
+        added: vec![[on[0], on[2], on[1]]],
+    };
+    sim.edit_surface(&flip).unwrap();
+    let after = sim.surface().unwrap();
+    assert_eq!(after.len(), before.len());
+    assert_eq!(after[after.len() - 1], [on[0], on[2], on[1]]);
+    assert_eq!(after[0], before[before.len() - 1]);
+    drop(cutter);
+}
