@@ -110,24 +110,23 @@ impl ToolCuller {
 
     /// Bring the surface up to date (after a cut changed it, or a patch renumbered nodes or
     /// reallocated the node state), keeping the pipeline and output buffers: only triangles and
-    /// rest positions that differ from what the device holds are written. Returns the bytes
-    /// written.
+    /// rest positions that differ from what the device holds are written.
     pub fn set_surface(
         &mut self,
         ctx: &GpuContext,
         triangles: &[[u32; 3]],
         rest: &[[f32; 4]],
         state: &NodeState,
-    ) -> Result<u64> {
+    ) -> Result<()> {
         let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
-        let (a, _) = buffers::write_changed(
+        buffers::write_changed(
             ctx,
             "surface triangles",
             &mut self.triangles,
             &mut self.triangles_host,
             &tris,
         )?;
-        let (b, _) = buffers::write_changed(
+        buffers::write_changed(
             ctx,
             "rest positions",
             &mut self.rest,
@@ -137,7 +136,7 @@ impl ToolCuller {
         self.triangle_count = triangles.len() as u32;
         // The state buffers may have been reallocated by a patch: bind afresh (cheap).
         self.rebind(ctx, state);
-        Ok(a + b)
+        Ok(())
     }
 
     /// Rebuild the bind groups (after the node state or an output buffer was reallocated).
