@@ -210,7 +210,12 @@ impl CutStage {
                 Ok(cost) => cost,
                 Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
                     TimeStepPolicy::Stop => {
-                        return Err(Error::UnstableTimeStep { dt, bound, node })
+                        // The run ends here, but the cutter already holds the cut: the
+                        // simulation takes it too (no step is taken with it), so that the
+                        // final mesh, model and positions the report measures agree.
+                        sim.apply_with(&outcome.diff, true)?;
+                        sim.edit_surface(&outcome.surface)?;
+                        return Err(Error::UnstableTimeStep { dt, bound, node });
                     }
                     TimeStepPolicy::Warn => {
                         self.report.time_step_events.push(format!(
