@@ -122,7 +122,9 @@ fn topology(cutter: &Cutter) -> Vec<[u32; 4]> {
         .collect()
 }
 
-fn run_sequence(seed: u64, method: CutMethod, mesh: TetMesh) -> (Cutter, usize) {
+/// Run a random sequence of cuts, checking every invariant after each (no tet below `floor`
+/// among them). Returns the cutter and how many cuts changed the mesh.
+fn run_sequence(seed: u64, method: CutMethod, mesh: TetMesh, floor: f64) -> (Cutter, usize) {
     let mut rng = Rng(seed);
     let volume = mesh.volume();
     let mut config = ModelConfig::new(Material::elastic(3e3, 0.3, 1000.0));
@@ -141,7 +143,9 @@ fn run_sequence(seed: u64, method: CutMethod, mesh: TetMesh) -> (Cutter, usize) 
     .map(|k| PackedLayout::pack(&packed, k, NodeOrder::locality(&packed)).unwrap())
     .collect();
     let (lo, hi) = mesh.bounds().unwrap();
-    let mut cutter = Cutter::new(mesh, model, method).unwrap();
+    let mut cutter = Cutter::new(mesh, model, method)
+        .unwrap()
+        .with_quality_floor(floor);
     let size = (hi - lo).norm();
     let blade = ToolShape::Blade {
         width: size * (0.2 + 0.8 * rng.next()),
@@ -161,7 +165,7 @@ fn run_sequence(seed: u64, method: CutMethod, mesh: TetMesh) -> (Cutter, usize) 
             cuts += 1;
             packed.apply(&outcome.diff).unwrap();
             assert_packed_matches(&packed, &cutter);
-            let report = cutter.check_invariants(volume, 0.0);
+            let report = cutter.check_invariants(volume, floor);
             assert!(report.passed(), "seed {seed} {method}: {report:#?}");
             for layout in &mut layouts {
                 layout.patch(&packed, &outcome.diff).unwrap();
@@ -196,9 +200,9 @@ fn random_cut_sequences_keep_every_invariant(
     #[values(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)] seed: u64,
 ) {
     let mesh = random_box(&mut Rng(seed * 977));
-    let (a, cuts) = run_sequence(seed, method, mesh.clone());
+    let (a, cuts) = run_sequence(seed, method, mesh.clone(), 0.0);
     // The same sequence again gives the same topology, node for node.
-    let (b, _) = run_sequence(seed, method, mesh);
+    let (b, _) = run_sequence(seed, method, mesh, 0.0);
     assert_eq!(topology(&a), topology(&b));
     eprintln!(
         "seed {seed} {method}: {cuts} cuts, {} tets, {} fragments",
@@ -218,16 +222,99 @@ fn random_cuts_of_the_liver_keep_every_invariant(
     };
     let path = std::path::Path::new(&dir).join("sofa/liver.msh");
     let mesh = lancet::mesh::io::read(&path).unwrap().mesh;
-    let (cutter, cuts) = run_sequence(seed, method, mesh);
+    let (cutter, cuts) = run_sequence(seed, method, mesh, 0.0);
     assert!(cuts > 0, "seed {seed}: no stroke met the liver");
     assert!(cutter.mesh().tet_count() > 0 || method == CutMethod::Remove);
+}
+
+#[rstest]
+fn random_subdividing_of_the_liver_keeps_to_a_quality_floor(#[values(31, 32, 33)] seed: u64) {
+    let Some(dir) = std::env::var_os("LANCET_MESH_DIR") else {
+        eprintln!("skipped: LANCET_MESH_DIR is not set");
+        return;
+    };
+    let path = std::path::Path::new(&dir).join("sofa/liver.msh");
+    let mesh = lancet::mesh::io::read(&path).unwrap().mesh;
+    // The liver has tets below FLOOR of its own: a floor just under its worst.
+    let worst = mesh
+        .tets()
+        .map(|(_, t)| lancet::mesh::quality::tet_quality(&mesh.tet_points(t)).volume_length_ratio)
+        .fold(f64::INFINITY, f64::min);
+    let (_, cuts) = run_sequence(seed, CutMethod::Subdivide, mesh, 0.9 * worst);
+    assert!(cuts > 0, "seed {seed}: no stroke met the liver");
 }
 
 /// Counted over all seeds, the sequences cut something: the test is not vacuous.
 #[test]
 fn random_sequences_do_cut() {
     let total: usize = (1..=12)
-        .map(|seed| run_sequence(seed, CutMethod::Separate, random_box(&mut Rng(seed * 977))).1)
+        .map(|seed| {
+            run_sequence(
+                seed,
+                CutMethod::Separate,
+                random_box(&mut Rng(seed * 977)),
+                0.0,
+            )
+            .1
+        })
         .sum();
     assert!(total >= 12, "only {total} cuts in 12 sequences");
+}
+
+/// The smallest rest volume-length ratio subdividing may make in the sequences below (0.3 is
+/// tried too); the generated boxes' own tets are all above 0.35.
+const FLOOR: f64 = 0.2;
+
+/// Nodes at rest positions `uncut` has no node at: the nodes splitting made.
+fn made_nodes(uncut: &TetMesh, cutter: &Cutter) -> usize {
+    let key = |p: &Point3<f64>| [p.x, p.y, p.z].map(f64::to_bits);
+    let old: std::collections::BTreeSet<[u64; 3]> =
+        uncut.nodes().map(|(_, n)| key(&n.rest)).collect();
+    let made: std::collections::BTreeSet<[u64; 3]> = cutter
+        .mesh()
+        .nodes()
+        .map(|(_, n)| key(&n.rest))
+        .filter(|k| !old.contains(k))
+        .collect();
+    made.len()
+}
+
+#[rstest]
+fn random_subdivide_sequences_keep_to_the_quality_floor(
+    #[values(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)] seed: u64,
+    #[values(FLOOR, 0.3)] floor: f64,
+) {
+    let mesh = random_box(&mut Rng(seed * 977));
+    let uncut = mesh.clone();
+    // Every invariant after every cut, the floor among them.
+    let (a, cuts) = run_sequence(seed, CutMethod::Subdivide, mesh.clone(), floor);
+    let (b, _) = run_sequence(seed, CutMethod::Subdivide, mesh.clone(), floor);
+    assert_eq!(topology(&a), topology(&b));
+    let (without, _) = run_sequence(seed, CutMethod::Subdivide, mesh, 0.0);
+    let quality = |c: &Cutter| c.check_invariants(uncut.volume(), 0.0).min_quality;
+    eprintln!(
+        "seed {seed}, floor {floor}: {cuts} cuts; lowest quality {:.3} with the floor, {:.3} \
+         without; nodes \
+         made {} with, {} without; {} and {} fragments",
+        quality(&a),
+        quality(&without),
+        made_nodes(&uncut, &a),
+        made_nodes(&uncut, &without),
+        a.mesh().component_count(),
+        without.mesh().component_count()
+    );
+}
+
+/// The floor is not vacuous: without it, the same sequences make tets below it.
+#[test]
+fn without_the_floor_random_subdivide_sequences_go_below_it() {
+    let lowest = (1..=12)
+        .map(|seed| {
+            let mesh = random_box(&mut Rng(seed * 977));
+            let volume = mesh.volume();
+            let (c, _) = run_sequence(seed, CutMethod::Subdivide, mesh, 0.0);
+            c.check_invariants(volume, 0.0).min_quality
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest < FLOOR, "lowest quality without the floor {lowest}");
 }

@@ -61,8 +61,10 @@ pub enum CutMethod {
     #[default]
     Separate,
     /// Split the tets the blade crosses along its sweep, with new nodes on the crossed edges
-    /// (snapped to a node when the crossing is near it), then open the faces on the sweep. The
-    /// cut follows the blade, at the price of new nodes and tets.
+    /// (snapped to a node when the crossing is near it, and, with a quality floor
+    /// ([`Cutter::with_quality_floor`]), wherever a split would make a tet below the floor),
+    /// then open the faces on the sweep. The cut follows the blade, at the price of new nodes
+    /// and tets.
     Subdivide,
 }
 
@@ -132,6 +134,8 @@ pub struct Cutter {
     /// Scratch for finding candidates: the last cut that looked at each tet.
     visited: SecondaryMap<TetKey, u32>,
     epoch: u32,
+    /// Smallest rest volume-length ratio a subdividing split may make (0: no floor).
+    quality_floor: f64,
 }
 
 impl Cutter {
@@ -161,7 +165,26 @@ impl Cutter {
             on_cut: BTreeSet::new(),
             visited: SecondaryMap::new(),
             epoch: 0,
+            quality_floor: 0.0,
         })
+    }
+
+    /// Subdivide without making any tet whose rest volume-length ratio is below `floor`: a
+    /// crossing whose split would make one snaps to the nearer end of its edge instead, and a
+    /// node closer to the sweep than [`subdivide::NODE_SNAP`] of its shortest edge joins the
+    /// cut; a tet left with every corner on a cut goes with its centroid's side of the sweep
+    /// (see [`subdivide`]). A floor of 0 (the default of [`Cutter::new`]), a negative or a NaN
+    /// one keeps subdividing as without a floor: only the parameter rule
+    /// ([`subdivide::EDGE_SNAP`]). Tets already below the floor are left as they are; the other
+    /// methods make no new tets and ignore the floor.
+    pub fn with_quality_floor(mut self, floor: f64) -> Self {
+        self.quality_floor = floor;
+        self
+    }
+
+    /// The quality floor subdividing keeps to (0: none).
+    pub fn quality_floor(&self) -> f64 {
+        self.quality_floor
     }
 
     /// The mesh as cut so far.

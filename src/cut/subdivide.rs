@@ -13,6 +13,33 @@
 //! edge is made. The cut happens in rest space: a new node sits at the crossing's parameter
 //! along the rest edge.
 //!
+//! A fraction of one edge says little about the tets around it, so with a quality floor
+//! ([`Cutter::with_quality_floor`]) two more rules hold:
+//!
+//! - A node closer to the sweep than [`NODE_SNAP`] of its shortest edge joins the cut. Along an
+//!   edge nearly parallel to the sweep the crossing can be anywhere though both ends are close
+//!   to it, and splitting there would leave flat tets between the sweep and those nodes. With
+//!   this rule a sweep passing close to an existing edge or face puts all its corners on the
+//!   cut, and that edge or face opens as it is, with no new node.
+//! - A split that would make a tet whose rest volume-length ratio (what the invariants check)
+//!   is below the floor is not made: the crossing snaps to the nearer end of its edge. Snapping
+//!   moves no node and makes no tet, so no tet below the floor is ever made; the price is a cut
+//!   surface up to half an edge off the sweep there.
+//!
+//! All snaps are decided before any edge is split: the splits are played on a copy of the tets
+//! around them, and each time a split fails the floor its nearer end joins the cut and the play
+//! starts again, until one play passes; the edit then repeats that play. A node that joined the
+//! cut after edges at it were split could leave a tet with every corner on the cut, on neither
+//! side of the sweep; deciding first keeps a corner off the cut in every tet a split makes, so
+//! each tet still lies on one side and the faces that open are exactly those between the sides.
+//!
+//! Nodes stay on the cut from one cut to the next, so where a later cut snaps next to an
+//! earlier one a tet can still end with every corner on a cut. Its fourth corner then says
+//! nothing about its side of the new sweep, so with a floor it goes with its centroid's side:
+//! taking the corner's side instead opens faces across such tets and leaves them as loose pieces
+//! where two cuts cross, which snapping far from the sweep makes common. Two snapped surfaces
+//! crossing can still pinch off a few tets near the line where they meet.
+//!
 //! A new node starts with the state of the nearer end of its edge (a diff copies whole node
 //! states); in a strained region this differs from the interpolated state by up to the strain
 //! times half an edge.
@@ -26,10 +53,16 @@ use super::snapshot::Snapshot;
 use super::sweep::Sweep;
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
+use crate::mesh::quality::tet_quality;
 use crate::mesh::{NodeKey, TetKey, TET_EDGES, TET_FACES};
 
 /// Crossings closer than this fraction of an edge to one of its ends snap to that end.
 pub const EDGE_SNAP: f64 = 0.2;
+
+/// With a quality floor, a node at the end of a crossed edge that is closer to the sweep than
+/// this fraction of its shortest edge joins the cut. No larger than [`EDGE_SNAP`], so it moves
+/// the cut no further from the sweep than the parameter rule can.
+pub const NODE_SNAP: f64 = 0.2;
 
 impl Cutter {
     /// Subdivide along `sweep`. `position` gives the current (classification) position of an
@@ -75,13 +108,43 @@ impl Cutter {
         if crossed.is_empty() {
             return Ok(());
         }
-        // 2. Snap crossings near an end; split the others.
+        // 2. Snap crossings near an end (and, with a floor, nodes near the sweep and the ends
+        //    of splits that would make a tet below it); split the others.
         let mut snapped: BTreeSet<NodeKey> = BTreeSet::new();
         for (&[p, q], &t) in &crossed {
             if t < EDGE_SNAP {
                 snapped.insert(p);
             } else if t > 1.0 - EDGE_SNAP {
                 snapped.insert(q);
+            }
+        }
+        let floor = self.quality_floor;
+        let guarded = floor > 0.0;
+        if guarded {
+            let ends: BTreeSet<NodeKey> = crossed
+                .keys()
+                .flatten()
+                .copied()
+                .filter(|n| !snapped.contains(n) && !self.on_cut.contains(n))
+                .collect();
+            for n in ends {
+                let x = position(n);
+                let distance = sweep
+                    .triangles
+                    .iter()
+                    .map(|s| distance_to_triangle(&x, s))
+                    .fold(f64::INFINITY, f64::min);
+                if distance < NODE_SNAP * self.shortest_edge_at(n, position) {
+                    snapped.insert(n);
+                }
+            }
+            loop {
+                let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
+                let more = self.sliver_snaps(&crossed, &on_cut, floor);
+                if more.is_empty() {
+                    break;
+                }
+                snapped.extend(more);
             }
         }
         let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
@@ -124,6 +187,13 @@ impl Cutter {
                 let tet = *self.mesh.tet(tk).expect("a tet");
                 let one = tet.nodes.map(|n| if n == b { k } else { n });
                 let two = tet.nodes.map(|n| if n == a { k } else { n });
+                debug_assert!(
+                    !guarded
+                        || [one, two].iter().all(|c| {
+                            tet_quality(&c.map(|n| self.mesh.rest(n))).volume_length_ratio >= floor
+                        }),
+                    "a split below the quality floor: the edit left the checked play"
+                );
                 self.faces.remove(tk, &tet, &self.mesh);
                 self.model.remove_tet(&self.mesh, tk)?;
                 self.mesh.set_tet_nodes(tk, one)?;
@@ -140,7 +210,8 @@ impl Cutter {
         // 5. Open the faces on the cut: all three corners on it, the two tets' other corners on
         //    either side of the sweep (the plane of the sweep triangle nearest the face). Such a
         //    face lies in the cut surface whichever step made its corners, so a cut made in many
-        //    steps opens the same faces as one made in one.
+        //    steps opens the same faces as one made in one. With a floor, a tet whose other
+        //    corner is on a cut too lies on its centroid's side.
         let at = |n: NodeKey| extra.get(&n).copied().unwrap_or_else(|| position(n));
         let side = |p: &Point3<f64>, near: &Point3<f64>| {
             let s = sweep
@@ -179,7 +250,11 @@ impl Cutter {
                         .iter()
                         .find(|n| !face.contains(n))
                         .expect("a tet has four");
-                    at(k)
+                    if guarded && self.on_cut.contains(&k) {
+                        centroid(nodes.map(at))
+                    } else {
+                        at(k)
+                    }
                 };
                 let centre = Point3::from(
                     face.iter()
@@ -223,6 +298,101 @@ impl Cutter {
         Ok(())
     }
 
+    /// The nodes to put on the cut so that splitting the crossings of `crossed` whose ends are
+    /// not `on_cut` makes no tet below `floor` (rest volume-length ratio). The splits are played
+    /// in order on a copy of the tets around them; one that would make such a tet is not made,
+    /// the nearer end of its edge is returned and the play goes on without the splits at that
+    /// node. Empty when every split keeps to the floor.
+    fn sliver_snaps(
+        &self,
+        crossed: &BTreeMap<[NodeKey; 2], f64>,
+        on_cut: &dyn Fn(NodeKey) -> bool,
+        floor: f64,
+    ) -> BTreeSet<NodeKey> {
+        let splits: Vec<([NodeKey; 2], f64)> = crossed
+            .iter()
+            .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
+            .map(|(e, t)| (*e, *t))
+            .collect();
+        // The copy: corners as indices into `at` (rest positions), with each node's tets.
+        let mut index: HashMap<NodeKey, usize> = HashMap::new();
+        let mut at: Vec<Point3<f64>> = Vec::new();
+        let mut around: Vec<Vec<usize>> = Vec::new();
+        let mut tets: Vec<[usize; 4]> = Vec::new();
+        let mut copied: BTreeSet<TetKey> = BTreeSet::new();
+        for ([a, b], _) in &splits {
+            for tk in self.tets_with_edge(*a, *b) {
+                if !copied.insert(tk) {
+                    continue;
+                }
+                let mut local = [0; 4];
+                for (l, &n) in local
+                    .iter_mut()
+                    .zip(&self.mesh.tet(tk).expect("a tet").nodes)
+                {
+                    *l = *index.entry(n).or_insert_with(|| {
+                        at.push(self.mesh.rest(n));
+                        around.push(Vec::new());
+                        at.len() - 1
+                    });
+                    around[*l].push(tets.len());
+                }
+                tets.push(local);
+            }
+        }
+        let mut snaps = BTreeSet::new();
+        for ([a, b], t) in splits {
+            if snaps.contains(&a) || snaps.contains(&b) {
+                continue;
+            }
+            let (la, lb) = (index[&a], index[&b]);
+            // As the edit places it.
+            let x = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
+            let shared: Vec<usize> = around[la]
+                .iter()
+                .copied()
+                .filter(|i| around[lb].contains(i))
+                .collect();
+            let quality = |c: &[usize; 4], moved: usize| {
+                tet_quality(&c.map(|l| if l == moved { x } else { at[l] })).volume_length_ratio
+            };
+            if shared
+                .iter()
+                .any(|&i| quality(&tets[i], lb) < floor || quality(&tets[i], la) < floor)
+            {
+                snaps.insert(if t < 0.5 { a } else { b });
+                continue;
+            }
+            let k = at.len();
+            at.push(x);
+            around.push(Vec::new());
+            for i in shared {
+                let tet = tets[i];
+                tets[i] = tet.map(|l| if l == lb { k } else { l });
+                around[lb].retain(|&j| j != i);
+                around[k].push(i);
+                let two = tet.map(|l| if l == la { k } else { l });
+                for &l in &two {
+                    around[l].push(tets.len());
+                }
+                tets.push(two);
+            }
+        }
+        snaps
+    }
+
+    /// The length of the shortest edge at `n`, at `position`.
+    fn shortest_edge_at(&self, n: NodeKey, position: &dyn Fn(NodeKey) -> Point3<f64>) -> f64 {
+        let x = position(n);
+        self.faces
+            .tets_at(n)
+            .iter()
+            .flat_map(|&t| self.mesh.tet(t).expect("a tet").nodes)
+            .filter(|&m| m != n)
+            .map(|m| (position(m) - x).norm())
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// The tets holding both `a` and `b`, in key order.
     fn tets_with_edge(&self, a: NodeKey, b: NodeKey) -> Vec<TetKey> {
         let tb = self.faces.tets_at(b);
@@ -232,5 +402,57 @@ impl Cutter {
             .copied()
             .filter(|t| tb.binary_search(t).is_ok())
             .collect()
+    }
+}
+
+fn centroid(p: [Point3<f64>; 4]) -> Point3<f64> {
+    Point3::from((p[0].coords + p[1].coords + p[2].coords + p[3].coords) / 4.0)
+}
+
+/// The distance from `p` to the triangle `t`: to its plane where `p` projects inside it, else to
+/// the nearest side.
+fn distance_to_triangle(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
+    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let inside = (0..3).all(|i| (t[(i + 1) % 3] - t[i]).cross(&(p - t[i])).dot(&n) >= 0.0);
+    if inside && n.norm_squared() > 0.0 {
+        return (p - t[0]).dot(&n).abs() / n.norm();
+    }
+    (0..3)
+        .map(|i| {
+            let (a, ab) = (t[i], t[(i + 1) % 3] - t[i]);
+            let len2 = ab.norm_squared();
+            let s = if len2 > 0.0 {
+                ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p - (a + ab * s)).norm()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distance_to_triangle;
+    use nalgebra::Point3;
+
+    #[test]
+    fn distance_to_a_triangle_is_to_its_plane_side_or_corner() {
+        let t = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ];
+        let d = |x: f64, y: f64, z: f64| distance_to_triangle(&Point3::new(x, y, z), &t);
+        // Above the inside, either way round.
+        assert_eq!(d(0.25, 0.25, 0.5), 0.5);
+        assert_eq!(
+            distance_to_triangle(&Point3::new(0.25, 0.25, -0.5), &[t[0], t[2], t[1]]),
+            0.5
+        );
+        // Beside a side, beyond a corner.
+        assert!((d(0.5, -0.3, 0.4) - 0.5).abs() < 1e-15);
+        assert!((d(-3.0, -4.0, 0.0) - 5.0).abs() < 1e-15);
+        assert!((d(1.0, 1.0, 0.0) - 0.5f64.sqrt()).abs() < 1e-15);
     }
 }

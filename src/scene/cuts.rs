@@ -145,7 +145,8 @@ impl CutStage {
             super::schema::TimeStep::Seconds(_) => 0.9,
         };
         Ok(Some(CutStage {
-            cutter: Cutter::new(mesh.clone(), model.clone(), method)?,
+            cutter: Cutter::new(mesh.clone(), model.clone(), method)?
+                .with_quality_floor(settings.quality_floor),
             touching: vec![false; blades.len()],
             blades,
             check: check || settings.check,
