@@ -293,6 +293,52 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
     }
 }
 
+/// `bench cut` gives a row per method, and per quality floor for subdividing: a floor keeps the
+/// lowest tet quality at or above it and the stable step at least as long as without; each cut
+/// uploads a part of the layout, not all of it.
+#[test]
+fn bench_cut_reports_each_quality_floor_of_subdividing() {
+    let out = lancet(&[
+        "bench",
+        "cut",
+        "--cube",
+        "8",
+        "--engine",
+        "fast",
+        "--method",
+        "separate,subdivide",
+        "--quality-floor",
+        "0,0.25",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    let rows = v.as_array().unwrap();
+    let of = |method: &str, floor: f64| {
+        rows.iter()
+            .find(|r| r["method"] == method && r["quality_floor"].as_f64() == Some(floor))
+            .unwrap_or_else(|| panic!("no {method} row at floor {floor}: {v:#}"))
+    };
+    assert_eq!(rows.len(), 3, "{v:#}");
+    let (without, with) = (of("subdivide", 0.0), of("subdivide", 0.25));
+    let q = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    assert!(q(with, "min_quality") >= 0.25, "{with:#}");
+    assert!(q(without, "min_quality") < 0.25, "{without:#}");
+    assert!(q(with, "dt_after") >= q(without, "dt_after"));
+    assert!(q(without, "dt_after") < q(without, "dt_before"));
+    for r in rows {
+        assert!(r["cuts"].as_u64().unwrap() > 0, "{r:#}");
+        assert!(q(r, "bytes_per_cut") < r["layout_bytes"].as_u64().unwrap() as f64);
+    }
+    // Separating makes no tets: the mesh keeps its quality.
+    let separate = &rows.iter().find(|r| r["method"] == "separate").unwrap();
+    assert!(q(separate, "min_quality") > 0.6, "{separate:#}");
+}
+
 /// Whether the preferred adapter has float32 atomics (the `atomic-float` accumulation).
 fn has_float_atomics(ctx: &lancet::engine::gpu::GpuContext) -> bool {
     ctx.device

@@ -8,6 +8,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use lancet::collide::ToolShape;
+use lancet::cut::subdivide::DEFAULT_QUALITY_FLOOR;
 use lancet::cut::{CutMethod, Cutter, Sweep};
 use lancet::engine::EngineKind;
 use lancet::layout::LayoutKind;
@@ -70,7 +71,8 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
 /// Every cut fixture, with every method (not only those it lists), runs to the end or stops
 /// with a reported reason, and what the report measures at the end pairs the cut mesh with the
 /// simulation's positions: a run stopped by a cut that added nodes once indexed positions from
-/// before the cut. A method the fixture lists meets its expectations.
+/// before the cut. No cut breaks an invariant, and subdividing keeps to the scenes' default
+/// quality floor. A method the fixture lists meets its expectations.
 #[test]
 fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() {
     let mesh_dir = std::env::var_os("LANCET_MESH_DIR").is_some();
@@ -107,6 +109,24 @@ fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() 
                 s.volume_ratio,
                 c.cuts,
                 c.nodes_added
+            );
+            // The fixtures check the invariants after every cut, the quality floor among them
+            // (the scene default's, which subdividing keeps to).
+            assert!(c.checks > 0 || c.cuts == 0, "{name} {method}");
+            assert!(
+                c.violations.is_empty(),
+                "{name} {method}: {:#?}",
+                c.violations
+            );
+            // Subdividing makes no tet below the default floor (no fixture sets its own),
+            // unless the mesh came with lower ones; without a floor it made tets of 0.025.
+            assert_eq!(c.quality_floor, DEFAULT_QUALITY_FLOOR, "{name}");
+            assert!(
+                c.min_quality >= DEFAULT_QUALITY_FLOOR.min(c.min_quality_uncut),
+                "{name} {method}: lowest quality {} (uncut {}, floor {})",
+                c.min_quality,
+                c.min_quality_uncut,
+                c.quality_floor
             );
             if listed.contains(&method) {
                 assert!(

@@ -64,6 +64,9 @@ enum BenchWhat {
         /// GPU layouts, comma-separated (one GPU row each).
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
         layout: Vec<LayoutArg>,
+        /// Quality floors for subdividing, comma-separated (one row each; 0: none).
+        #[arg(long = "quality-floor", value_delimiter = ',', default_values = ["0.2"])]
+        floors: Vec<f64>,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -401,6 +404,7 @@ fn main() -> ExitCode {
                     method,
                     engine,
                     layout,
+                    floors,
                     json,
                 }),
             ..
@@ -410,6 +414,7 @@ fn main() -> ExitCode {
             &method.iter().map(|&m| m.into()).collect::<Vec<_>>(),
             &engine.iter().map(|&e| e.into()).collect::<Vec<_>>(),
             &layout.iter().map(|&l| l.into()).collect::<Vec<_>>(),
+            &floors,
             json,
         ),
         Command::Bench {
@@ -624,7 +629,7 @@ fn print_summary(s: &RunSummary) {
         println!(
             "  uploaded {} of {} layout bytes a rebuild per cut would ({:.2}%; at most {:.2}% \
              in one cut); per cut p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} invariant checks, \
-             {} violations",
+             {} violations; lowest tet quality {:.3} (uncut {:.3}, floor {})",
             c.bytes_uploaded,
             c.bytes_full,
             100.0 * c.bytes_uploaded as f64 / c.bytes_full.max(1) as f64,
@@ -633,7 +638,10 @@ fn print_summary(s: &RunSummary) {
             c.p99_ms,
             c.max_ms,
             c.checks,
-            c.violations.len()
+            c.violations.len(),
+            c.min_quality,
+            c.min_quality_uncut,
+            c.quality_floor
         );
         for e in &c.time_step_events {
             println!("  {e}");
@@ -764,9 +772,10 @@ fn bench_cut(
     methods: &[lancet::cut::CutMethod],
     engines: &[EngineKind],
     layouts: &[lancet::layout::LayoutKind],
+    floors: &[f64],
     json: bool,
 ) -> lancet::Result<ExitCode> {
-    let rows = lancet::report::cut_bench::run(cubes, lengths, methods, engines, layouts)?;
+    let rows = lancet::report::cut_bench::run(cubes, lengths, methods, engines, layouts, floors)?;
     if json {
         println!(
             "{}",
@@ -775,15 +784,16 @@ fn bench_cut(
         return Ok(ExitCode::SUCCESS);
     }
     println!(
-        "{:>7} {:>6} {:>9} {:<34} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9}",
+        "{:>7} {:>6} {:>9} {:<34} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "cut",
-        "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after"
+        "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after", "floor",
+        "min q"
     );
     for r in &rows {
         let mut engine = r.engine.clone();
         engine.truncate(34);
         println!(
-            "{:>7} {:>6.1} {:>9} {:<34} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e}",
+            "{:>7} {:>6.1} {:>9} {:<34} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -800,7 +810,9 @@ fn bench_cut(
             100.0 * r.bytes_per_cut / r.layout_bytes.max(1) as f64,
             r.nodes_per_cm2,
             r.dt_before,
-            r.dt_after
+            r.dt_after,
+            r.quality_floor,
+            r.min_quality
         );
     }
     Ok(ExitCode::SUCCESS)

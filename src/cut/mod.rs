@@ -165,7 +165,7 @@ impl Cutter {
             on_cut: BTreeSet::new(),
             visited: SecondaryMap::new(),
             epoch: 0,
-            quality_floor: 0.0,
+            quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
         })
     }
 
@@ -173,10 +173,11 @@ impl Cutter {
     /// crossing whose split would make one snaps to the nearer end of its edge instead, and a
     /// node closer to the sweep than [`subdivide::NODE_SNAP`] of its shortest edge joins the
     /// cut; a tet left with every corner on a cut goes with its centroid's side of the sweep
-    /// (see [`subdivide`]). A floor of 0 (the default of [`Cutter::new`]), a negative or a NaN
-    /// one keeps subdividing as without a floor: only the parameter rule
-    /// ([`subdivide::EDGE_SNAP`]). Tets already below the floor are left as they are; the other
-    /// methods make no new tets and ignore the floor.
+    /// (see [`subdivide`]). [`Cutter::new`] starts at [`subdivide::DEFAULT_QUALITY_FLOOR`]. A
+    /// floor of 0, a negative or a NaN one subdivides without a floor: only the parameter rule
+    /// ([`subdivide::EDGE_SNAP`]), at the price of slivers that lower the stable time step.
+    /// Tets already below the floor are left as they are; the other methods make no new tets
+    /// and ignore the floor.
     pub fn with_quality_floor(mut self, floor: f64) -> Self {
         self.quality_floor = floor;
         self

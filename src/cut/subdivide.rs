@@ -59,6 +59,12 @@ use crate::mesh::{NodeKey, TetKey, TET_EDGES, TET_FACES};
 /// Crossings closer than this fraction of an edge to one of its ends snap to that end.
 pub const EDGE_SNAP: f64 = 0.2;
 
+/// The quality floor a [`Cutter`] starts with ([`Cutter::with_quality_floor`]): the rest
+/// volume-length ratio below which subdividing makes no tet. Without a floor, random planar cuts
+/// of a box made tets down to 0.025, and a subdivided box's stable time step fell to a third;
+/// at 0.2 the lowest was 0.206 and half as many nodes were made.
+pub const DEFAULT_QUALITY_FLOOR: f64 = 0.2;
+
 /// With a quality floor, a node at the end of a crossed edge that is closer to the sweep than
 /// this fraction of its shortest edge joins the cut. No larger than [`EDGE_SNAP`], so it moves
 /// the cut no further from the sweep than the parameter rule can.

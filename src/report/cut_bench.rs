@@ -68,17 +68,27 @@ pub struct CutRow {
     pub dt_before: f64,
     /// Stable time step after it, s.
     pub dt_after: f64,
+    /// The quality floor subdividing kept to (0: none; the other methods make no tets).
+    pub quality_floor: f64,
+    /// The lowest rest volume-length ratio of a tet after the cuts (the uncut boxes' is 0.657).
+    pub min_quality: f64,
 }
 
 /// The rows for boxes of `cubes` (N x N x N/2 cells of 1 cm), `lengths` (m), `methods` and
-/// `engines` (GPU rows once per layout of `layouts`).
+/// `engines` (GPU rows once per layout of `layouts`); subdividing once per quality floor of
+/// `floors` (the other methods make no tets: one row, at the first floor).
 pub fn run(
     cubes: &[usize],
     lengths: &[f64],
     methods: &[CutMethod],
     engines: &[EngineKind],
     layouts: &[LayoutKind],
+    floors: &[f64],
 ) -> Result<Vec<CutRow>> {
+    let first = [floors
+        .first()
+        .copied()
+        .unwrap_or(crate::cut::subdivide::DEFAULT_QUALITY_FLOOR)];
     let mut rows = Vec::new();
     for &n in cubes {
         for &length in lengths {
@@ -90,8 +100,15 @@ pub fn run(
                     } else {
                         &layouts[..1.min(layouts.len())]
                     };
+                    let floors = if method == CutMethod::Subdivide && !floors.is_empty() {
+                        floors
+                    } else {
+                        &first
+                    };
                     for &layout in kinds {
-                        rows.push(one(n, length, method, engine, layout)?);
+                        for &floor in floors {
+                            rows.push(one(n, length, method, engine, layout, floor)?);
+                        }
                     }
                 }
             }
@@ -118,6 +135,7 @@ fn one(
     method: CutMethod,
     engine: EngineKind,
     layout: LayoutKind,
+    floor: f64,
 ) -> Result<CutRow> {
     let h = 0.01;
     let nz = (n / 2).max(2);
@@ -138,7 +156,7 @@ fn one(
     };
     let mut sim = Simulation::new(packed, engine, sim_config)?;
     let engine_name = sim.engine_name();
-    let mut cutter = Cutter::new(mesh, model, method)?;
+    let mut cutter = Cutter::new(mesh, model, method)?.with_quality_floor(floor);
     sim.set_surface(cutter.surface())?;
     let blade = ToolShape::Blade {
         width: length,
@@ -213,5 +231,13 @@ fn one(
         tets_removed_per_cm2: removed as f64 / area_cm2,
         dt_before: before.dt,
         dt_after: sim.bound().dt,
+        quality_floor: floor,
+        min_quality: cutter
+            .mesh()
+            .tets()
+            .map(|(_, t)| {
+                crate::mesh::quality::tet_quality(&cutter.mesh().tet_points(t)).volume_length_ratio
+            })
+            .fold(f64::INFINITY, f64::min),
     })
 }

@@ -14,6 +14,7 @@ use crate::collide::{Tool, ToolShape};
 use crate::cut::{CutMethod, Cutter, Sweep};
 use crate::engine::Simulation;
 use crate::error::{Error, Result};
+use crate::mesh::quality::tet_quality;
 use crate::mesh::TetMesh;
 use crate::model::SpringModel;
 
@@ -50,9 +51,23 @@ pub struct SceneCut {
     /// Check the invariants after every cut (also turned on by `lancet run --check`).
     #[serde(default)]
     pub check: bool,
-    /// Smallest volume-length ratio allowed for any tet (invariant check).
-    #[serde(default)]
+    /// The rest volume-length ratio below which subdividing makes no tet (it snaps instead; see
+    /// [`Cutter::with_quality_floor`]); 0 turns the floor off. The invariant check flags any
+    /// tet below it, or below the uncut mesh's worst tet where that is lower (cuts do not
+    /// mend the tets a mesh came with).
+    #[serde(default = "default_quality_floor")]
     pub quality_floor: f64,
+}
+
+/// The lowest rest volume-length ratio of `mesh`'s tets (infinite for none).
+fn min_quality(mesh: &TetMesh) -> f64 {
+    mesh.tets()
+        .map(|(_, t)| tet_quality(&mesh.tet_points(t)).volume_length_ratio)
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn default_quality_floor() -> f64 {
+    crate::cut::subdivide::DEFAULT_QUALITY_FLOOR
 }
 
 /// What the cuts of a run did.
@@ -91,6 +106,13 @@ pub struct CutReport {
     pub max_opening: f64,
     /// Time-step changes and warnings caused by cuts.
     pub time_step_events: Vec<String>,
+    /// The quality floor subdividing kept to (0: none).
+    pub quality_floor: f64,
+    /// The lowest rest volume-length ratio of a tet before the first cut.
+    pub min_quality_uncut: f64,
+    /// The lowest rest volume-length ratio of a tet at the end (no lower than the floor or the
+    /// uncut mesh's lowest, whichever is lower; infinite when no tet is left).
+    pub min_quality: f64,
     /// Invariant checks run.
     pub checks: usize,
     /// Invariant violations found, with the step.
@@ -105,6 +127,9 @@ pub struct CutStage {
     settings: SceneCut,
     check: bool,
     volume_before: f64,
+    /// The floor the invariant check holds the tets to: the scene's, or the uncut mesh's worst
+    /// tet where that is lower.
+    check_floor: f64,
     bound_fraction: f64,
     /// Whether a blade touched the tissue at the last step (it may be wholly inside now).
     touching: Vec<bool>,
@@ -144,6 +169,9 @@ impl CutStage {
             super::schema::TimeStep::BoundFraction(f) => f,
             super::schema::TimeStep::Seconds(_) => 0.9,
         };
+        let min_quality_uncut = min_quality(mesh);
+        let quality_floor = settings.quality_floor;
+        let check_floor = min_quality_uncut.min(quality_floor);
         Ok(Some(CutStage {
             cutter: Cutter::new(mesh.clone(), model.clone(), method)?
                 .with_quality_floor(settings.quality_floor),
@@ -152,11 +180,14 @@ impl CutStage {
             check: check || settings.check,
             settings,
             volume_before: mesh.volume(),
+            check_floor,
             bound_fraction,
             latencies: Vec::new(),
             copies: Vec::new(),
             report: CutReport {
                 method: method.to_string(),
+                quality_floor,
+                min_quality_uncut,
                 ..CutReport::default()
             },
         }))
@@ -207,16 +238,16 @@ impl CutStage {
             }
             self.touching[slot] = true;
             let first = sim.model().node_count() as u32;
+            let mut stop = None;
             let cost = match sim.apply_with(&outcome.diff, false) {
                 Ok(cost) => cost,
                 Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
                     TimeStepPolicy::Stop => {
-                        // The run ends here, but the cutter already holds the cut: the
+                        // The run ends after this cut, but the cutter already holds it: the
                         // simulation takes it too (no step is taken with it), so that the
-                        // final mesh, model and positions the report measures agree.
-                        sim.apply_with(&outcome.diff, true)?;
-                        sim.edit_surface(&outcome.surface)?;
-                        return Err(Error::UnstableTimeStep { dt, bound, node });
+                        // report counts it and measures a mesh and positions that agree.
+                        stop = Some(Error::UnstableTimeStep { dt, bound, node });
+                        sim.apply_with(&outcome.diff, true)?
                     }
                     TimeStepPolicy::Warn => {
                         self.report.time_step_events.push(format!(
@@ -265,13 +296,16 @@ impl CutStage {
             if self.check {
                 let inv = self
                     .cutter
-                    .check_invariants(self.volume_before, self.settings.quality_floor);
+                    .check_invariants(self.volume_before, self.check_floor);
                 r.checks += 1;
                 r.violations.extend(
                     inv.violations
                         .into_iter()
                         .map(|v| format!("after the cut at step {}: {v}", sim.steps())),
                 );
+            }
+            if let Some(e) = stop {
+                return Err(e);
             }
         }
         Ok(())
@@ -298,6 +332,7 @@ impl CutStage {
         self.report.p99_ms = pick(0.99);
         self.report.max_ms = l.last().map_or(0.0, |s| 1e3 * s);
         self.report.fragments = self.cutter.mesh().component_count();
+        self.report.min_quality = min_quality(self.cutter.mesh());
         self.report.volume_removed_fraction = self.cutter.volume_removed() / self.volume_before;
         (self.cutter.mesh().clone(), self.report)
     }
