@@ -7,7 +7,7 @@ struct Slot {
     k: f32,            // stiffness, N/m
     c: f32,            // damping along the spring, N s/m
     other: u32,        // the other end; 0xffffffff in padding slots
-    pad: u32,
+    pad: u32,          // CONTINUE slots: the row the springs go on in
 }
 
 // Per-step constants; mirrors `engine::gpu::StepUniform` (64 bytes).
@@ -29,6 +29,9 @@ struct Params {
 }
 
 const EMPTY: u32 = 0xffffffffu;
+// Last slot of a full connectivity row whose node has more springs: `pad` names the row they
+// go on in (`Slot::CONTINUE`).
+const CONTINUE: u32 = 0xfffffffeu;
 const VERLET: u32 = 0u;
 
 // Velocity of node j: backward difference for Verlet (second = previous displacement),

@@ -12,9 +12,10 @@
 // Symplectic Euler: next velocities. Verlet: unused.
 @group(0) @binding(6) var<storage, read_write> second_out: array<vec4<f32>>;
 
-// Sum the forces of slots[base .. base + width) on node i (stopping at an empty slot) and
-// integrate it; the twin is `layout::connectivity::node_update`.
-fn update_node(i: u32, base: u32, width: u32) {
+// Sum the forces of slots[base .. base + width) on node i (stopping at an empty slot, going on
+// in row `pad` at a CONTINUE slot) and integrate it; the twin is
+// `layout::connectivity::node_update`.
+fn update_node(i: u32, first: u32, width: u32) {
     let m_inv = inv_mass[i];
     if (m_inv == 0.0) {
         // Fixed node: stays at rest.
@@ -27,11 +28,23 @@ fn update_node(i: u32, base: u32, width: u32) {
     let ui = cur[i].xyz;
     let vi = velocity(p, ui, second_in[i].xyz);
     var f = vec3<f32>(0.0);
-    for (var s = 0u; s < width; s = s + 1u) {
+    var base = first;
+    var s = 0u;
+    loop {
+        if (s >= width) {
+            break;
+        }
         let slot = slots[base + s];
         if (slot.other == EMPTY) {
             break;
         }
+        if (slot.other == CONTINUE) {
+            // Only the connectivity layout continues rows, always in rows of `width` slots.
+            base = slot.pad * width;
+            s = 0u;
+            continue;
+        }
+        s = s + 1u;
         let uj = cur[slot.other].xyz;
         var dv = vec3<f32>(0.0);
         if (p.damped != 0u) {

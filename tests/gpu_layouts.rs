@@ -236,13 +236,65 @@ fn gpu_engine_runs_a_real_mesh_like_the_reference(
     );
 }
 
-#[test]
-fn capacity_below_the_widest_node_is_an_error_naming_it() {
-    let model = random_model(1, false);
-    match ConnectivityLayout::new(&model, NodeOrder::identity(model.node_count()), Some(3)) {
-        Err(Error::Model(msg)) => assert!(msg.contains("slots per node") && msg.contains("node")),
+/// Rows narrower than their nodes continue in overflow rows: on the device, a table of three
+/// slots per row (most nodes a chain of several rows) steps bit for bit like its CPU twin and
+/// like a table wide enough for every node. One slot per row is an error.
+#[rstest]
+fn rows_that_continue_step_on_the_gpu_like_full_rows(
+    #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
+) {
+    let model = random_model(1, true);
+    let order = NodeOrder::locality(&model);
+    match ConnectivityLayout::new(&model, order.clone(), Some(1)) {
+        Err(Error::Model(msg)) => assert!(msg.contains("at least 2 slots"), "{msg}"),
         other => panic!("expected a capacity error, got {other:?}"),
     }
+    let Some(ctx) = common::gpu() else { return };
+    let narrow = ConnectivityLayout::new(&model, order.clone(), Some(3)).unwrap();
+    let wide = ConnectivityLayout::new(&model, order, None).unwrap();
+    assert!(narrow.overflow_rows() > narrow.node_count());
+    assert!(
+        (0..model.node_count()).all(|i| narrow.row(i) == wide.row(i)),
+        "the same slots in the same order"
+    );
+    let config = SimConfig {
+        integrator,
+        ..SimConfig::new(0.5 * stable_time_step(&model).dt)
+    };
+    let (cur, second) = random_state(model.node_count(), 3);
+    let run = |layout: &ConnectivityLayout| {
+        let ctx = common::gpu().unwrap();
+        let mut e = GpuEngine::with_layout(
+            ctx,
+            &model,
+            config,
+            lancet::layout::PackedLayout::Connectivity(layout.clone()),
+        )
+        .unwrap();
+        e.set_raw_state(&cur, &second).unwrap();
+        e.step(20);
+        e.raw_state().unwrap()
+    };
+    drop(ctx);
+    let (a, b) = (run(&narrow), run(&wide));
+    let bits =
+        |v: &[[f32; 4]]| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
+    assert_eq!(bits(&a.0), bits(&b.0));
+    assert_eq!(bits(&a.1), bits(&b.1));
+    // And the twin, from the same raw state.
+    let p = step_params(&model, config);
+    let (mut u, mut s) = (cur.clone(), second.clone());
+    for _ in 0..20 {
+        let (nu, ns) = narrow.step_cpu(&p, &u, &s);
+        s = match integrator {
+            Integrator::Verlet => u,
+            Integrator::SymplecticEuler => ns,
+        };
+        u = nu;
+    }
+    let moved = u.iter().flatten().any(|&x| x.abs() > 1e-7);
+    assert!(moved, "the nodes move");
+    assert_eq!(bits(&a.0), bits(&u));
 }
 
 #[test]

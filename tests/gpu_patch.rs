@@ -11,7 +11,7 @@ use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::{LayoutKind, PackedLayout};
-use models::{fresh, moved_state, random_diff, random_model, random_state};
+use models::{fresh, moved_state, random_diff, random_model, random_state, widen_node_0};
 use rstest::rstest;
 
 type Raw = (Vec<[f32; 4]>, Vec<[f32; 4]>);
@@ -105,6 +105,57 @@ fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
         partial,
         "at least one patch uploaded only part of the layout"
     );
+}
+
+/// A cut that gives a node more springs than the connectivity table's rows hold continues its
+/// row in an overflow row: the device gets that row and the continuation, not a repacked
+/// table, and steps like the patched layout's twin; cuts that add nodes afterwards move the
+/// overflow rows up, and the device follows.
+#[test]
+fn a_connectivity_row_that_outgrows_its_capacity_continues_on_the_device() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(43, true);
+    let config = SimConfig::new(2e-5);
+    let mut engine =
+        GpuEngine::with_context(ctx, &model, config, LayoutKind::Connectivity).unwrap();
+    let (x, v) = random_state(&model, 43);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    let PackedLayout::Connectivity(c) = engine.layout() else {
+        unreachable!()
+    };
+    let k = c.capacity;
+    for round in 0..3 {
+        let diff = if round == 0 {
+            widen_node_0(&model, k, k)
+        } else {
+            random_diff(&model, 200 + round)
+        };
+        let mut next = model.clone();
+        next.apply(&diff).unwrap();
+        let report = engine.patch(&next, &diff).unwrap();
+        model = next;
+        let PackedLayout::Connectivity(c) = engine.layout() else {
+            unreachable!()
+        };
+        assert_eq!(c.capacity, k, "round {round}: not repacked");
+        assert!(c.overflow_rows() >= 2, "round {round}");
+        // The widening rewrites the rows of node 0 and its k new neighbours and writes two
+        // overflow rows (a repack would send all of it); random cuts on this small model touch
+        // more, and added nodes move the overflow rows.
+        let share = if round == 0 { 4 } else { 1 };
+        assert!(
+            report.uploaded_bytes * share < report.layout_bytes,
+            "round {round}: uploaded {} of {}",
+            report.uploaded_bytes,
+            report.layout_bytes
+        );
+        let want = engine.raw_state().unwrap();
+        let expect = twin(&engine, Accumulation::Gather, want, 11);
+        engine.step(11);
+        let got = engine.raw_state().unwrap();
+        assert_eq!(bits(&got.0), bits(&expect.0), "round {round}");
+    }
 }
 
 #[rstest]

@@ -12,8 +12,8 @@ use lancet::layout::connectivity::ConnectivityLayout;
 use lancet::layout::edges::{Accumulation, EdgeLayout};
 use lancet::layout::patch::{LayoutArray, LayoutPatch};
 use lancet::layout::{LayoutKind, NodeOrder, PackedLayout};
-use lancet::model::{ModelDiff, PackedModel, PackedSpring};
-use models::{fresh, moved_state, random_diff, random_model, Rng};
+use lancet::model::{ModelDiff, PackedModel};
+use models::{fresh, moved_state, random_diff, random_model, widen_node_0, Rng};
 use rstest::rstest;
 
 const ARRAYS: [LayoutArray; 6] = LayoutArray::ALL;
@@ -224,44 +224,109 @@ fn a_small_cut_dirties_a_small_part_of_each_layout() {
     }
 }
 
+/// Steps of the connectivity twin equal bit for bit: the same slots summed in the same order.
+fn assert_steps_alike(a: &ConnectivityLayout, b: &ConnectivityLayout, model: &PackedModel) {
+    let p = step_params(model, SimConfig::new(2e-5));
+    let mut rng = Rng(5);
+    let mut state = || -> Vec<[f32; 4]> {
+        (0..a.node_count())
+            .map(|_| [1e-4 * rng.next() as f32, 1e-4 * rng.next() as f32, 0.0, 0.0])
+            .collect()
+    };
+    let (cur, prev) = (state(), state());
+    let bits =
+        |v: Vec<[f32; 4]>| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
+    assert_eq!(
+        bits(a.step_cpu(&p, &cur, &prev).0),
+        bits(b.step_cpu(&p, &cur, &prev).0)
+    );
+}
+
 #[test]
-fn a_row_that_outgrows_its_capacity_repacks_by_size_class() {
-    let model = random_model(3, false);
+fn a_row_that_outgrows_its_capacity_continues_in_an_overflow_row() {
+    let mut model = random_model(3, false);
     let mut c = ConnectivityLayout::new(&model, NodeOrder::locality(&model), None).unwrap();
     let k = c.capacity;
-    // Join node 0 to every node it is not yet joined to, until it has k + 1 springs.
-    let mut diff = ModelDiff::default();
-    let mut valence = model
-        .springs
-        .iter()
-        .filter(|s| s.nodes.contains(&0))
-        .count() as u32;
-    for b in 1..model.node_count() as u32 {
-        if valence > k {
-            break;
-        }
-        if model.spring_index(0, b).is_none() {
-            diff.added_springs.push(PackedSpring {
-                nodes: [0, b],
-                rest_length: 0.01,
-                stiffness: 10.0,
-                damping: 0.0,
-            });
-            valence += 1;
-        }
+    // 2k springs: k - 1 and a continuation, k - 1 and a continuation, 2: a chain of three rows.
+    let diff = widen_node_0(&model, k, k);
+    let next = applied(&model, &diff);
+    let before = PackedLayout::Connectivity(c.clone());
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(!patch.repacked);
+    assert_eq!(c.capacity, k);
+    assert_eq!(c.overflow_rows(), 2);
+    let total = c.slots.len() as u64 * 32;
+    assert!(
+        patch.dirty_bytes() * 4 < total,
+        "{} of {total} bytes dirty",
+        patch.dirty_bytes()
+    );
+    assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap());
+    // Summed in the same order as a table wide enough for node 0.
+    let wide = ConnectivityLayout::new(&next, c.order.clone(), None).unwrap();
+    assert!(wide.capacity > k && wide.overflow_rows() == 0);
+    assert_steps_alike(&c, &wide, &next);
+    model = next;
+    // Cuts that add nodes move the overflow rows up past the new node rows; one that narrows
+    // node 0 again frees its overflow rows for reuse.
+    for round in 0..3 {
+        let diff = random_diff(&model, 70 + round);
+        let next = applied(&model, &diff);
+        let before = PackedLayout::Connectivity(c.clone());
+        let patch = c.patch(&next, &diff).unwrap();
+        assert!(!patch.repacked, "round {round}");
+        assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+        assert!(
+            c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap(),
+            "round {round}"
+        );
+        assert_steps_alike(
+            &c,
+            &ConnectivityLayout::new(&next, c.order.clone(), None).unwrap(),
+            &next,
+        );
+        model = next;
     }
+    let narrow = ModelDiff {
+        removed_springs: diff
+            .added_springs
+            .iter()
+            .map(|s| s.nodes)
+            .filter(|&[a, b]| model.spring_index(a, b).is_some())
+            .collect(),
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &narrow);
+    let rows = c.overflow_rows();
+    c.patch(&next, &narrow).unwrap();
+    assert_eq!(c.overflow_rows(), rows, "freed rows stay, for reuse");
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap());
+    let again = widen_node_0(&next, k, k - 4);
+    let wider = applied(&next, &again);
+    c.patch(&wider, &again).unwrap();
+    assert_eq!(c.overflow_rows(), rows, "a freed row is reused");
+    assert!(c == ConnectivityLayout::new(&wider, c.order.clone(), Some(k)).unwrap());
+}
+
+#[test]
+fn a_table_with_many_overflow_rows_repacks_by_size_class() {
+    let model = random_model(3, false);
+    // Four slots per row: most rows continue, far past an eighth of the nodes.
+    let mut c = ConnectivityLayout::new(&model, NodeOrder::locality(&model), Some(4)).unwrap();
+    assert!(c.overflow_rows() > 64.max(c.node_count() / 8));
+    let widest = (0..c.node_count()).map(|i| c.row(i).len()).max().unwrap() as u32;
+    let diff = random_diff(&model, 9);
     let next = applied(&model, &diff);
     let patch = c.patch(&next, &diff).unwrap();
     assert!(patch.repacked);
+    assert_eq!(c.overflow_rows(), 0);
     assert!(
-        c.capacity > k && c.capacity % 4 == 0,
-        "{k} -> {}",
+        c.capacity > widest.max(4) && c.capacity % 4 == 0,
+        "{}",
         c.capacity
     );
-    assert_eq!(
-        c,
-        ConnectivityLayout::new(&next, c.order.clone(), Some(c.capacity)).unwrap()
-    );
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), None).unwrap());
 }
 
 #[test]

@@ -102,24 +102,49 @@ pub(crate) fn row_slots(
 }
 
 /// Springs packed into `K` slots per node.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// A node with more than `K` springs continues its row: the row's last slot is a
+/// [`Slot::CONTINUE`] naming an overflow row past the node rows, which holds the next `K - 1`
+/// springs and, if needed, another continuation. Packing sizes `K` so that no row continues;
+/// the rows a cut makes too wide continue instead of repacking the whole table (which on a
+/// 100k-tet mesh re-uploaded it whole, 10-20 ms, one cut in four).
+#[derive(Debug, Clone)]
 pub struct ConnectivityLayout {
     /// Node renumbering (model index <-> layout index).
     pub order: NodeOrder,
-    /// Slots per node.
+    /// Slots per row.
     pub capacity: u32,
-    /// `capacity` slots per node, in layout order.
+    /// `capacity` slots per row: one row per node in layout order, then the overflow rows.
     pub slots: Vec<Slot>,
     /// Per-node arrays.
     pub nodes: NodeArrays,
+    /// For each overflow row (row `node_count() + j`), the row whose last slot continues into
+    /// it, or [`FREE_ROW`].
+    overflow: Vec<u32>,
+    /// Overflow rows no chain uses, for reuse.
+    free: Vec<u32>,
+}
+
+/// An overflow row that no chain uses.
+const FREE_ROW: u32 = u32::MAX;
+
+/// Two layouts are equal when every node sums the same slots in the same order, whatever rows
+/// its chain went to: a patched layout places overflow rows in the order cuts needed them.
+impl PartialEq for ConnectivityLayout {
+    fn eq(&self, other: &Self) -> bool {
+        self.order == other.order
+            && self.capacity == other.capacity
+            && self.nodes == other.nodes
+            && (0..self.node_count()).all(|i| self.row(i) == other.row(i))
+    }
 }
 
 impl ConnectivityLayout {
-    /// Pack `model` in node order `order`, with `capacity` slots per node (default: the next
+    /// Pack `model` in node order `order`, with `capacity` slots per row (default: the next
     /// multiple of 4 above the largest valence, so that every row has a free slot: a cut that
-    /// splits a node gives the nodes on its crack front one more neighbour, and without room
-    /// the first cut would repack the whole layout). A capacity below some node's valence is an
-    /// error naming that node.
+    /// splits a node gives the nodes on its crack front one more neighbour). Nodes with more
+    /// springs than `capacity` continue their rows in overflow rows; a capacity below 2 (no
+    /// room for a spring and a continuation) is an error.
     pub fn new(model: &PackedModel, order: NodeOrder, capacity: Option<u32>) -> Result<Self> {
         let n = model.node_count();
         let mut valence = vec![0u32; n];
@@ -129,11 +154,10 @@ impl ConnectivityLayout {
         }
         let widest = valence.iter().copied().max().unwrap_or(0);
         let k = capacity.unwrap_or_else(|| row_size_class(widest));
-        if let Some(node) = valence.iter().position(|&v| v > k) {
+        if k < 2 {
             return Err(Error::Model(format!(
-                "node {node} has {} springs but the connectivity layout has {k} slots per node; \
-                 raise the capacity to at least {widest}",
-                valence[node]
+                "the connectivity layout needs at least 2 slots per node (a spring and a \
+                 continuation), not {k}"
             )));
         }
         let total = n
@@ -142,13 +166,19 @@ impl ConnectivityLayout {
             .ok_or_else(|| Error::Model("connectivity table too large for u32 indices".into()))?;
         let mut slots = vec![Slot::empty(); total];
         let mut fill = vec![0u32; n];
+        // Rows wider than `k`, gathered whole and written as chains below.
+        let mut wide: BTreeMap<usize, Vec<Slot>> = BTreeMap::new();
         // Springs are sorted by their node pair, so each row fills in neighbour order.
         for s in &model.springs {
             for (from, to) in [(s.nodes[0], s.nodes[1]), (s.nodes[1], s.nodes[0])] {
+                let slot = Slot::of(model, s, from, order.rank[to as usize]);
                 let row = order.rank[from as usize] as usize;
-                let at = row * k as usize + fill[row] as usize;
-                slots[at] = Slot::of(model, s, from, order.rank[to as usize]);
-                fill[row] += 1;
+                if valence[from as usize] > k {
+                    wide.entry(row).or_default().push(slot);
+                } else {
+                    slots[row * k as usize + fill[row] as usize] = slot;
+                    fill[row] += 1;
+                }
             }
         }
         // Within a row, put neighbours in ascending layout order so the gather walks memory
@@ -157,12 +187,19 @@ impl ConnectivityLayout {
             row.sort_by_key(|s| s.other);
         }
         let nodes = NodeArrays::new(model, &order);
-        Ok(ConnectivityLayout {
+        let mut layout = ConnectivityLayout {
             order,
             capacity: k,
             slots,
             nodes,
-        })
+            overflow: Vec::new(),
+            free: Vec::new(),
+        };
+        for (row, mut list) in wide {
+            list.sort_by_key(|s| s.other);
+            layout.write_row(row, &list, &mut Vec::new())?;
+        }
+        Ok(layout)
     }
 
     /// Number of nodes.
@@ -170,24 +207,147 @@ impl ConnectivityLayout {
         self.nodes.inv_mass.len()
     }
 
+    /// Overflow rows (in use or free) past the node rows.
+    pub fn overflow_rows(&self) -> usize {
+        self.overflow.len()
+    }
+
+    /// The slots node row `i` sums, in order, its continuation rows followed.
+    pub fn row(&self, i: usize) -> Vec<Slot> {
+        let k = self.capacity as usize;
+        let mut out = Vec::new();
+        for r in self.chain(i) {
+            out.extend(
+                self.slots[r * k..(r + 1) * k]
+                    .iter()
+                    .take_while(|s| s.other != Slot::EMPTY && s.other != Slot::CONTINUE),
+            );
+        }
+        out
+    }
+
+    /// The rows of node row `i`'s chain: its own, then each continuation.
+    fn chain(&self, i: usize) -> Vec<usize> {
+        let k = self.capacity as usize;
+        let mut rows = vec![i];
+        loop {
+            let last = self.slots[(rows[rows.len() - 1] + 1) * k - 1];
+            if last.other != Slot::CONTINUE {
+                return rows;
+            }
+            rows.push(last.pad as usize);
+        }
+    }
+
+    /// Write `list` (sorted by layout index) as node row `row`'s chain, reusing the rows it
+    /// has, freeing those it no longer needs and taking free or new overflow rows for those it
+    /// lacks. Every row written or freed is pushed to `dirty`.
+    fn write_row(&mut self, row: usize, list: &[Slot], dirty: &mut Vec<u32>) -> Result<()> {
+        let k = self.capacity as usize;
+        let n = self.node_count();
+        let needed = if list.len() <= k {
+            1
+        } else {
+            1 + (list.len() - k).div_ceil(k - 1)
+        };
+        let mut rows = self.chain(row);
+        for &r in &rows[needed.min(rows.len())..] {
+            self.slots[r * k..(r + 1) * k].fill(Slot::empty());
+            self.overflow[r - n] = FREE_ROW;
+            self.free.push(r as u32);
+            dirty.push(r as u32);
+        }
+        rows.truncate(needed);
+        while rows.len() < needed {
+            let owner = rows[rows.len() - 1] as u32;
+            let r = match self.free.pop() {
+                Some(r) => {
+                    self.overflow[r as usize - n] = owner;
+                    r as usize
+                }
+                None => {
+                    let r = n + self.overflow.len();
+                    if (r + 1) * k > u32::MAX as usize {
+                        return Err(Error::Model(
+                            "connectivity table too large for u32 indices".into(),
+                        ));
+                    }
+                    self.overflow.push(owner);
+                    self.slots.extend(std::iter::repeat_n(Slot::empty(), k));
+                    r
+                }
+            };
+            rows.push(r);
+        }
+        let mut rest = list;
+        for (j, &r) in rows.iter().enumerate() {
+            let dst = &mut self.slots[r * k..(r + 1) * k];
+            dst.fill(Slot::empty());
+            match rows.get(j + 1) {
+                Some(&next) => {
+                    dst[..k - 1].copy_from_slice(&rest[..k - 1]);
+                    dst[k - 1] = Slot::continuation(next as u32);
+                    rest = &rest[k - 1..];
+                }
+                None => dst[..rest.len()].copy_from_slice(rest),
+            }
+            dirty.push(r as u32);
+        }
+        Ok(())
+    }
+
+    /// Make room for `added` node rows after the `before` node rows: the overflow rows move up
+    /// by `added` rows and their owners' continuations follow. The new rows, the moved rows and
+    /// the owners' rows are pushed to `dirty`.
+    fn insert_node_rows(&mut self, before: usize, added: usize, dirty: &mut Vec<u32>) {
+        let k = self.capacity as usize;
+        let at = before * k;
+        self.slots
+            .splice(at..at, std::iter::repeat_n(Slot::empty(), added * k));
+        for r in &mut self.free {
+            *r += added as u32;
+        }
+        // The new rows: new bytes, or bytes where overflow rows were.
+        dirty.extend(before as u32..(before + added) as u32);
+        for j in 0..self.overflow.len() {
+            let moved = (before + added + j) as u32;
+            dirty.push(moved);
+            let owner = self.overflow[j];
+            if owner == FREE_ROW {
+                continue;
+            }
+            let owner = if owner as usize >= before {
+                owner + added as u32
+            } else {
+                owner
+            };
+            self.overflow[j] = owner;
+            self.slots[(owner as usize + 1) * k - 1].pad = moved;
+            dirty.push(owner);
+        }
+    }
+
     /// Device memory of this layout with its node state (three vec4 displacement buffers, and
     /// two velocity buffers for symplectic Euler), and the bytes one step moves.
     pub fn memory(&self, integrator: Integrator) -> (MemoryStats, u64) {
         let n = self.node_count() as u64;
         let slots = self.slots.len() as u64 * 32;
-        let used = self.slots.iter().filter(|s| s.other != Slot::EMPTY).count() as u64;
+        let springs = self
+            .slots
+            .iter()
+            .filter(|s| s.other != Slot::EMPTY && s.other != Slot::CONTINUE)
+            .count() as u64;
         let state = state_buffers(n, integrator);
         let mut buffers = vec![
             ("slots".to_string(), slots),
             ("inverse masses".to_string(), n * 4),
         ];
         buffers.extend(state.iter().cloned());
-        let springs = (used / 2) as usize;
         let stats = MemoryStats::new(
             buffers,
-            (self.slots.len() as u64 - used) * 32,
+            (self.slots.len() as u64 - springs) * 32,
             n as usize,
-            springs,
+            (springs / 2) as usize,
         );
         // The padded table is streamed whole (empty slots end a row's loop, but they share cache
         // lines with used ones), plus masses and the state read and written once.
@@ -204,12 +364,11 @@ impl ConnectivityLayout {
         cur: &[[f32; 4]],
         second: &[[f32; 4]],
     ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
-        let k = self.capacity as usize;
         let mut next = vec![[0.0f32; 4]; cur.len()];
         let mut second_next = vec![[0.0f32; 4]; cur.len()];
         for i in 0..cur.len() {
-            let row = &self.slots[i * k..(i + 1) * k];
-            let (u, s) = node_update(p, row, self.nodes.inv_mass[i], cur, second, i);
+            let row = self.row(i);
+            let (u, s) = node_update(p, &row, self.nodes.inv_mass[i], cur, second, i);
             next[i] = u;
             second_next[i] = s;
         }
@@ -219,43 +378,55 @@ impl ConnectivityLayout {
 
 impl ConnectivityLayout {
     /// Apply `diff` (already applied to `model`, the model after the change): added nodes get
-    /// the next layout indices and `capacity` empty slots each, the rows of touched nodes are
-    /// rewritten. Only when a row outgrows `capacity` is the table repacked, with the capacity
-    /// grown to the next size class ([`row_size_class`]). The result equals
+    /// the next layout indices and a row each (the overflow rows move up to make room), the
+    /// rows of touched nodes are rewritten, continuing in overflow rows where they outgrow
+    /// `capacity`. Only when the overflow rows outnumber an eighth of the nodes (and 64) is
+    /// the table repacked, with the capacity grown to the next size class
+    /// ([`row_size_class`]) so that no row continues. The result equals (as [`PartialEq`]
+    /// compares, slot for slot in each node's order)
     /// `ConnectivityLayout::new(model, self.order.clone(), Some(self.capacity))`.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.node_count();
         super::patch::check_model(before, diff, model)?;
         let k = self.capacity as usize;
         let mut patch = LayoutPatch::default();
+        let mut dirty: Vec<u32> = Vec::new();
+        let added = diff.added_nodes.len();
+        if added > 0 {
+            self.insert_node_rows(before, added, &mut dirty);
+        }
         for (i, a) in diff.added_nodes.iter().enumerate() {
             let node = (before + i) as u32;
             self.order.order.push(node);
             self.order.rank.push(node);
-            self.slots.extend(std::iter::repeat_n(Slot::empty(), k));
             self.nodes.inv_mass.push(0.0);
             patch.moves.push(StateMove {
                 to: node,
                 from: a.state_from.map(|s| self.order.rank[s as usize]),
             });
         }
-        let (order, slots) = (&self.order, &self.slots);
         let lists = touched_neighbours(diff, before, |t| {
-            let row = order.rank[t as usize] as usize;
-            slots[row * k..(row + 1) * k]
+            self.row(self.order.rank[t as usize] as usize)
                 .iter()
-                .take_while(|s| s.other != Slot::EMPTY)
-                .map(|s| order.order[s.other as usize])
+                .map(|s| self.order.order[s.other as usize])
                 .collect()
         });
         for &t in lists.keys() {
             let row = self.order.rank[t as usize] as usize;
             self.nodes.inv_mass[row] = inv_mass_of(model, t);
         }
-        let widest = lists.values().map(|l| l.len() as u32).max().unwrap_or(0);
-        if widest > self.capacity {
-            let grown = row_size_class(widest);
-            *self = ConnectivityLayout::new(model, self.order.clone(), Some(grown))?;
+        for (&t, list) in &lists {
+            let row = self.order.rank[t as usize] as usize;
+            let new = row_slots(model, t, list, &self.order.rank)?;
+            self.write_row(row, &new, &mut dirty)?;
+        }
+        if self.overflow.len() > 64.max(self.node_count() / 8) {
+            let widest = (0..self.node_count())
+                .map(|i| self.row(i).len() as u32)
+                .max()
+                .unwrap_or(0);
+            *self =
+                ConnectivityLayout::new(model, self.order.clone(), Some(row_size_class(widest)))?;
             patch.repacked = true;
             patch.mark_all(LayoutArray::Slots, self.slots.len() as u64 * 32);
             patch.mark_all(LayoutArray::InvMass, self.nodes.inv_mass.len() as u64 * 4);
@@ -263,16 +434,18 @@ impl ConnectivityLayout {
             patch.normalize();
             return Ok(patch);
         }
-        for (&t, list) in &lists {
-            let row = self.order.rank[t as usize] as usize;
-            let new = row_slots(model, t, list, &self.order.rank)?;
-            let dst = &mut self.slots[row * k..(row + 1) * k];
-            dst.fill(Slot::empty());
-            dst[..new.len()].copy_from_slice(&new);
-        }
         let rows: Vec<u32> = lists.keys().map(|&t| self.order.rank[t as usize]).collect();
-        patch.mark(LayoutArray::Slots, rows.iter().copied(), k as u64, 32);
+        patch.mark(LayoutArray::Slots, dirty, k as u64, 32);
         patch.mark(LayoutArray::InvMass, rows, 1, 4);
+        if added > 0 {
+            // New node rows hold the added nodes' masses even when no spring touched them.
+            patch.mark(
+                LayoutArray::InvMass,
+                before as u32..(before + added) as u32,
+                1,
+                4,
+            );
+        }
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();
         Ok(patch)

@@ -53,7 +53,7 @@ pub struct Slot {
     pub c: f32,
     /// The other end (index in the layout's node order); [`Slot::EMPTY`] in padding slots.
     pub other: u32,
-    /// Padding to 32 bytes.
+    /// Padding to 32 bytes; in a [`Slot::CONTINUE`] slot, the row the springs go on in.
     pub pad: u32,
 }
 
@@ -62,6 +62,19 @@ const _: () = assert!(std::mem::size_of::<Slot>() == 32);
 impl Slot {
     /// Marks an unused slot.
     pub const EMPTY: u32 = u32::MAX;
+
+    /// Marks the last slot of a full connectivity row whose node has more springs: they go on
+    /// in the row `pad` names ([`Slot::continuation`]).
+    pub const CONTINUE: u32 = u32::MAX - 1;
+
+    /// The slot that continues a connectivity row in row `row` (past the node rows).
+    pub fn continuation(row: u32) -> Self {
+        Slot {
+            other: Slot::CONTINUE,
+            pad: row,
+            ..Zeroable::zeroed()
+        }
+    }
 
     /// An unused slot (zero stiffness, `other = EMPTY`).
     pub fn empty() -> Self {

@@ -240,3 +240,33 @@ pub fn fresh(
         PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
     }
 }
+
+/// A diff joining node 0 to nodes it is not joined to until it has `more` springs beyond `k`.
+pub fn widen_node_0(
+    model: &lancet::model::PackedModel,
+    k: u32,
+    more: u32,
+) -> lancet::model::ModelDiff {
+    let mut diff = lancet::model::ModelDiff::default();
+    let mut valence = model
+        .springs
+        .iter()
+        .filter(|s| s.nodes.contains(&0))
+        .count() as u32;
+    for b in 1..model.node_count() as u32 {
+        if valence >= k + more {
+            break;
+        }
+        if model.spring_index(0, b).is_none() {
+            diff.added_springs.push(lancet::model::PackedSpring {
+                nodes: [0, b],
+                rest_length: 0.01,
+                stiffness: 10.0,
+                damping: 0.0,
+            });
+            valence += 1;
+        }
+    }
+    assert_eq!(valence, k + more, "the model has room to widen node 0");
+    diff
+}
