@@ -134,3 +134,54 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
         "the invalid change moved the stable bound"
     );
 }
+
+/// Applying a change with the positions a cutter just read takes the same energy reference and
+/// steps the same as reading them back from the engine, on every engine; positions of another
+/// length are refused and change nothing.
+#[test]
+fn applying_at_known_positions_equals_reading_them_back() {
+    let mut kinds = vec![EngineKind::Reference, EngineKind::Fast];
+    if lancet::engine::gpu::GpuContext::new().is_ok()
+        || std::env::var("LANCET_REQUIRE_GPU").as_deref() == Ok("1")
+    {
+        kinds.push(EngineKind::Gpu);
+    }
+    for kind in kinds {
+        let model = random_model(53, true);
+        let config = SimConfig::new(0.4 * stable_time_step(&model).dt);
+        let start = || {
+            let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+            let (x, v) = random_state(&model, 53);
+            sim.set_state(&x, &v).unwrap();
+            sim.run(20).unwrap();
+            sim
+        };
+        let (mut read, mut given) = (start(), start());
+        for round in 0..2 {
+            let diff = random_diff(read.model(), 600 + round);
+            let reference = read.energy_reference();
+            read.apply(&diff).unwrap();
+            let x = given.positions();
+            let bound = given.bound().clone();
+            let err = given.apply_at(&diff, false, &x[1..]).unwrap_err();
+            assert!(matches!(err, Error::Model(_)), "{kind:?}: {err}");
+            assert_eq!(given.bound(), &bound);
+            assert_eq!(given.model().node_count(), x.len());
+            given.apply_at(&diff, false, &x).unwrap();
+            // The change moved the reference (it touched strained springs), the same way.
+            assert_ne!(read.energy_reference().0, reference.0, "{kind:?}");
+            assert_eq!(
+                read.energy_reference(),
+                given.energy_reference(),
+                "{kind:?}"
+            );
+            read.run(15).unwrap();
+            given.run(15).unwrap();
+            assert_eq!(
+                read.positions(),
+                given.positions(),
+                "{kind:?} round {round}"
+            );
+        }
+    }
+}

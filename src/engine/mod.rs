@@ -592,6 +592,37 @@ impl Simulation {
     /// bound is refused (`allow_unstable = false`) or applied anyway (a cut scene whose policy
     /// is to warn).
     pub fn apply_with(&mut self, diff: &ModelDiff, allow_unstable: bool) -> Result<PatchCost> {
+        self.apply_inner(diff, allow_unstable, None)
+    }
+
+    /// [`Simulation::apply_with`], given the current positions (as [`Simulation::positions`]
+    /// gave them, with no step since: what a cutter just read). The energy bookkeeping takes
+    /// the positions of the touched springs' nodes from them instead of reading them back from
+    /// the engine, which on the GPU is a round trip to the device per cut. Positions of another
+    /// length than the model's node count are an error, and nothing changes.
+    pub fn apply_at(
+        &mut self,
+        diff: &ModelDiff,
+        allow_unstable: bool,
+        positions: &[[f64; 3]],
+    ) -> Result<PatchCost> {
+        let n = self.model.node_count();
+        if positions.len() != n {
+            return Err(Error::Model(format!(
+                "{} positions given for a model of {n} nodes: pass the positions read since \
+                 the last step or change",
+                positions.len()
+            )));
+        }
+        self.apply_inner(diff, allow_unstable, Some(positions))
+    }
+
+    fn apply_inner(
+        &mut self,
+        diff: &ModelDiff,
+        allow_unstable: bool,
+        positions: Option<&[[f64; 3]]>,
+    ) -> Result<PatchCost> {
         // Everything below touches only what the diff names, so that a local cut costs the
         // same on a large mesh as on a small one.
         let undo = self.bound.update(&self.model, diff);
@@ -607,7 +638,7 @@ impl Simulation {
         let before = self.model.node_count();
         // Validates first: on error nothing has changed (the bound is put back).
         let energies = self
-            .diff_elastic_energy(diff)
+            .diff_elastic_energy(diff, positions)
             .and_then(|e| self.model.apply(diff).map(|()| e));
         let (elastic_before, elastic_after) = match energies {
             Ok(e) => e,
@@ -661,8 +692,12 @@ impl Simulation {
     /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
     /// they are) and of those it adds or changes (as they will be; a new node is where the node
     /// it copies is, shifted by their rest offset). Reads back only the existing nodes of those
-    /// springs, once.
-    fn diff_elastic_energy(&self, diff: &ModelDiff) -> Result<(f64, f64)> {
+    /// springs, once, unless `positions` (all nodes, current) are given.
+    fn diff_elastic_energy(
+        &self,
+        diff: &ModelDiff,
+        positions: Option<&[[f64; 3]]>,
+    ) -> Result<(f64, f64)> {
         let n = self.model.node_count() as u32;
         let old: Vec<crate::model::PackedSpring> = diff
             .removed_springs
@@ -703,7 +738,10 @@ impl Simulation {
         if nodes.is_empty() {
             return Ok((0.0, 0.0));
         }
-        let x = self.engine.node_positions(&nodes)?;
+        let x = match positions {
+            Some(p) => nodes.iter().map(|&i| p[i as usize]).collect(),
+            None => self.engine.node_positions(&nodes)?,
+        };
         let at = |i: u32| -> [f64; 3] {
             match source(i) {
                 Some((s, d)) => {

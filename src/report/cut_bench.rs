@@ -189,7 +189,7 @@ fn one(
         if outcome.is_empty() {
             continue;
         }
-        let cost = sim.apply(&outcome.diff)?;
+        let cost = sim.apply_at(&outcome.diff, true, &positions)?;
         let t3 = Instant::now();
         sim.edit_surface(&outcome.surface)?;
         let t4 = Instant::now();

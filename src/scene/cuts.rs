@@ -239,7 +239,7 @@ impl CutStage {
             self.touching[slot] = true;
             let first = sim.model().node_count() as u32;
             let mut stop = None;
-            let cost = match sim.apply_with(&outcome.diff, false) {
+            let cost = match sim.apply_at(&outcome.diff, false, &positions) {
                 Ok(cost) => cost,
                 Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
                     TimeStepPolicy::Stop => {
@@ -247,7 +247,7 @@ impl CutStage {
                         // simulation takes it too (no step is taken with it), so that the
                         // report counts it and measures a mesh and positions that agree.
                         stop = Some(Error::UnstableTimeStep { dt, bound, node });
-                        sim.apply_with(&outcome.diff, true)?
+                        sim.apply_at(&outcome.diff, true, &positions)?
                     }
                     TimeStepPolicy::Warn => {
                         self.report.time_step_events.push(format!(
@@ -255,7 +255,7 @@ impl CutStage {
                                  (node {node}) below dt {dt:e} s; going on",
                             sim.steps()
                         ));
-                        sim.apply_with(&outcome.diff, true)?
+                        sim.apply_at(&outcome.diff, true, &positions)?
                     }
                     TimeStepPolicy::Substep => {
                         let new_dt = self.bound_fraction * bound;
@@ -264,7 +264,7 @@ impl CutStage {
                                  (node {node}); dt {dt:e} s -> {new_dt:e} s",
                             sim.steps()
                         ));
-                        let cost = sim.apply_with(&outcome.diff, true)?;
+                        let cost = sim.apply_at(&outcome.diff, true, &positions)?;
                         sim.set_time_step(new_dt)?;
                         cost
                     }
