@@ -22,6 +22,16 @@ fn json_of(out: &Output) -> serde_json::Value {
     })
 }
 
+/// The JSON a successful run printed (the run's stderr in the message otherwise).
+fn ok_json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json_of(out)
+}
+
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes")
 }
@@ -311,12 +321,7 @@ fn bench_cut_reports_each_quality_floor_of_subdividing() {
         "0,0.25",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v = json_of(&out);
+    let v = ok_json(&out);
     let rows = v.as_array().unwrap();
     let of = |method: &str, floor: f64| {
         rows.iter()
@@ -369,12 +374,7 @@ fn bench_gives_one_edges_row_per_accumulation_variant() {
         "gather,atomic-fixed,atomic-float",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v = json_of(&out);
+    let v = ok_json(&out);
     let rows = v["rows"].as_array().unwrap();
     let skipped = v["skipped"].as_array().unwrap();
     for (variant, name) in [

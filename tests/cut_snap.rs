@@ -117,6 +117,16 @@ fn distance_to_segment(x: &P, a: &P, b: &P) -> f64 {
     (x - (a + ab * s)).norm()
 }
 
+/// The longest rest edge of `mesh`.
+fn longest_edge(mesh: &TetMesh) -> f64 {
+    mesh.tets()
+        .flat_map(|(_, t)| {
+            let x = mesh.tet_points(t);
+            TET_EDGES.map(|[a, b]| (x[a] - x[b]).norm())
+        })
+        .fold(0.0, f64::max)
+}
+
 fn centroid(p: &[P; 4]) -> P {
     P::from(p.iter().map(|q| q.coords).sum::<V>() / 4.0)
 }
@@ -336,13 +346,7 @@ fn planar_cuts_with_a_floor_make_no_tet_below_it_and_still_part_the_box() {
     for split in [TetSplit::Six, TetSplit::Five] {
         let mesh = grid(split);
         let volume = mesh.volume();
-        let longest = mesh
-            .tets()
-            .flat_map(|(_, t)| {
-                let x = mesh.tet_points(t);
-                TET_EDGES.map(|[a, b]| (x[a] - x[b]).norm())
-            })
-            .fold(0.0, f64::max);
+        let longest = longest_edge(&mesh);
         let mut rng = Rng(17 + split as u64);
         let (mut made, mut made_with) = (0, 0);
         let (mut worst_volume, mut worst_volume_without) = (0.0f64, 0.0f64);
@@ -454,13 +458,7 @@ fn assert_quadrants(
     what: &str,
 ) -> (usize, usize) {
     let volume = mesh.volume();
-    let longest = mesh
-        .tets()
-        .flat_map(|(_, t)| {
-            let x = mesh.tet_points(t);
-            TET_EDGES.map(|[a, b]| (x[a] - x[b]).norm())
-        })
-        .fold(0.0, f64::max);
+    let longest = longest_edge(mesh);
     let mut cutter = cutter(mesh, floor);
     for (n, c) in planes {
         cut_at_rest(&mut cutter, &plane(n, c));
