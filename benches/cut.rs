@@ -75,7 +75,9 @@ impl Incision {
         let positions = self.sim.positions();
         let outcome = self.cutter.cut(&sweep, &positions).expect("cut");
         if !outcome.is_empty() {
-            self.sim.apply(&outcome.diff).expect("patch");
+            self.sim
+                .apply_at(&outcome.diff, true, &positions)
+                .expect("patch");
             self.sim.edit_surface(&outcome.surface).expect("surface");
         }
         Some(start.elapsed())
