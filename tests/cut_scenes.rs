@@ -110,6 +110,32 @@ fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() 
                 c.cuts,
                 c.nodes_added
             );
+            // Each cut is listed, in step order, and the totals are their sums.
+            let e = &c.events;
+            assert_eq!(e.len(), c.cuts, "{name} {method}");
+            assert!(
+                e.windows(2).all(|w| w[0].step <= w[1].step),
+                "{name} {method}"
+            );
+            assert!(e
+                .iter()
+                .all(|e| e.ms > 0.0 && e.bytes_uploaded <= e.layout_bytes));
+            let sum = |f: fn(&lancet::scene::cuts::CutEvent) -> u64| e.iter().map(f).sum::<u64>();
+            assert_eq!(
+                (
+                    sum(|e| e.tets_touched as u64),
+                    sum(|e| e.nodes_added as u64),
+                    sum(|e| e.springs_touched as u64),
+                    sum(|e| e.bytes_uploaded)
+                ),
+                (
+                    c.tets_touched as u64,
+                    c.nodes_added as u64,
+                    c.springs_touched as u64,
+                    c.bytes_uploaded
+                ),
+                "{name} {method}"
+            );
             // The fixtures check the invariants after every cut, the quality floor among them
             // (the scene default's, which subdividing keeps to).
             assert!(c.checks > 0 || c.cuts == 0, "{name} {method}");

@@ -643,6 +643,29 @@ fn print_summary(s: &RunSummary) {
             c.min_quality_uncut,
             c.quality_floor
         );
+        // A few cuts one by one; `--json` lists them all.
+        const SHOWN: usize = 8;
+        for e in c.events.iter().take(SHOWN) {
+            println!(
+                "  cut at step {} by {}: {} tets touched ({} removed), {} nodes added, {} springs \
+                 touched, {} of {} layout bytes uploaded, {:.3} ms",
+                e.step,
+                e.blade,
+                e.tets_touched,
+                e.tets_removed,
+                e.nodes_added,
+                e.springs_touched,
+                e.bytes_uploaded,
+                e.layout_bytes,
+                e.ms
+            );
+        }
+        if c.events.len() > SHOWN {
+            println!(
+                "  ... {} more cuts (--json lists every one)",
+                c.events.len() - SHOWN
+            );
+        }
         for e in &c.time_step_events {
             println!("  {e}");
         }

@@ -70,6 +70,29 @@ fn default_quality_floor() -> f64 {
     crate::cut::subdivide::DEFAULT_QUALITY_FLOOR
 }
 
+/// What one cut did: a step at which a blade's sweep changed the mesh.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct CutEvent {
+    /// The step after which it cut (steps taken so far).
+    pub step: u64,
+    /// The blade that cut.
+    pub blade: String,
+    /// Tets removed or given new corners.
+    pub tets_touched: usize,
+    /// Tets removed.
+    pub tets_removed: usize,
+    /// Nodes created.
+    pub nodes_added: usize,
+    /// Springs removed, added or changed.
+    pub springs_touched: usize,
+    /// Layout bytes uploaded.
+    pub bytes_uploaded: u64,
+    /// Layout bytes a full rebuild would have uploaded.
+    pub layout_bytes: u64,
+    /// Time taken (classify, edit, patch the engine, refresh the surface), ms.
+    pub ms: f64,
+}
+
 /// What the cuts of a run did.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct CutReport {
@@ -117,6 +140,8 @@ pub struct CutReport {
     pub checks: usize,
     /// Invariant violations found, with the step.
     pub violations: Vec<String>,
+    /// Each cut, in order (the totals above sum them).
+    pub events: Vec<CutEvent>,
 }
 
 /// The cutting part of a scene run.
@@ -124,6 +149,8 @@ pub struct CutStage {
     cutter: Cutter,
     /// Indices (in the scene's tools) of the blades that cut.
     blades: Vec<usize>,
+    /// Their names.
+    blade_names: Vec<String>,
     settings: SceneCut,
     check: bool,
     volume_before: f64,
@@ -176,6 +203,10 @@ impl CutStage {
             cutter: Cutter::new(mesh.clone(), model.clone(), method)?
                 .with_quality_floor(settings.quality_floor),
             touching: vec![false; blades.len()],
+            blade_names: blades
+                .iter()
+                .map(|&i| scene.tools[i].name.clone())
+                .collect(),
             blades,
             check: check || settings.check,
             settings,
@@ -272,7 +303,8 @@ impl CutStage {
                 Err(e) => return Err(e),
             };
             sim.edit_surface(&outcome.surface)?;
-            self.latencies.push(start.elapsed().as_secs_f64());
+            let seconds = start.elapsed().as_secs_f64();
+            self.latencies.push(seconds);
             // Copies of a node (splitting) sit at its rest position; nodes a subdivision puts
             // on an edge do not, and are not openings.
             for (k, a) in outcome.diff.added_nodes.iter().enumerate() {
@@ -283,6 +315,17 @@ impl CutStage {
                 }
             }
             let r = &mut self.report;
+            r.events.push(CutEvent {
+                step: sim.steps(),
+                blade: self.blade_names[slot].clone(),
+                tets_touched: outcome.tets_touched,
+                tets_removed: outcome.tets_removed,
+                nodes_added: outcome.nodes_added,
+                springs_touched: outcome.springs_touched,
+                bytes_uploaded: cost.uploaded_bytes,
+                layout_bytes: cost.layout_bytes,
+                ms: 1e3 * seconds,
+            });
             r.cuts += 1;
             r.tets_touched += outcome.tets_touched;
             r.tets_removed += outcome.tets_removed;
