@@ -30,6 +30,8 @@ fn update_node(i: u32, first: u32, width: u32) {
     var f = vec3<f32>(0.0);
     var base = first;
     var s = 0u;
+    // A chain is never longer than the table; the bound keeps a corrupt one from hanging.
+    var hops = 0u;
     loop {
         if (s >= width) {
             break;
@@ -40,6 +42,10 @@ fn update_node(i: u32, first: u32, width: u32) {
         }
         if (slot.other == CONTINUE) {
             // Only the connectivity layout continues rows, always in rows of `width` slots.
+            hops = hops + 1u;
+            if (hops > p.n) {
+                break;
+            }
             base = slot.pad * width;
             s = 0u;
             continue;

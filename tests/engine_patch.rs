@@ -137,7 +137,7 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
 
 /// Applying a change with the positions a cutter just read takes the same energy reference and
 /// steps the same as reading them back from the engine, on every engine; positions of another
-/// length are refused and change nothing.
+/// length, or not finite where the change needs them, are refused and change nothing.
 #[test]
 fn applying_at_known_positions_equals_reading_them_back() {
     let mut kinds = vec![EngineKind::Reference, EngineKind::Fast];
@@ -165,6 +165,13 @@ fn applying_at_known_positions_equals_reading_them_back() {
             let bound = given.bound().clone();
             let err = given.apply_at(&diff, false, &x[1..]).unwrap_err();
             assert!(matches!(err, Error::Model(_)), "{kind:?}: {err}");
+            assert_eq!(given.bound(), &bound);
+            assert_eq!(given.model().node_count(), x.len());
+            // A NaN where the change needs a position (what a failed device read gives).
+            let mut bad = x.clone();
+            bad[diff.removed_springs[0][0] as usize][1] = f64::NAN;
+            let err = given.apply_at(&diff, false, &bad).unwrap_err();
+            assert!(err.to_string().contains("not finite"), "{kind:?}: {err}");
             assert_eq!(given.bound(), &bound);
             assert_eq!(given.model().node_count(), x.len());
             given.apply_at(&diff, false, &x).unwrap();

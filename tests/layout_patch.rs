@@ -309,6 +309,81 @@ fn a_row_that_outgrows_its_capacity_continues_in_an_overflow_row() {
     assert!(c == ConnectivityLayout::new(&wider, c.order.clone(), Some(k)).unwrap());
 }
 
+/// A cut that adds a node moves only the overflow row in the way of its node row, however
+/// many overflow rows earlier cuts left: the upload follows what the cut touched.
+#[test]
+fn adding_a_node_moves_only_the_overflow_row_in_its_way() {
+    let model = random_model(3, false);
+    let order = NodeOrder::locality(&model);
+    let widest = (0..model.node_count())
+        .map(|i| {
+            model
+                .springs
+                .iter()
+                .filter(|s| s.nodes.contains(&(i as u32)))
+                .count()
+        })
+        .max()
+        .unwrap() as u32;
+    // The narrowest table that stays under the repack threshold, with many overflow rows.
+    let mut c = (2..widest)
+        .rev()
+        .map(|k| ConnectivityLayout::new(&model, order.clone(), Some(k)).unwrap())
+        .take_while(|c| c.overflow_rows() <= 64.max(c.node_count() / 8))
+        .last()
+        .unwrap();
+    let k = c.capacity as u64;
+    assert!(
+        c.overflow_rows() >= 8,
+        "{} overflow rows",
+        c.overflow_rows()
+    );
+    // A copy of a node with one spring to it.
+    let src = model.springs[0].nodes[0];
+    let n = model.node_count() as u32;
+    let diff = ModelDiff {
+        added_nodes: vec![lancet::model::AddedNode {
+            key: model.node_keys[src as usize],
+            rest: model.rest[src as usize],
+            mass: model.mass[src as usize],
+            fixed: false,
+            state_from: Some(src),
+        }],
+        added_springs: vec![lancet::model::PackedSpring {
+            nodes: [src, n],
+            rest_length: 0.01,
+            stiffness: 10.0,
+            damping: 0.0,
+        }],
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &diff);
+    let before = PackedLayout::Connectivity(c.clone());
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(!patch.repacked);
+    assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+    // The new node's row, the overflow row moved out of it, the source's chain (rewritten),
+    // and the slot that pointed at the moved row: rows, not the overflow region.
+    let chain = c.row(c.order.rank[src as usize] as usize).len() as u64 / (k - 1) + 1;
+    let slot_bytes: u64 = patch
+        .dirty
+        .iter()
+        .filter(|d| d.array == LayoutArray::Slots)
+        .map(|d| d.bytes.end - d.bytes.start)
+        .sum();
+    assert!(
+        slot_bytes <= (2 + chain) * k * 32 + 32,
+        "{slot_bytes} slot bytes dirty for one node ({} overflow rows of {k} slots)",
+        c.overflow_rows()
+    );
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(c.capacity)).unwrap());
+    assert_steps_alike(
+        &c,
+        &ConnectivityLayout::new(&next, c.order.clone(), None).unwrap(),
+        &next,
+    );
+}
+
 #[test]
 fn a_table_with_many_overflow_rows_repacks_by_size_class() {
     let model = random_model(3, false);

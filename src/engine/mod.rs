@@ -738,8 +738,23 @@ impl Simulation {
         if nodes.is_empty() {
             return Ok((0.0, 0.0));
         }
-        let x = match positions {
-            Some(p) => nodes.iter().map(|&i| p[i as usize]).collect(),
+        let x: Vec<[f64; 3]> = match positions {
+            Some(p) => {
+                let x: Vec<[f64; 3]> = nodes.iter().map(|&i| p[i as usize]).collect();
+                // Positions read from a device that failed come back as NaN: refuse them
+                // rather than carry NaN into the energy reference.
+                if let Some((&i, _)) = nodes
+                    .iter()
+                    .zip(&x)
+                    .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+                {
+                    return Err(Error::Model(format!(
+                        "the position given for node {i} is not finite; read the positions \
+                         again, or apply without them"
+                    )));
+                }
+                x
+            }
             None => self.engine.node_positions(&nodes)?,
         };
         let at = |i: u32| -> [f64; 3] {

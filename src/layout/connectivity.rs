@@ -1,5 +1,7 @@
 //! The connectivity layout (the 2005 "connectivity texture"): every node owns `K` fixed slots,
-//! `slots[i * K + s]`, filled from the front, the rest marked [`Slot::EMPTY`]. One invocation
+//! `slots[i * K + s]`, filled from the front, the rest marked [`Slot::EMPTY`]; a node a cut
+//! gave more than `K` springs goes on in overflow rows past the node rows
+//! ([`Slot::CONTINUE`]). One invocation
 //! per node gathers its springs and integrates itself, so no two invocations write the same
 //! node. The price is padding: every node pays for the widest one.
 
@@ -296,34 +298,67 @@ impl ConnectivityLayout {
         Ok(())
     }
 
-    /// Make room for `added` node rows after the `before` node rows: the overflow rows move up
-    /// by `added` rows and their owners' continuations follow. The new rows, the moved rows and
-    /// the owners' rows are pushed to `dirty`.
-    fn insert_node_rows(&mut self, before: usize, added: usize, dirty: &mut Vec<u32>) {
+    /// Make room for `added` node rows after the `before` node rows. The overflow rows in the
+    /// way (the first `added` of them) move to the end of the table and the slots pointing at
+    /// them follow; the others stay, so the cost follows the nodes added, not the overflow rows
+    /// earlier cuts left. The node rows and the moved rows are pushed to `dirty_rows`, the
+    /// changed continuation slots to `dirty_slots`.
+    fn insert_node_rows(
+        &mut self,
+        before: usize,
+        added: usize,
+        dirty_rows: &mut Vec<u32>,
+        dirty_slots: &mut Vec<u32>,
+    ) {
         let k = self.capacity as usize;
-        let at = before * k;
-        self.slots
-            .splice(at..at, std::iter::repeat_n(Slot::empty(), added * k));
-        for r in &mut self.free {
-            *r += added as u32;
+        let m = self.overflow.len();
+        // The new node rows: new bytes, or where the moved overflow rows were.
+        dirty_rows.extend(before as u32..(before + added) as u32);
+        if m == 0 {
+            self.slots
+                .extend(std::iter::repeat_n(Slot::empty(), added * k));
+            return;
         }
-        // The new rows: new bytes, or bytes where overflow rows were.
-        dirty.extend(before as u32..(before + added) as u32);
-        for j in 0..self.overflow.len() {
-            let moved = (before + added + j) as u32;
-            dirty.push(moved);
-            let owner = self.overflow[j];
-            if owner == FREE_ROW {
-                continue;
-            }
-            let owner = if owner as usize >= before {
-                owner + added as u32
+        // Rows [before, before + moving) move to [dest, dest + moving); the overflow rows then
+        // fill [before + added, before + added + m).
+        let moving = added.min(m);
+        let dest = before + added.max(m);
+        self.slots.resize((before + added + m) * k, Slot::empty());
+        let new_row = |r: usize| {
+            if (before..before + moving).contains(&r) {
+                dest + (r - before)
             } else {
-                owner
+                r
+            }
+        };
+        for j in 0..moving {
+            let (from, to) = ((before + j) * k, (dest + j) * k);
+            self.slots.copy_within(from..from + k, to);
+            dirty_rows.push((dest + j) as u32);
+        }
+        let mut overflow = vec![FREE_ROW; m];
+        for j in 0..m {
+            let (old, new) = (before + j, new_row(before + j));
+            let owner = match self.overflow[j] {
+                FREE_ROW => FREE_ROW,
+                o if o as usize >= before => new_row(o as usize) as u32,
+                o => o,
             };
-            self.overflow[j] = owner;
-            self.slots[(owner as usize + 1) * k - 1].pad = moved;
-            dirty.push(owner);
+            overflow[new - before - added] = owner;
+            // The owner's row was copied whole if it moved, so its continuation still names
+            // this row's old place when this row moved.
+            if owner != FREE_ROW && new != old {
+                let slot = (owner as usize + 1) * k - 1;
+                self.slots[slot].pad = new as u32;
+                dirty_slots.push(slot as u32);
+            }
+        }
+        self.overflow = overflow;
+        for r in &mut self.free {
+            *r = new_row(*r as usize) as u32;
+        }
+        for r in before..before + added {
+            self.slots[r * k..(r + 1) * k].fill(Slot::empty());
         }
     }
 
@@ -349,9 +384,12 @@ impl ConnectivityLayout {
             n as usize,
             (springs / 2) as usize,
         );
-        // The padded table is streamed whole (empty slots end a row's loop, but they share cache
-        // lines with used ones), plus masses and the state read and written once.
-        let per_step = slots + n * 4 + state_traffic(n, integrator);
+        // The padded rows a step reads are streamed whole (empty slots end a row's loop, but they
+        // share cache lines with used ones): every node row and the overflow rows in use, not
+        // the free ones; plus masses and the state read and written once.
+        let in_use = self.overflow.iter().filter(|&&o| o != FREE_ROW).count() as u64;
+        let read = (n + in_use) * self.capacity as u64 * 32;
+        let per_step = read + n * 4 + state_traffic(n, integrator);
         (stats, per_step)
     }
 
@@ -391,9 +429,10 @@ impl ConnectivityLayout {
         let k = self.capacity as usize;
         let mut patch = LayoutPatch::default();
         let mut dirty: Vec<u32> = Vec::new();
+        let mut dirty_slots: Vec<u32> = Vec::new();
         let added = diff.added_nodes.len();
         if added > 0 {
-            self.insert_node_rows(before, added, &mut dirty);
+            self.insert_node_rows(before, added, &mut dirty, &mut dirty_slots);
         }
         for (i, a) in diff.added_nodes.iter().enumerate() {
             let node = (before + i) as u32;
@@ -435,7 +474,11 @@ impl ConnectivityLayout {
             return Ok(patch);
         }
         let rows: Vec<u32> = lists.keys().map(|&t| self.order.rank[t as usize]).collect();
+        // Continuation slots in rows that are not rewritten whole.
+        let whole: std::collections::HashSet<u32> = dirty.iter().copied().collect();
+        dirty_slots.retain(|&s| !whole.contains(&(s / k as u32)));
         patch.mark(LayoutArray::Slots, dirty, k as u64, 32);
+        patch.mark(LayoutArray::Slots, dirty_slots, 1, 32);
         patch.mark(LayoutArray::InvMass, rows, 1, 4);
         if added > 0 {
             // New node rows hold the added nodes' masses even when no spring touched them.

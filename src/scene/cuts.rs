@@ -198,7 +198,12 @@ impl CutStage {
         };
         let min_quality_uncut = min_quality(mesh);
         let quality_floor = settings.quality_floor;
-        let check_floor = min_quality_uncut.min(quality_floor);
+        // The cutter keeps to no floor at 0, below it or at NaN: neither does the check.
+        let check_floor = if quality_floor > 0.0 {
+            min_quality_uncut.min(quality_floor)
+        } else {
+            0.0
+        };
         Ok(Some(CutStage {
             cutter: Cutter::new(mesh.clone(), model.clone(), method)?
                 .with_quality_floor(settings.quality_floor),
