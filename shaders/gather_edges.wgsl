@@ -7,7 +7,9 @@ const B_END: u32 = 0x80000000u;
 const NO_SPRING: u32 = 0xffffffffu;
 
 @group(0) @binding(0) var<uniform> p: Params;
-@group(0) @binding(1) var<storage, read> incidence_rows: array<u32>;
+// Each node's row, [start, end) in `incidence` (room included): rows need not be contiguous,
+// since a patch moves a row that outgrew its room to the end of the table.
+@group(0) @binding(1) var<storage, read> incidence_rows: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read> incidence: array<u32>;
 @group(0) @binding(3) var<storage, read> forces: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> inv_mass: array<f32>;
@@ -31,7 +33,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var f = vec3<f32>(0.0);
-    for (var e = incidence_rows[i]; e < incidence_rows[i + 1u]; e = e + 1u) {
+    let row = incidence_rows[i];
+    for (var e = row.x; e < row.y; e = e + 1u) {
         let entry = incidence[e];
         if (entry == NO_SPRING) {
             break;

@@ -407,7 +407,7 @@ fn edge_incidence_lists_every_spring_once_from_each_end() {
     assert_eq!(layout.springs.len(), model.springs.len());
     let mut seen = vec![(0u32, 0u32); layout.springs.len()];
     for i in 0..layout.node_count() {
-        let (lo, hi) = (layout.incidence_rows[i], layout.incidence_rows[i + 1]);
+        let [lo, hi] = layout.incidence_rows[i];
         for &e in &layout.incidence[lo as usize..hi as usize] {
             let s = &layout.springs[(e & !B_END) as usize];
             if e & B_END != 0 {

@@ -209,3 +209,77 @@ fn state_moves_on_the_device_follow_the_nodes(
         }
     }
 }
+
+#[test]
+fn an_edge_row_outgrowing_its_room_moves_alone_and_steps_like_a_rebuild_on_the_device() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(45, true);
+    let config = SimConfig::new(2e-5);
+    let mut engine = GpuEngine::with_context(ctx, &model, config, LayoutKind::Edges).unwrap();
+    let (x, v) = random_state(&model, 45);
+    engine.set_state(&x, &v);
+    engine.step(5);
+    let free_nodes: Vec<u32> = (0..model.node_count() as u32)
+        .filter(|&i| !model.fixed[i as usize])
+        .collect();
+    let (mut moved_alone, mut compacted) = (0, false);
+    for round in 0..40 {
+        // One row more than its room each round, until the holes it leaves compact the table.
+        let node = free_nodes[(round * 37 + 5) % free_nodes.len()];
+        let PackedLayout::Edges(e) = engine.layout() else {
+            unreachable!("an edge engine")
+        };
+        let r = e.order.rank[node as usize] as usize;
+        let [lo, hi] = e.incidence_rows[r];
+        let diff = models::join_nearest(&model, node, (hi - lo) as usize - e.row(r).len() + 1);
+        let mut next = model.clone();
+        next.apply(&diff).unwrap();
+        let mut cpu = engine.layout().clone();
+        let patch = cpu.patch(&next, &diff).unwrap();
+        let report = engine.patch(&next, &diff).unwrap();
+        model = next;
+        assert!(
+            engine.layout() == &cpu,
+            "round {round}: engine and CPU layouts differ"
+        );
+        if patch.repacked {
+            compacted = true;
+        } else if !report.reallocated {
+            // Only the moved rows, their records and the new springs went up.
+            assert_eq!(report.uploaded_bytes, patch.dirty_bytes());
+            assert!(
+                report.uploaded_bytes * 20 < report.layout_bytes,
+                "round {round}: {} of {} bytes",
+                report.uploaded_bytes,
+                report.layout_bytes
+            );
+            moved_alone += 1;
+        }
+        let want = engine.raw_state().unwrap();
+        let expect_twin = twin(&engine, Accumulation::Gather, want.clone(), 13);
+        engine.step(13);
+        let got = engine.raw_state().unwrap();
+        assert_eq!(bits(&got.0), bits(&expect_twin.0), "round {round}: twin");
+        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
+        let ctx = common::gpu().unwrap();
+        let mut rebuilt =
+            GpuEngine::with_layout(ctx, &model, config, fresh(&model, engine.layout())).unwrap();
+        rebuilt.set_raw_state(&want.0, &want.1).unwrap();
+        rebuilt.step(13);
+        let r = rebuilt.raw_state().unwrap();
+        assert_eq!(
+            bits(&r.0),
+            bits(&got.0),
+            "round {round}: patched != rebuilt"
+        );
+        assert!(got.0.iter().flatten().any(|&x| x != 0.0));
+        if compacted {
+            break;
+        }
+    }
+    assert!(
+        moved_alone >= 1,
+        "no patch moved a row without a full upload"
+    );
+    assert!(compacted, "40 rounds of growth never compacted the table");
+}

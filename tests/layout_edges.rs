@@ -141,12 +141,17 @@ fn incidence_lists_every_spring_exactly_twice_with_the_sign_of_its_end() {
     let model = random_model(5, false);
     let layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
     let n = layout.node_count();
-    assert_eq!(layout.incidence_rows.len(), n + 1);
+    assert_eq!(layout.incidence_rows.len(), n);
     assert_eq!(layout.incidence.len(), 2 * layout.springs.len());
+    // A fresh packing is compact: each row starts where the previous one ends, with no room.
+    assert_eq!(layout.incidence_rows.first().map(|r| r[0]), Some(0));
+    assert!(layout.incidence_rows.windows(2).all(|w| w[0][1] == w[1][0]));
+    assert_eq!(layout.holes(), 0);
     let mut ends = vec![(0u32, 0u32); layout.springs.len()];
     for i in 0..n {
-        let row = &layout.incidence[layout.incidence_rows[i] as usize..]
-            [..(layout.incidence_rows[i + 1] - layout.incidence_rows[i]) as usize];
+        let [lo, hi] = layout.incidence_rows[i];
+        let row = &layout.incidence[lo as usize..hi as usize];
+        assert_eq!(row, layout.row(i), "no room in a fresh packing");
         for &e in row {
             let s = &layout.springs[(e & !B_END) as usize];
             if e & B_END != 0 {
@@ -280,9 +285,8 @@ fn fixed_point_scale_is_a_power_of_two_that_leaves_headroom() {
     assert!(overflow);
     // Saturated sums never wrap: each node's sum is (a-count - b-count) * limit.
     for (i, sum) in acc.iter().enumerate() {
-        let row = &layout.incidence
-            [layout.incidence_rows[i] as usize..layout.incidence_rows[i + 1] as usize];
-        let net: i64 = row
+        let net: i64 = layout
+            .row(i)
             .iter()
             .map(|e| if e & B_END != 0 { -1 } else { 1 })
             .sum();
@@ -310,9 +314,9 @@ fn fixed_point_twin_agrees_with_the_gather_within_its_resolution(
     let fixed = EdgeLayout::fixed_forces(&fp, &acc);
     let mut worst = 0.0f64;
     for i in 0..layout.node_count() {
-        let valence = (layout.incidence_rows[i + 1] - layout.incidence_rows[i]) as f64;
-        let magnitude: f64 = layout.incidence
-            [layout.incidence_rows[i] as usize..layout.incidence_rows[i + 1] as usize]
+        let valence = layout.row(i).len() as f64;
+        let magnitude: f64 = layout
+            .row(i)
             .iter()
             .map(|e| {
                 let f = forces[(e & !B_END) as usize];
@@ -367,7 +371,8 @@ fn memory_stats_sum_their_buffers_for_every_variant() {
                 + 4 * n
                 + state
                 + match acc {
-                    Accumulation::Gather => 16 * m + 4 * (n + 1 + 2 * m),
+                    // Forces, one [start, end) record per node, two entries per spring.
+                    Accumulation::Gather => 16 * m + 8 * n + 4 * 2 * m,
                     Accumulation::AtomicFixed => 12 * n + 32,
                     Accumulation::AtomicFloat => 12 * n,
                 };
@@ -377,4 +382,198 @@ fn memory_stats_sum_their_buffers_for_every_variant() {
             assert!(per_step >= 32 * m + state);
         }
     }
+}
+
+/// Each node's row as the gather sums it: the spring records (with the end it is) in order.
+/// Two layouts that agree here sum the same forces in the same order, wherever their records
+/// and rows sit.
+fn rows_by_record(layout: &EdgeLayout) -> Vec<Vec<(lancet::layout::edges::EdgeSpring, bool)>> {
+    (0..layout.node_count())
+        .map(|i| {
+            layout
+                .row(i)
+                .iter()
+                .map(|&e| (layout.springs[(e & !B_END) as usize], e & B_END != 0))
+                .collect()
+        })
+        .collect()
+}
+
+/// `steps` gather steps of the CPU twin (as `shaders/gather_edges.wgsl` takes them) from a
+/// random layout-order state, as raw bits.
+fn gather_steps(layout: &EdgeLayout, model: &PackedModel, seed: u64) -> Vec<[u32; 4]> {
+    let p = step_params(model, SimConfig::new(2e-5));
+    let mut rng = Rng(seed);
+    let mut cur = vec![[0.0f32; 4]; layout.node_count()];
+    for (t, u) in cur.iter_mut().enumerate() {
+        if !model.fixed[layout.order.order[t] as usize] {
+            for x in u.iter_mut().take(3) {
+                *x = ((rng.next() - 0.5) * 1e-4) as f32;
+            }
+        }
+    }
+    let mut prev: Vec<[f32; 4]> = cur.iter().map(|u| u.map(|x| x * 0.99)).collect();
+    for _ in 0..25 {
+        let (next, _) = layout.step_cpu(&p, &cur, &prev);
+        prev = std::mem::replace(&mut cur, next);
+    }
+    assert!(cur.iter().flatten().any(|&x| x != 0.0), "the state moved");
+    cur.iter().map(|u| u.map(f32::to_bits)).collect()
+}
+
+/// Patch `layout` (of `model`) with `diff` and check it against a fresh packing of the changed
+/// model in the same node order: the same rows, record for record, and the same 25 steps, bit
+/// for bit (byte equality does not hold: patched rows move and keep room). Every changed byte
+/// lies in a dirty range. Returns the patch and the changed model.
+fn patch_and_compare(
+    layout: &mut EdgeLayout,
+    model: &PackedModel,
+    diff: &lancet::model::ModelDiff,
+) -> (lancet::layout::patch::LayoutPatch, PackedModel) {
+    use lancet::layout::PackedLayout;
+    let mut next = model.clone();
+    next.apply(diff).unwrap();
+    let before = PackedLayout::Edges(layout.clone());
+    let patch = layout.patch(&next, diff).unwrap();
+    let after = PackedLayout::Edges(layout.clone());
+    for a in lancet::layout::patch::LayoutArray::ALL {
+        let (old, new) = (before.array(a), after.array(a));
+        for (i, byte) in new.iter().enumerate() {
+            if old.get(i) != Some(byte) {
+                assert!(
+                    patch
+                        .dirty
+                        .iter()
+                        .any(|d| d.array == a && d.bytes.contains(&(i as u64))),
+                    "{a:?} byte {i} changed outside the dirty ranges"
+                );
+            }
+        }
+    }
+    let fresh = EdgeLayout::new(&next, layout.order.clone());
+    assert!(
+        rows_by_record(layout) == rows_by_record(&fresh),
+        "rows differ"
+    );
+    assert_eq!(
+        gather_steps(layout, &next, 3),
+        gather_steps(&fresh, &next, 3)
+    );
+    (patch, next)
+}
+
+/// Bytes of all the arrays of `layout` a device holds.
+fn layout_bytes(layout: &EdgeLayout) -> u64 {
+    let l = lancet::layout::PackedLayout::Edges(layout.clone());
+    lancet::layout::patch::LayoutArray::ALL
+        .iter()
+        .map(|&a| l.array(a).len() as u64)
+        .sum()
+}
+
+#[test]
+fn a_row_that_outgrows_its_room_moves_alone_to_the_end() {
+    let mut model = random_model(8, true);
+    let mut layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
+    // An inner node (free, many neighbours).
+    let node = (0..model.node_count() as u32)
+        .filter(|&i| !model.fixed[i as usize])
+        .max_by_key(|&i| {
+            model
+                .springs
+                .iter()
+                .filter(|s| s.nodes.contains(&i))
+                .count()
+        })
+        .unwrap();
+    let r = layout.order.rank[node as usize] as usize;
+    // Round 0: a fresh packing has no room, so one new spring moves both ends' rows. Round 1:
+    // the moved row has room now; one spring more than it has outgrows it again.
+    for round in 0..2 {
+        let [lo, hi] = layout.incidence_rows[r];
+        let free = (hi - lo) as usize - layout.row(r).len();
+        assert_eq!(free == 0, round == 0, "round {round}: {free} free entries");
+        let diff = models::join_nearest(&model, node, free + 1);
+        let old = layout.clone();
+        let (patch, next) = patch_and_compare(&mut layout, &model, &diff);
+        model = next;
+        assert!(!patch.repacked, "round {round}");
+        let touched: std::collections::BTreeSet<usize> = diff
+            .added_springs
+            .iter()
+            .flat_map(|s| s.nodes)
+            .map(|t| layout.order.rank[t as usize] as usize)
+            .collect();
+        // The overfull row moved past the old table, with room; every other row that did not
+        // overflow stays where it was.
+        let [start, end] = layout.incidence_rows[r];
+        assert!(start as usize >= old.incidence.len(), "round {round}");
+        assert!((end - start) as usize >= layout.row(r).len() + 4);
+        let mut moved_room = 0;
+        for i in 0..layout.node_count() {
+            let (o, n) = (old.incidence_rows[i], layout.incidence_rows[i]);
+            if o != n {
+                assert!(
+                    touched.contains(&i),
+                    "round {round}: untouched row {i} moved"
+                );
+                assert!(n[0] as usize >= old.incidence.len());
+                moved_room += (o[1] - o[0]) as usize;
+            } else if !touched.contains(&i) {
+                let range = o[0] as usize..o[1] as usize;
+                assert_eq!(layout.incidence[range.clone()], old.incidence[range]);
+            }
+        }
+        assert_eq!(layout.holes(), old.holes() + moved_room, "round {round}");
+        // Only the moved rows, their records and the new spring records are dirty: a few
+        // hundred bytes of a layout of tens of kilobytes.
+        let total = layout_bytes(&layout);
+        assert!(
+            patch.dirty_bytes() * 20 < total,
+            "round {round}: {} of {total} bytes dirty",
+            patch.dirty_bytes()
+        );
+    }
+}
+
+#[test]
+fn enough_growth_compacts_the_table_and_still_steps_the_same() {
+    let mut model = random_model(9, false);
+    let mut layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
+    let free_nodes: Vec<u32> = (0..model.node_count() as u32)
+        .filter(|&i| !model.fixed[i as usize])
+        .collect();
+    let mut moves_before = 0;
+    for round in 0..40 {
+        // Outgrow one more row each round, nodes spread over the box.
+        let node = free_nodes[(round * 37 + 5) % free_nodes.len()];
+        let r = layout.order.rank[node as usize] as usize;
+        let [lo, hi] = layout.incidence_rows[r];
+        let free = (hi - lo) as usize - layout.row(r).len();
+        let diff = models::join_nearest(&model, node, free + 1);
+        let (patch, next) = patch_and_compare(&mut layout, &model, &diff);
+        model = next;
+        if !patch.repacked {
+            // Holes wait until they pass a quarter of the table.
+            assert!(layout.holes() > 0 && layout.holes() * 4 <= layout.incidence.len());
+            moves_before += 1;
+            continue;
+        }
+        // Compacted: rows contiguous in node order, each with at least four free entries.
+        assert_eq!(layout.holes(), 0);
+        assert_eq!(layout.incidence_rows[0][0], 0);
+        assert!(layout.incidence_rows.windows(2).all(|w| w[0][1] == w[1][0]));
+        assert_eq!(
+            layout.incidence_rows.last().unwrap()[1] as usize,
+            layout.incidence.len()
+        );
+        for i in 0..layout.node_count() {
+            let [lo, hi] = layout.incidence_rows[i];
+            assert!((hi - lo) as usize >= layout.row(i).len() + 4, "row {i}");
+        }
+        // Amortized: several rounds moved rows before one compaction paid for them.
+        assert!(moves_before >= 2, "compacted after {moves_before} rounds");
+        return;
+    }
+    panic!("40 rounds of growth never compacted the table");
 }

@@ -165,6 +165,15 @@ pub const B_END: u32 = 1 << 31;
 /// first, then only these; the gather stops at the first.
 pub const NO_SPRING: u32 = u32::MAX;
 
+/// A patch compacts the incidence table once the entries no row owns (left behind by rows that
+/// moved) exceed `1 / HOLE_FRACTION` of it. A moved row writes its entries once at the end; the
+/// compaction that removes the hole costs the whole table, so taking it only after holes reach a
+/// quarter of the table charges each moved entry a bounded share of it (amortized O(1) per
+/// entry written), while the holes never cost more than a third of the live table in memory.
+/// The gather never reads a hole, so they cost no step bandwidth. The fast CPU engine uses the
+/// same rule for its adjacency (`engine/fast/patch.rs`).
+const HOLE_FRACTION: usize = 4;
+
 /// Springs as records plus the node-to-spring incidence table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EdgeLayout {
@@ -172,14 +181,20 @@ pub struct EdgeLayout {
     pub order: NodeOrder,
     /// Springs sorted by their layout-order ends.
     pub springs: Vec<EdgeSpring>,
-    /// Row starts of the incidence table, `n + 1` entries.
-    pub incidence_rows: Vec<u32>,
-    /// Spring indices, with [`B_END`] set where the node is the `b` end.
+    /// Each node's incidence row, `[start, end)` in `incidence`, room included (`n` entries;
+    /// `array<vec2<u32>>` in `shaders/gather_edges.wgsl`). Rows need not be contiguous or in
+    /// node order: a patch moves a row that outgrows its room to the end of the table, leaving
+    /// the other rows where they are.
+    pub incidence_rows: Vec<[u32; 2]>,
+    /// Spring indices, with [`B_END`] set where the node is the `b` end; [`NO_SPRING`] for room
+    /// at the end of a row. Entries outside every row are holes left by moved rows.
     pub incidence: Vec<u32>,
     /// Per-node arrays.
     pub nodes: NodeArrays,
     /// Records of removed springs (zero stiffness, both ends on one node), reused first.
     free: BTreeSet<u32>,
+    /// Entries of `incidence` that no row owns (see [`HOLE_FRACTION`]).
+    holes: usize,
 }
 
 impl EdgeLayout {
@@ -221,6 +236,7 @@ impl EdgeLayout {
             incidence,
             nodes,
             free: BTreeSet::new(),
+            holes: 0,
         }
     }
 
@@ -233,7 +249,8 @@ impl EdgeLayout {
     /// moves.
     ///
     /// Gather: the spring pass reads the records and writes one force per spring; the node
-    /// pass reads the incidence table and the forces. Atomics: the spring pass reads the
+    /// pass reads the row records and the rows (room included; holes left by moved rows are
+    /// allocated but never read) and the forces. Atomics: the spring pass reads the
     /// records and adds to both ends' accumulators (3 x 4 bytes each); the node pass reads and
     /// clears its accumulators.
     pub fn memory(&self, integrator: Integrator, accumulation: Accumulation) -> (MemoryStats, u64) {
@@ -244,11 +261,13 @@ impl EdgeLayout {
         let per_step = match accumulation {
             Accumulation::Gather => {
                 let forces = m * 16;
-                let table = (self.incidence_rows.len() + self.incidence.len()) as u64 * 4;
+                let rows = self.incidence_rows.len() as u64 * 8;
+                let table = rows + self.incidence.len() as u64 * 4;
+                let read = rows + (self.incidence.len() - self.holes) as u64 * 4;
                 buffers.push(("spring forces".to_string(), forces));
                 buffers.push(("incidence table".to_string(), table));
                 // Forces are written once and read once.
-                records + 2 * forces + table
+                records + 2 * forces + read
             }
             Accumulation::AtomicFixed | Accumulation::AtomicFloat => {
                 let acc = n * 12;
@@ -274,10 +293,22 @@ impl EdgeLayout {
             .unwrap_or(0)
     }
 
-    /// The used incidence entries of node `i` (layout order).
+    /// The entries of node `i`'s row (layout order), room included.
+    fn row_room(&self, i: usize) -> std::ops::Range<usize> {
+        let [lo, hi] = self.incidence_rows[i];
+        lo as usize..hi as usize
+    }
+
+    /// Entries of `incidence` that belong to no row: left behind by rows a patch moved, until
+    /// a patch compacts the table.
+    pub fn holes(&self) -> usize {
+        self.holes
+    }
+
+    /// The used incidence entries of node `i` (layout order): the springs its gather sums, in
+    /// the order it sums them.
     pub fn row(&self, i: usize) -> &[u32] {
-        let (lo, hi) = (self.incidence_rows[i], self.incidence_rows[i + 1]);
-        let row = &self.incidence[lo as usize..hi as usize];
+        let row = &self.incidence[self.row_room(i)];
         let used = row
             .iter()
             .position(|&e| e == NO_SPRING)
@@ -320,6 +351,7 @@ impl EdgeLayout {
         let (rows, incidence) = incidence_table(self.node_count(), &self.springs);
         self.incidence_rows = rows;
         self.incidence = incidence;
+        self.holes = 0;
         self.free = self
             .springs
             .iter()
@@ -330,15 +362,18 @@ impl EdgeLayout {
     }
 
     /// Apply `diff` (already applied to `model`, the model after the change). Added nodes get
-    /// the next layout indices and an incidence row with room (a multiple of four entries);
-    /// removed springs become dead records (zero stiffness, both ends on one node) that added
-    /// springs reuse before the array grows; incidence rows are edited in place, keeping
-    /// their entries sorted by the other end, as a fresh packing sorts them. Only when a row has
-    /// no room left is the incidence table repacked, every row with room.
+    /// the next layout indices and an incidence row with room (a multiple of four entries)
+    /// appended to the table; removed springs become dead records (zero stiffness, both ends
+    /// on one node) that added springs reuse before the array grows; incidence rows are edited
+    /// in place, keeping their entries sorted by the other end, as a fresh packing sorts them.
+    /// A row with no room left for an added spring is written anew, with room, at the end of
+    /// the table: only it and its `[start, end)` record are dirty, and its old place becomes a
+    /// hole. Once holes exceed a quarter of the table ([`HOLE_FRACTION`]) the table is
+    /// compacted, every row with room, and the patch says `repacked`.
     ///
     /// Each node then sums the same forces in the same order as in
     /// `EdgeLayout::new(model, self.order.clone())`, so both step bit for bit alike (gather and
-    /// fixed point), though the records sit elsewhere.
+    /// fixed point), though the records and rows sit elsewhere.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.node_count();
         super::patch::check_model(before, diff, model)?;
@@ -356,9 +391,9 @@ impl EdgeLayout {
             self.order.order.push(node);
             self.order.rank.push(node);
             self.nodes.inv_mass.push(0.0);
-            let end = *self.incidence_rows.last().expect("n + 1 row starts");
+            let end = self.incidence.len() as u32;
             let room = incidence_room(degree[i]);
-            self.incidence_rows.push(end + room);
+            self.incidence_rows.push([end, end + room]);
             self.incidence
                 .extend(std::iter::repeat_n(NO_SPRING, room as usize));
             patch.moves.push(StateMove {
@@ -369,11 +404,11 @@ impl EdgeLayout {
         if !diff.added_nodes.is_empty() {
             patch.mark(
                 LayoutArray::IncidenceRows,
-                before as u32 + 1..self.incidence_rows.len() as u32,
+                before as u32..self.incidence_rows.len() as u32,
                 1,
-                4,
+                8,
             );
-            let from = self.incidence_rows[before];
+            let from = self.incidence_rows[before][0];
             patch.mark(
                 LayoutArray::Incidence,
                 from..self.incidence.len() as u32,
@@ -381,9 +416,31 @@ impl EdgeLayout {
                 4,
             );
         }
+        // Rows the diff's springs overfill move first, with room for every spring the diff
+        // adds there, before any entry of theirs is edited: each moves once, and its old place
+        // becomes a hole that nothing writes, so nothing there needs an upload.
+        let mut growth: std::collections::BTreeMap<u32, (usize, usize)> = Default::default();
+        for s in &diff.added_springs {
+            for end in s.nodes {
+                growth.entry(self.order.rank[end as usize]).or_default().0 += 1;
+            }
+        }
+        for nodes in &diff.removed_springs {
+            for end in nodes {
+                if let Some(g) = growth.get_mut(&self.order.rank[*end as usize]) {
+                    g.1 += 1;
+                }
+            }
+        }
+        let mut moved: BTreeSet<u32> = BTreeSet::new();
+        for (&r, &(adds, removes)) in &growth {
+            if self.row(r as usize).len() + adds > self.row_room(r as usize).len() + removes {
+                self.move_row(r, adds as u32);
+                moved.insert(r);
+            }
+        }
         let mut records: BTreeSet<u32> = BTreeSet::new();
         let mut rows: BTreeSet<u32> = BTreeSet::new();
-        let mut overfull = false;
         for &[a, b] in &diff.removed_springs {
             let (ra, rb) = (self.order.rank[a as usize], self.order.rank[b as usize]);
             let s = self.find(ra, rb).ok_or_else(|| no_spring(a, b))?;
@@ -410,7 +467,11 @@ impl EdgeLayout {
             self.springs[idx as usize] = record;
             records.insert(idx);
             for (node, flag) in [(record.a, 0), (record.b, B_END)] {
-                overfull |= !self.link(node, idx | flag);
+                let linked = self.link(node, idx | flag);
+                assert!(
+                    linked,
+                    "rows the diff overfills were moved with room for it"
+                );
                 rows.insert(node);
             }
         }
@@ -427,22 +488,21 @@ impl EdgeLayout {
             patch.mark(LayoutArray::InvMass, [r], 1, 4);
         }
         patch.mark(LayoutArray::EdgeSprings, records, 1, 32);
-        if overfull {
+        if self.holes * HOLE_FRACTION > self.incidence.len() {
             let (rows, incidence) = sorted_incidence(self.node_count(), &self.springs);
             self.incidence_rows = rows;
             self.incidence = incidence;
+            self.holes = 0;
             patch.repacked = true;
             patch.mark_all(
                 LayoutArray::IncidenceRows,
-                self.incidence_rows.len() as u64 * 4,
+                self.incidence_rows.len() as u64 * 8,
             );
             patch.mark_all(LayoutArray::Incidence, self.incidence.len() as u64 * 4);
         } else {
+            patch.mark(LayoutArray::IncidenceRows, moved, 1, 8);
             for r in rows {
-                let (lo, hi) = (
-                    self.incidence_rows[r as usize],
-                    self.incidence_rows[r as usize + 1],
-                );
+                let [lo, hi] = self.incidence_rows[r as usize];
                 patch.mark(LayoutArray::Incidence, lo..hi, 1, 4);
             }
         }
@@ -477,13 +537,26 @@ impl EdgeLayout {
             .map(|&e| e & !B_END)
     }
 
+    /// Write node `r`'s row anew at the end of the table with room for `more` entries beyond
+    /// its used ones (and at least four free, [`incidence_room`]). Its old place becomes a
+    /// hole; its stale entries stay there unread, so they need no upload.
+    fn move_row(&mut self, r: u32, more: u32) {
+        let old = self.row_room(r as usize);
+        let used = self.row(r as usize).len();
+        let room = incidence_room(used as u32 + more) as usize;
+        let start = self.incidence.len();
+        self.incidence
+            .extend_from_within(old.start..old.start + used);
+        self.incidence
+            .extend(std::iter::repeat_n(NO_SPRING, room - used));
+        self.incidence_rows[r as usize] = [start as u32, (start + room) as u32];
+        self.holes += old.len();
+    }
+
     /// Remove record `s` from node `r`'s row, closing the gap.
     fn unlink(&mut self, r: u32, s: u32) {
-        let (lo, hi) = (
-            self.incidence_rows[r as usize] as usize,
-            self.incidence_rows[r as usize + 1] as usize,
-        );
-        let row = &mut self.incidence[lo..hi];
+        let range = self.row_room(r as usize);
+        let row = &mut self.incidence[range];
         if let Some(p) = row.iter().position(|&e| e & !B_END == s && e != NO_SPRING) {
             row.copy_within(p + 1.., p);
             row[row.len() - 1] = NO_SPRING;
@@ -491,13 +564,11 @@ impl EdgeLayout {
     }
 
     /// Insert entry `e` into node `r`'s row at its place by other end; false if the row is
-    /// full (the caller repacks).
+    /// full.
     fn link(&mut self, r: u32, e: u32) -> bool {
         let used = self.row(r as usize).len();
-        let (lo, hi) = (
-            self.incidence_rows[r as usize] as usize,
-            self.incidence_rows[r as usize + 1] as usize,
-        );
+        let range = self.row_room(r as usize);
+        let (lo, hi) = (range.start, range.end);
         if used == hi - lo {
             return false;
         }
@@ -712,10 +783,10 @@ fn no_spring(a: u32, b: u32) -> Error {
     ))
 }
 
-/// The incidence table of a spring pool (dead records skipped), each row sorted by the other
-/// end and with at least four free entries ([`incidence_room`]), [`NO_SPRING`] after
-/// the entries.
-fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
+/// The incidence table of a spring pool (dead records skipped), rows contiguous in node order,
+/// each sorted by the other end and with at least four free entries ([`incidence_room`]),
+/// [`NO_SPRING`] after the entries.
+fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<[u32; 2]>, Vec<u32>) {
     let mut lists: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
     for (idx, s) in springs.iter().enumerate() {
         if s.a == s.b {
@@ -724,22 +795,23 @@ fn sorted_incidence(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
         lists[s.a as usize].push((s.b, idx as u32));
         lists[s.b as usize].push((s.a, idx as u32 | B_END));
     }
-    let mut rows = Vec::with_capacity(n + 1);
+    let mut rows = Vec::with_capacity(n);
     let mut incidence = Vec::new();
-    rows.push(0);
     for mut list in lists {
         list.sort_unstable();
         let room = incidence_room(list.len() as u32) as usize;
+        let start = incidence.len() as u32;
         incidence.extend(list.iter().map(|&(_, e)| e));
         incidence.extend(std::iter::repeat_n(NO_SPRING, room - list.len()));
-        rows.push(incidence.len() as u32);
+        rows.push([start, incidence.len() as u32]);
     }
     (rows, incidence)
 }
 
-/// The node-to-spring incidence table of `springs` over `n` nodes: row starts and entries (spring
-/// index, [`B_END`] where the node is the `b` end), each row in spring order.
-fn incidence_table(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
+/// The node-to-spring incidence table of `springs` over `n` nodes: rows (`[start, end)`,
+/// contiguous in node order, no room) and entries (spring index, [`B_END`] where the node is
+/// the `b` end), each row in spring order.
+fn incidence_table(n: usize, springs: &[EdgeSpring]) -> (Vec<[u32; 2]>, Vec<u32>) {
     let mut rows = vec![0u32; n + 1];
     for s in springs {
         rows[s.a as usize + 1] += 1;
@@ -756,5 +828,6 @@ fn incidence_table(n: usize, springs: &[EdgeSpring]) -> (Vec<u32>, Vec<u32>) {
             fill[node as usize] += 1;
         }
     }
+    let rows = rows.windows(2).map(|w| [w[0], w[1]]).collect();
     (rows, incidence)
 }

@@ -19,7 +19,7 @@ pub enum LayoutArray {
     Buckets,
     /// Edge-layout spring records.
     EdgeSprings,
-    /// Edge-layout incidence row starts.
+    /// Edge-layout incidence rows, `[start, end)` per node (8 bytes each).
     IncidenceRows,
     /// Edge-layout incidence entries.
     Incidence,
@@ -63,8 +63,9 @@ pub struct LayoutPatch {
     pub dirty: Vec<Dirty>,
     /// Node state to move or clear, one entry per destination.
     pub moves: Vec<StateMove>,
-    /// Whether the layout was repacked whole (a slot or incidence row outgrew its capacity);
-    /// every array is then dirty from start to end.
+    /// Whether the layout was repacked whole (a slot row outgrew its capacity, or the edge
+    /// layout's incidence table compacted the holes its moved rows left); every array the
+    /// repack rewrote is then dirty from start to end.
     pub repacked: bool,
 }
 

@@ -270,3 +270,39 @@ pub fn widen_node_0(
     assert_eq!(valence, k + more, "the model has room to widen node 0");
     diff
 }
+
+/// A diff joining model node `a` to the `k` nearest nodes it has no spring to: `a`'s valence
+/// rises by `k` and each partner's by one, so rows outgrow their room (a crack front gains
+/// neighbours the same way, one spring per split neighbour).
+pub fn join_nearest(model: &PackedModel, a: u32, k: usize) -> lancet::model::ModelDiff {
+    use lancet::model::{ModelDiff, PackedSpring};
+    let dist = |b: u32| -> f64 {
+        (0..3)
+            .map(|c| (model.rest[a as usize][c] - model.rest[b as usize][c]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut others: Vec<u32> = (0..model.node_count() as u32)
+        .filter(|&b| b != a && model.spring_index(a, b).is_none())
+        .collect();
+    others.sort_by(|&x, &y| dist(x).total_cmp(&dist(y)).then(x.cmp(&y)));
+    assert!(
+        others.len() >= k,
+        "node {a} has only {} nodes to join",
+        others.len()
+    );
+    let mut added: Vec<PackedSpring> = others[..k]
+        .iter()
+        .map(|&b| PackedSpring {
+            nodes: [a.min(b), a.max(b)],
+            rest_length: dist(b),
+            stiffness: 50.0,
+            damping: 0.01,
+        })
+        .collect();
+    added.sort_by_key(|s| s.nodes);
+    ModelDiff {
+        added_springs: added,
+        ..ModelDiff::default()
+    }
+}

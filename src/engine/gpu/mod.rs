@@ -388,7 +388,10 @@ impl GpuEngine {
         }
         debug_assert_eq!(self.fixed, model.fixed);
         let slots = self.layout.node_slots();
-        let mut realloc = patch.repacked;
+        // An edge-layout compaction rewrites only its two incidence arrays, both marked dirty
+        // whole: written in place like any dirty range while they fit, it keeps the passes and
+        // their pipelines. A repack of the node-centric layouts rebuilds them.
+        let mut realloc = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
         if slots > self.state.capacity() {
             self.state = self.state.grown(&self.ctx, slots)?;
             realloc = true;
