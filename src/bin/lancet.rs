@@ -45,8 +45,8 @@ enum BenchWhat {
         #[arg(long)]
         json: bool,
     },
-    /// A local incision into boxes of growing size and with growing length: latency per cut
-    /// event (positions read, cut, engine patched, surface refreshed), bytes uploaded against
+    /// Local incisions (four parallel ones, two cells apart) into boxes of growing size and
+    /// with growing length: latency per cut event (positions read, cut, engine patched, surface refreshed), bytes uploaded against
     /// the whole layout, mesh growth per cut area, stable time step before and after.
     Cut {
         /// Boxes of N x N x N/2 cells of 1 cm (6 tets each), comma-separated.
