@@ -130,7 +130,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Parallel incisions per row, each a blade going down two cells: enough cut events for the
-/// percentiles to mean something (one incision made two to five).
+/// percentiles to mean something (one incision made two to five; four make 8-27).
 const INCISIONS: usize = 4;
 
 fn one(
