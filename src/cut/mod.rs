@@ -307,18 +307,8 @@ impl Cutter {
             }
             CutMethod::Subdivide => {
                 outcome.classify_s = start.elapsed().as_secs_f64();
-                let position = |k: NodeKey| {
-                    let (x, rest) = (Point3::from(positions[dense[k] as usize]), mesh.rest(k));
-                    if (x - rest).norm_squared() <= snap2 {
-                        rest
-                    } else {
-                        x
-                    }
-                };
-                // Taken out of `self` before the edit borrows it mutably.
-                let at: SecondaryMap<NodeKey, Point3<f64>> =
-                    self.mesh.nodes().map(|(k, _)| (k, position(k))).collect();
-                self.subdivide(sweep, &|k| at[k], &candidates, &mut outcome)?;
+                let classify = subdivide::Classify { positions, snap2 };
+                self.subdivide(sweep, &classify, &candidates, &mut outcome)?;
             }
         }
         let changes = self.faces.take_boundary_changes();

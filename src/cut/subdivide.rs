@@ -71,12 +71,12 @@ pub const DEFAULT_QUALITY_FLOOR: f64 = 0.2;
 pub const NODE_SNAP: f64 = 0.2;
 
 impl Cutter {
-    /// Subdivide along `sweep`. `position` gives the current (classification) position of an
+    /// Subdivide along `sweep`. `classify` gives the current (classification) position of an
     /// existing node; `candidates` are the tets near the sweep.
     pub(super) fn subdivide(
         &mut self,
         sweep: &Sweep,
-        position: &dyn Fn(NodeKey) -> Point3<f64>,
+        classify: &Classify,
         candidates: &[TetKey],
         outcome: &mut CutOutcome,
     ) -> Result<()> {
@@ -94,7 +94,7 @@ impl Cutter {
                 if crossed.contains_key(&[p, q]) {
                     continue;
                 }
-                let (xp, xq) = (position(p), position(q));
+                let (xp, xq) = (self.classified(classify, p), self.classified(classify, q));
                 if let Some(s) = sweep
                     .triangles
                     .iter()
@@ -134,13 +134,13 @@ impl Cutter {
                 .filter(|n| !snapped.contains(n) && !self.on_cut.contains(n))
                 .collect();
             for n in ends {
-                let x = position(n);
+                let x = self.classified(classify, n);
                 let distance = sweep
                     .triangles
                     .iter()
                     .map(|s| distance_to_triangle(&x, s))
                     .fold(f64::INFINITY, f64::min);
-                if distance < NODE_SNAP * self.shortest_edge_at(n, position) {
+                if distance < NODE_SNAP * self.shortest_edge_at(n, classify) {
                     snapped.insert(n);
                 }
             }
@@ -184,7 +184,7 @@ impl Cutter {
             let k = self.mesh.add_node(rest);
             self.dense.insert(k, self.dense.len() as u32);
             self.on_cut.insert(k);
-            let (xa, xb) = (position(a), position(b));
+            let (xa, xb) = (self.classified(classify, a), self.classified(classify, b));
             extra.insert(k, xa + (xb - xa) * t);
             let from = if t < 0.5 { a } else { b };
             source.insert(k, from);
@@ -218,7 +218,12 @@ impl Cutter {
         //    face lies in the cut surface whichever step made its corners, so a cut made in many
         //    steps opens the same faces as one made in one. With a floor, a tet whose other
         //    corner is on a cut too lies on its centroid's side.
-        let at = |n: NodeKey| extra.get(&n).copied().unwrap_or_else(|| position(n));
+        let at = |n: NodeKey| {
+            extra
+                .get(&n)
+                .copied()
+                .unwrap_or_else(|| self.classified(classify, n))
+        };
         let side = |p: &Point3<f64>, near: &Point3<f64>| {
             let s = sweep
                 .triangles
@@ -387,15 +392,15 @@ impl Cutter {
         snaps
     }
 
-    /// The length of the shortest edge at `n`, at `position`.
-    fn shortest_edge_at(&self, n: NodeKey, position: &dyn Fn(NodeKey) -> Point3<f64>) -> f64 {
-        let x = position(n);
+    /// The length of the shortest edge at `n`, at the classification positions `classify`.
+    fn shortest_edge_at(&self, n: NodeKey, classify: &Classify) -> f64 {
+        let x = self.classified(classify, n);
         self.faces
             .tets_at(n)
             .iter()
             .flat_map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .filter(|&m| m != n)
-            .map(|m| (position(m) - x).norm())
+            .map(|m| (self.classified(classify, m) - x).norm())
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -408,6 +413,30 @@ impl Cutter {
             .copied()
             .filter(|t| tb.binary_search(t).is_ok())
             .collect()
+    }
+}
+
+/// Where the cutter classifies existing nodes: at their current positions (dense order), or at
+/// rest where they are within the snap distance of it (squared, `snap2`), so that a resting
+/// mesh is cut exactly as its rest geometry says.
+pub(super) struct Classify<'a> {
+    pub(super) positions: &'a [[f64; 3]],
+    pub(super) snap2: f64,
+}
+
+impl Cutter {
+    /// The classification position of existing node `k`. Read from the slice at each use, not
+    /// copied into a map of every node first (that cost 0.2 ms a cut on 100k tets).
+    fn classified(&self, at: &Classify, k: NodeKey) -> Point3<f64> {
+        let (x, rest) = (
+            Point3::from(at.positions[self.dense[k] as usize]),
+            self.mesh.rest(k),
+        );
+        if (x - rest).norm_squared() <= at.snap2 {
+            rest
+        } else {
+            x
+        }
     }
 }
 
