@@ -39,6 +39,23 @@ fn twin(engine: &GpuEngine, accumulation: Accumulation, raw: Raw, steps: usize) 
     (cur, second)
 }
 
+/// `steps` steps of an engine built from scratch on `model` in `engine`'s arrangement (a fresh
+/// packing of its layout), from raw state `raw`.
+fn rebuilt_steps(
+    engine: &GpuEngine,
+    model: &lancet::model::PackedModel,
+    config: SimConfig,
+    raw: &Raw,
+    steps: u32,
+) -> Raw {
+    let ctx = common::gpu().unwrap();
+    let mut rebuilt =
+        GpuEngine::with_layout(ctx, model, config, fresh(model, engine.layout())).unwrap();
+    rebuilt.set_raw_state(&raw.0, &raw.1).unwrap();
+    rebuilt.step(steps);
+    rebuilt.raw_state().unwrap()
+}
+
 #[rstest]
 #[case::connectivity(LayoutKind::Connectivity, Accumulation::Gather, Integrator::Verlet)]
 #[case::connectivity_euler(
@@ -86,13 +103,7 @@ fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
         assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}");
         // An engine built from scratch in the same arrangement, from the same state.
         if accumulation != Accumulation::AtomicFixed {
-            let ctx = common::gpu().unwrap();
-            let mut rebuilt =
-                GpuEngine::with_layout(ctx, &model, config, fresh(&model, engine.layout()))
-                    .unwrap();
-            rebuilt.set_raw_state(&want.0, &want.1).unwrap();
-            rebuilt.step(13);
-            let r = rebuilt.raw_state().unwrap();
+            let r = rebuilt_steps(&engine, &model, config, &want, 13);
             assert_eq!(
                 bits(&r.0),
                 bits(&got.0),
@@ -261,12 +272,7 @@ fn an_edge_row_outgrowing_its_room_moves_alone_and_steps_like_a_rebuild_on_the_d
         let got = engine.raw_state().unwrap();
         assert_eq!(bits(&got.0), bits(&expect_twin.0), "round {round}: twin");
         assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
-        let ctx = common::gpu().unwrap();
-        let mut rebuilt =
-            GpuEngine::with_layout(ctx, &model, config, fresh(&model, engine.layout())).unwrap();
-        rebuilt.set_raw_state(&want.0, &want.1).unwrap();
-        rebuilt.step(13);
-        let r = rebuilt.raw_state().unwrap();
+        let r = rebuilt_steps(&engine, &model, config, &want, 13);
         assert_eq!(
             bits(&r.0),
             bits(&got.0),
