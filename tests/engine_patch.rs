@@ -106,13 +106,16 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
         Err(Error::UnstableTimeStep { dt: d, bound, .. }) => assert!(d > bound),
         other => panic!("expected the unstable step to be refused, got {other:?}"),
     }
-    assert_eq!(sim.model(), &model);
-    assert_eq!(sim.positions(), x);
-    assert_eq!(
-        sim.bound(),
-        &bound,
-        "the refused change moved the stable bound"
-    );
+    let unchanged = |sim: &Simulation, what: &str| {
+        assert_eq!(sim.model(), &model, "{what}");
+        assert_eq!(sim.positions(), x, "{what}");
+        assert_eq!(
+            sim.bound(),
+            &bound,
+            "the {what} change moved the stable bound"
+        );
+    };
+    unchanged(&sim, "refused");
 
     // An invalid diff (a spring that does not exist, next to a valid change) is refused with
     // nothing changed either, bound included.
@@ -126,13 +129,7 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
         ..ModelDiff::default()
     };
     assert!(matches!(sim.apply(&invalid), Err(Error::Model(_))));
-    assert_eq!(sim.model(), &model);
-    assert_eq!(sim.positions(), x);
-    assert_eq!(
-        sim.bound(),
-        &bound,
-        "the invalid change moved the stable bound"
-    );
+    unchanged(&sim, "invalid");
 }
 
 /// Applying a change with the positions a cutter just read takes the same energy reference and

@@ -15,7 +15,6 @@ use std::collections::HashMap;
 use serde::Serialize;
 
 use super::Cutter;
-use crate::mesh::quality::tet_quality;
 use crate::mesh::topology::components;
 use crate::mesh::{NodeKey, TET_FACES};
 use crate::model::{Mass, SpringModel, Stiffness};
@@ -173,10 +172,7 @@ impl Cutter {
             ));
         }
 
-        let min_quality = mesh
-            .tets()
-            .map(|(_, t)| tet_quality(&mesh.tet_points(t)).volume_length_ratio)
-            .fold(f64::INFINITY, f64::min);
+        let min_quality = mesh.min_volume_length_ratio();
         if mesh.tet_count() > 0 && !(min_quality > 0.0 && min_quality >= quality_floor) {
             violations.push(format!(
                 "a tet has volume-length ratio {min_quality:.3e}, below the floor \

@@ -85,6 +85,15 @@ impl TetMesh {
             .collect()
     }
 
+    /// The smallest volume-length ratio over the mesh (infinite without tets): what a quality
+    /// floor is checked against, without the angles and the per-tet list [`TetMesh::quality`]
+    /// builds.
+    pub fn min_volume_length_ratio(&self) -> f64 {
+        self.tets()
+            .map(|(_, t)| tet_quality(&self.tet_points(t)).volume_length_ratio)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Quality extremes over the mesh; `None` for a mesh without tets.
     pub fn quality(&self) -> Option<QualityStats> {
         let q = self.tet_qualities();

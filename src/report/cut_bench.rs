@@ -241,12 +241,6 @@ fn one(
         dt_before: before.dt,
         dt_after: sim.bound().dt,
         quality_floor: floor,
-        min_quality: cutter
-            .mesh()
-            .tets()
-            .map(|(_, t)| {
-                crate::mesh::quality::tet_quality(&cutter.mesh().tet_points(t)).volume_length_ratio
-            })
-            .fold(f64::INFINITY, f64::min),
+        min_quality: cutter.mesh().min_volume_length_ratio(),
     })
 }

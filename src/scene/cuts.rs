@@ -14,7 +14,6 @@ use crate::collide::{Tool, ToolShape};
 use crate::cut::{CutMethod, Cutter, Sweep};
 use crate::engine::Simulation;
 use crate::error::{Error, Result};
-use crate::mesh::quality::tet_quality;
 use crate::mesh::TetMesh;
 use crate::model::SpringModel;
 
@@ -57,13 +56,6 @@ pub struct SceneCut {
     /// mend the tets a mesh came with).
     #[serde(default = "default_quality_floor")]
     pub quality_floor: f64,
-}
-
-/// The lowest rest volume-length ratio of `mesh`'s tets (infinite for none).
-fn min_quality(mesh: &TetMesh) -> f64 {
-    mesh.tets()
-        .map(|(_, t)| tet_quality(&mesh.tet_points(t)).volume_length_ratio)
-        .fold(f64::INFINITY, f64::min)
 }
 
 fn default_quality_floor() -> f64 {
@@ -196,7 +188,7 @@ impl CutStage {
             super::schema::TimeStep::BoundFraction(f) => f,
             super::schema::TimeStep::Seconds(_) => 0.9,
         };
-        let min_quality_uncut = min_quality(mesh);
+        let min_quality_uncut = mesh.min_volume_length_ratio();
         let quality_floor = settings.quality_floor;
         // The cutter keeps to no floor at 0, below it or at NaN: neither does the check.
         let check_floor = if quality_floor > 0.0 {
@@ -380,7 +372,7 @@ impl CutStage {
         self.report.p99_ms = pick(0.99);
         self.report.max_ms = l.last().map_or(0.0, |s| 1e3 * s);
         self.report.fragments = self.cutter.mesh().component_count();
-        self.report.min_quality = min_quality(self.cutter.mesh());
+        self.report.min_quality = self.cutter.mesh().min_volume_length_ratio();
         self.report.volume_removed_fraction = self.cutter.volume_removed() / self.volume_before;
         (self.cutter.mesh().clone(), self.report)
     }
