@@ -33,6 +33,7 @@ fn cut(model: &PackedModel, split: f64) -> ModelDiff {
                 mass: half,
                 fixed: false,
                 state_from: Some(i),
+                blend: None,
             });
             diff.changed_nodes.push(NodeChange {
                 node: i,

@@ -9,7 +9,7 @@ mod models;
 
 use lancet::engine::{EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
-use lancet::model::{stable_time_step, ModelDiff, PackedSpring};
+use lancet::model::{stable_time_step, AddedNode, ModelDiff, PackedSpring, StateBlend};
 use lancet::report::bench::relative_l2;
 use lancet::Error;
 use models::{random_diff, random_model, random_state};
@@ -40,10 +40,15 @@ fn cut_run(kind: EngineKind, layout: LayoutKind) -> (Vec<[f64; 3]>, Vec<[f64; 3]
                 );
             }
         }
+        // Copies on their originals; nodes put on an edge on the deformed edge, at the same
+        // parameter as on the rest edge.
         for (k, a) in diff.added_nodes.iter().enumerate() {
             let src = a.state_from.unwrap() as usize;
-            if !m.fixed[n + k] && !m.fixed[src] {
-                assert!(dist(after[n + k], before[src]) < 1e-6, "{kind:?}: copy {k}");
+            let (with, t) = a.blend.map_or((src, 0.0), |b| (b.with as usize, b.t));
+            if !m.fixed[n + k] && !m.fixed[src] && !m.fixed[with] {
+                let want =
+                    [0, 1, 2].map(|c| before[src][c] + t * (before[with][c] - before[src][c]));
+                assert!(dist(after[n + k], want) < 1e-6, "{kind:?}: added node {k}");
             }
         }
         sim.run(60).unwrap();
@@ -130,6 +135,38 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
     };
     assert!(matches!(sim.apply(&invalid), Err(Error::Model(_))));
     unchanged(&sim, "invalid");
+
+    // A node started between two others needs a source, a partner that exists and a weight
+    // in [0, 1].
+    let free = s.nodes[0];
+    for (from, with, t) in [
+        (None, free, 0.5),
+        (Some(free), n, 0.5),
+        (Some(free), 0, 1.5),
+    ] {
+        let blended = ModelDiff {
+            added_nodes: vec![AddedNode {
+                key: Default::default(),
+                rest: model.rest[free as usize],
+                mass: model.mass[free as usize],
+                fixed: false,
+                state_from: from,
+                blend: Some(StateBlend { with, t }),
+            }],
+            ..ModelDiff::default()
+        };
+        for at in [None, Some(&x)] {
+            let result = match at {
+                None => sim.apply(&blended),
+                Some(x) => sim.apply_at(&blended, false, x),
+            };
+            match result {
+                Err(Error::Model(m)) => assert!(m.contains("node"), "{m}"),
+                other => panic!("a blend from {from:?} with {with} at {t} was taken: {other:?}"),
+            }
+            unchanged(&sim, "blend");
+        }
+    }
 }
 
 /// Applying a change with the positions a cutter just read takes the same energy reference and

@@ -189,14 +189,32 @@ fn state_moves_on_the_device_follow_the_nodes(
     engine.patch(&next, &diff).unwrap();
     let after = engine.raw_state().unwrap();
     let slots = cpu.node_slots();
-    assert_eq!(
-        bits(&after.0),
-        bits(&moved_state(&before.0, &patch.moves, slots))
-    );
-    assert_eq!(
-        bits(&after.1),
-        bits(&moved_state(&before.1, &patch.moves, slots))
-    );
+    // Copies exactly; blends up to the device's fused multiply-adds.
+    for (got, was) in [(&after.0, &before.0), (&after.1, &before.1)] {
+        let want = moved_state(was, &patch.moves, slots);
+        assert_eq!(got.len(), want.len());
+        for mv in &patch.moves {
+            let (g, w) = (got[mv.to as usize], want[mv.to as usize]);
+            if mv.blend.is_none() {
+                assert_eq!(bits(&[g]), bits(&[w]), "move to {}", mv.to);
+            } else {
+                let (f, b) = (mv.from.unwrap() as usize, mv.blend.unwrap().with as usize);
+                for c in 0..4 {
+                    let scale = was[f][c].abs() + was[b][c].abs();
+                    let tol = 4.0 * f32::EPSILON * scale;
+                    assert!(
+                        (g[c] - w[c]).abs() <= tol,
+                        "blend to {}: {g:?} vs {w:?}",
+                        mv.to
+                    );
+                }
+            }
+        }
+        let moved: std::collections::HashSet<u32> = patch.moves.iter().map(|m| m.to).collect();
+        for i in (0..slots).filter(|i| !moved.contains(&(*i as u32))) {
+            assert_eq!(bits(&[got[i]]), bits(&[want[i]]), "entry {i} changed");
+        }
+    }
     // Positions read back in model order: old nodes where they were, copies on their source.
     let x0 = engine.positions();
     let old = {
@@ -209,16 +227,30 @@ fn state_moves_on_the_device_follow_the_nodes(
             assert_eq!(x0[i], *p, "node {i} moved");
         }
     }
+    let mut blended = 0;
     for (k, a) in diff.added_nodes.iter().enumerate() {
         let src = a.state_from.unwrap() as usize;
-        if !next.fixed[src] && !a.fixed {
-            assert_eq!(
-                x0[model.node_count() + k],
-                old[src],
-                "copy {k} of node {src}"
-            );
+        let got = x0[model.node_count() + k];
+        match a.blend {
+            None if !next.fixed[src] && !a.fixed => {
+                assert_eq!(got, old[src], "copy {k} of node {src}");
+            }
+            // On the deformed edge, at the rest edge's parameter (float32 state).
+            Some(b) if !next.fixed[src] && !next.fixed[b.with as usize] => {
+                let w = old[b.with as usize];
+                let want = [0, 1, 2].map(|c| old[src][c] + b.t * (w[c] - old[src][c]));
+                let off = (0..3).map(|c| (got[c] - want[c]).abs()).fold(0.0, f64::max);
+                assert!(
+                    off < 1e-6,
+                    "node {k} on edge {src}-{}: {off:e} m off",
+                    b.with
+                );
+                blended += 1;
+            }
+            _ => {}
         }
     }
+    assert!(blended > 0, "the diff puts a node on an edge");
 }
 
 #[test]

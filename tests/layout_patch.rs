@@ -88,8 +88,17 @@ fn state_moves_keep_every_node_its_own_state(
         } else if t < model.node_count() {
             state[old.rank[t] as usize]
         } else {
-            let src = diff.added_nodes[t - model.node_count()].state_from.unwrap();
-            state[old.rank[src as usize] as usize]
+            let a = &diff.added_nodes[t - model.node_count()];
+            let from = state[old.rank[a.state_from.unwrap() as usize] as usize];
+            match a.blend {
+                None => from,
+                // A node put on an edge starts between its ends.
+                Some(bl) => {
+                    let with = state[old.rank[bl.with as usize] as usize];
+                    let t = bl.t as f32;
+                    [0, 1, 2, 3].map(|c| from[c] * (1.0 - t) + with[c] * t)
+                }
+            }
         };
         assert_eq!(moved[new.rank[t] as usize], want, "node {t}");
     }
@@ -348,6 +357,7 @@ fn adding_a_node_moves_only_the_overflow_row_in_its_way() {
             mass: model.mass[src as usize],
             fixed: false,
             state_from: Some(src),
+            blend: None,
         }],
         added_springs: vec![lancet::model::PackedSpring {
             nodes: [src, n],

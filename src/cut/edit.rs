@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use petgraph::unionfind::UnionFind;
 
-use super::snapshot::Snapshot;
+use super::snapshot::{Snapshot, StateSource};
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
 use crate::mesh::{NodeKey, TetKey};
@@ -61,7 +61,7 @@ impl Cutter {
             .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .collect();
         let snapshot = Snapshot::take(&self.model, &before);
-        let (added, after) = self.apply_split(&plan, &|n| n)?;
+        let (added, after) = self.apply_split(&plan, &StateSource::Node)?;
         outcome.tets_touched = plan.replace.len();
         outcome.nodes_added = added.len();
         outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
@@ -130,12 +130,12 @@ impl Cutter {
 
     /// Make the copies of `plan` and give the tets their new corners (mesh, model and face
     /// index). Returns the copies with the node whose state each starts from
-    /// (`state_source` of the node it copies: itself for an old node) and the touched tets'
+    /// (`state_source` of the node it copies: the node itself for an old one) and the touched tets'
     /// new corners. Pairs whose face opened leave the crack.
     pub(super) fn apply_split(
         &mut self,
         plan: &SplitPlan,
-        state_source: &dyn Fn(NodeKey) -> NodeKey,
+        state_source: &dyn Fn(NodeKey) -> StateSource,
     ) -> Result<(Copies, Vec<[NodeKey; 4]>)> {
         let mut added = Vec::with_capacity(plan.copies.len());
         let mut new_keys = Vec::with_capacity(plan.copies.len());
@@ -184,8 +184,8 @@ impl Cutter {
     }
 }
 
-/// Nodes made by a split, each with the node whose state it starts from.
-pub(super) type Copies = Vec<(NodeKey, NodeKey)>;
+/// Nodes made by a split, each with where it starts its state.
+pub(super) type Copies = Vec<(NodeKey, StateSource)>;
 
 /// Which tets get which copies: `replace[t]` lists (node, copy number) pairs, `copies[c]` is
 /// the node copy `c` duplicates.

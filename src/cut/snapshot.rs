@@ -7,7 +7,18 @@ use std::collections::BTreeMap;
 use slotmap::SecondaryMap;
 
 use crate::mesh::{NodeKey, TetMesh};
-use crate::model::{AddedNode, ModelDiff, NodeChange, PackedSpring, SpringModel};
+use crate::model::{AddedNode, ModelDiff, NodeChange, PackedSpring, SpringModel, StateBlend};
+
+/// Where a node an edit makes starts its state: with a node's state (a copy of it), or with
+/// the state at parameter `t` along the edge between two nodes (a node put on that edge), so
+/// that nothing jumps when the cut is applied. The nodes existed before the edit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StateSource {
+    /// The state of this node.
+    Node(NodeKey),
+    /// `(1 - t)` times the first node's state plus `t` times the second's.
+    Between(NodeKey, NodeKey, f64),
+}
 
 /// Rest length, stiffness, damping of a spring.
 type SpringParams = (f64, f64, f64);
@@ -76,7 +87,7 @@ impl Snapshot {
 
     /// The diff from the recorded state to `model` now. `after` are the touched tets' nodes
     /// after the edit (their new edges are compared too); `added` are the nodes the edit
-    /// created, in creation order, with the node each copies (its state is carried over);
+    /// created, in creation order, with where each starts its state;
     /// `dense` numbers every node, added ones included. A node left without tets keeps its
     /// mass in the packed model and becomes fixed, so that dense indices never change.
     pub fn diff(
@@ -84,7 +95,7 @@ impl Snapshot {
         mesh: &TetMesh,
         model: &SpringModel,
         after: &[[NodeKey; 4]],
-        added: &[(NodeKey, NodeKey)],
+        added: &[(NodeKey, StateSource)],
         dense: &SecondaryMap<NodeKey, u32>,
     ) -> ModelDiff {
         let mut springs = self.springs;
@@ -114,14 +125,19 @@ impl Snapshot {
                 _ => {}
             }
         }
-        for &(n, from) in added {
+        for &(n, source) in added {
             let p = mesh.rest(n);
+            let (from, blend) = match source {
+                StateSource::Node(a) => (a, None),
+                StateSource::Between(a, b, t) => (a, Some(StateBlend { with: dense[b], t })),
+            };
             diff.added_nodes.push(AddedNode {
                 key: n,
                 rest: [p.x, p.y, p.z],
                 mass: model.mass(n).unwrap_or(0.0),
                 fixed: model.is_fixed(n),
                 state_from: Some(dense[from]),
+                blend,
             });
         }
         for (n, (mass0, fixed0)) in &self.nodes {

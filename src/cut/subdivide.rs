@@ -40,16 +40,17 @@
 //! where two cuts cross, which snapping far from the sweep makes common. Two snapped surfaces
 //! crossing can still pinch off a few tets near the line where they meet.
 //!
-//! A new node starts with the state of the nearer end of its edge (a diff copies whole node
-//! states); in a strained region this differs from the interpolated state by up to the strain
-//! times half an edge.
+//! A new node starts with the state interpolated along its edge (displacement and velocity, at
+//! the crossing's parameter), so the deformed tissue does not jump when the cut is applied: its
+//! position is the point of the deformed edge, and the two halves of a split edge keep its
+//! strain.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use nalgebra::Point3;
 
 use super::exact::segment_crosses_triangle;
-use super::snapshot::Snapshot;
+use super::snapshot::{Snapshot, StateSource};
 use super::sweep::Sweep;
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
@@ -176,8 +177,8 @@ impl Cutter {
 
         // 4. Split the edges, one at a time.
         let mut extra: HashMap<NodeKey, Point3<f64>> = HashMap::new();
-        let mut source: HashMap<NodeKey, NodeKey> = HashMap::new();
-        let mut added: Vec<(NodeKey, NodeKey)> = Vec::new();
+        let mut source: HashMap<NodeKey, StateSource> = HashMap::new();
+        let mut added: Vec<(NodeKey, StateSource)> = Vec::new();
         let mut children: BTreeSet<TetKey> = BTreeSet::new();
         for ([a, b], t) in splits {
             let rest = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
@@ -186,7 +187,8 @@ impl Cutter {
             self.on_cut.insert(k);
             let (xa, xb) = (self.classified(classify, a), self.classified(classify, b));
             extra.insert(k, xa + (xb - xa) * t);
-            let from = if t < 0.5 { a } else { b };
+            // It starts where the deformed edge puts it, moving as the edge moves there.
+            let from = StateSource::Between(a, b, t);
             source.insert(k, from);
             added.push((k, from));
             for tk in self.tets_with_edge(a, b) {
@@ -289,7 +291,7 @@ impl Cutter {
             .collect();
         let dense = &self.dense;
         snapshot.extend(&self.model, &renoded, &|n| dense[n] < nodes_before);
-        let source_of = |n: NodeKey| source.get(&n).copied().unwrap_or(n);
+        let source_of = |n: NodeKey| source.get(&n).copied().unwrap_or(StateSource::Node(n));
         let (copies, _) = self.apply_split(&plan, &source_of)?;
         added.extend(copies);
 

@@ -651,18 +651,26 @@ impl Simulation {
             Some(cost) => cost,
             None => {
                 let (mut x, mut v) = self.engine.state();
+                let before = x.len();
                 for a in &diff.added_nodes {
+                    // The source's displacement and velocity, mixed with the blend partner's.
                     let (p, u) = match a.state_from {
                         Some(s) => {
-                            let s = s as usize;
-                            let offset = [0, 1, 2].map(|c| x[s][c] - self.model.rest[s][c]);
-                            ([0, 1, 2].map(|c| a.rest[c] + offset[c]), v[s])
+                            let (s, rest) = (s as usize, &self.model.rest);
+                            let (w, t) = a.blend.map_or((s, 0.0), |b| (b.with as usize, b.t));
+                            let mix = |f: &dyn Fn(usize) -> [f64; 3]| {
+                                let (p, q) = (f(s), f(w));
+                                [0, 1, 2].map(|c| (1.0 - t) * p[c] + t * q[c])
+                            };
+                            let d = mix(&|i| [0, 1, 2].map(|c| x[i][c] - rest[i][c]));
+                            ([0, 1, 2].map(|c| a.rest[c] + d[c]), mix(&|i| v[i]))
                         }
                         None => (a.rest, [0.0; 3]),
                     };
                     x.push(p);
                     v.push(u);
                 }
+                debug_assert_eq!(x.len(), before + diff.added_nodes.len());
                 let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
                 engine.set_state(&x, &v);
                 if let Some(t) = &self.surface {
@@ -690,9 +698,10 @@ impl Simulation {
     }
 
     /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
-    /// they are) and of those it adds or changes (as they will be; a new node is where the node
-    /// it copies is, shifted by their rest offset). Reads back only the existing nodes of those
-    /// springs, once, unless `positions` (all nodes, current) are given.
+    /// they are) and of those it adds or changes (as they will be; a new node is displaced as
+    /// the node it copies, or as the mix of the two it blends). Reads back only the existing
+    /// nodes of those springs and sources, once, unless `positions` (all nodes, current) are
+    /// given.
     fn diff_elastic_energy(
         &self,
         diff: &ModelDiff,
@@ -716,27 +725,34 @@ impl Simulation {
             .chain(&diff.changed_springs)
             .copied()
             .collect();
-        // An added node stands where its source stands plus the rest offset between them; one
-        // without a source starts at rest.
-        let source = |i: u32| -> Option<(u32, [f64; 3])> {
+        // An added node is displaced as its source is (mixed with its blend partner); one
+        // without a source starts at rest. Existing nodes are their own source.
+        let sources = |i: u32| -> [Option<u32>; 2] {
             if i < n {
-                return Some((i, [0.0; 3]));
+                return [Some(i), None];
             }
-            let a = diff.added_nodes.get((i - n) as usize)?;
-            let s = a.state_from?;
-            let r = self.model.rest[s as usize];
-            Some((s, [a.rest[0] - r[0], a.rest[1] - r[1], a.rest[2] - r[2]]))
+            diff.added_nodes
+                .get((i - n) as usize)
+                .map_or([None, None], |a| [a.state_from, a.blend.map(|b| b.with)])
         };
         let mut nodes: Vec<u32> = old
             .iter()
             .chain(&new)
             .flat_map(|s| s.nodes)
-            .filter_map(|i| source(i).map(|(s, _)| s))
+            .flat_map(sources)
+            .flatten()
             .collect();
         nodes.sort_unstable();
         nodes.dedup();
         if nodes.is_empty() {
             return Ok((0.0, 0.0));
+        }
+        if let Some(&i) = nodes.last().filter(|&&i| i >= n) {
+            // Validated again by `PackedModel::apply`; refused here before any position is
+            // looked up.
+            return Err(Error::Model(format!(
+                "an added node starts from the state of node {i}, which does not exist yet"
+            )));
         }
         let x: Vec<[f64; 3]> = match positions {
             Some(p) => {
@@ -757,14 +773,19 @@ impl Simulation {
             }
             None => self.engine.node_positions(&nodes)?,
         };
+        let read = |i: u32| x[nodes.binary_search(&i).expect("collected")];
         let at = |i: u32| -> [f64; 3] {
-            match source(i) {
-                Some((s, d)) => {
-                    let p = x[nodes.binary_search(&s).expect("collected")];
-                    [p[0] + d[0], p[1] + d[1], p[2] + d[2]]
-                }
-                None => diff.added_nodes[(i - n) as usize].rest,
+            if i < n {
+                return read(i);
             }
+            let a = &diff.added_nodes[(i - n) as usize];
+            let Some(s) = a.state_from else {
+                return a.rest;
+            };
+            let (w, t) = a.blend.map_or((s, 0.0), |b| (b.with, b.t));
+            let (ps, pw) = (read(s), read(w));
+            let (rs, rw) = (self.model.rest[s as usize], self.model.rest[w as usize]);
+            [0, 1, 2].map(|c| a.rest[c] + (1.0 - t) * (ps[c] - rs[c]) + t * (pw[c] - rw[c]))
         };
         let energy = |springs: &[crate::model::PackedSpring]| -> f64 {
             springs

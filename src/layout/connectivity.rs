@@ -439,10 +439,9 @@ impl ConnectivityLayout {
             self.order.order.push(node);
             self.order.rank.push(node);
             self.nodes.inv_mass.push(0.0);
-            patch.moves.push(StateMove {
-                to: node,
-                from: a.state_from.map(|s| self.order.rank[s as usize]),
-            });
+            patch
+                .moves
+                .push(StateMove::added(node, a, &self.order.rank));
         }
         let lists = touched_neighbours(diff, before, |t| {
             self.row(self.order.rank[t as usize] as usize)

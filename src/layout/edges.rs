@@ -396,10 +396,9 @@ impl EdgeLayout {
             self.incidence_rows.push([end, end + room]);
             self.incidence
                 .extend(std::iter::repeat_n(NO_SPRING, room as usize));
-            patch.moves.push(StateMove {
-                to: node,
-                from: a.state_from.map(|s| self.order.rank[s as usize]),
-            });
+            patch
+                .moves
+                .push(StateMove::added(node, a, &self.order.rank));
         }
         if !diff.added_nodes.is_empty() {
             patch.mark(

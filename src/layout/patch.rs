@@ -46,18 +46,62 @@ pub struct Dirty {
     pub bytes: Range<u64>,
 }
 
-/// A write of node state: `state[to] = old_state[from]`, or zero where `from` is `None`. All
-/// moves of a patch read the state as it was before the patch, so they may permute nodes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A write of node state: `state[to] = old_state[from]`, or zero where `from` is `None`; with
+/// a blend, `state[to] = (1 - t) * old_state[from] + t * old_state[with]`. All moves of a patch
+/// read the state as it was before the patch, so they may permute nodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StateMove {
     /// Destination layout index.
     pub to: u32,
     /// Source layout index (in the order before the patch), or `None` to start at rest.
     pub from: Option<u32>,
+    /// A second source mixed in (a node put on an edge starts between its ends).
+    pub blend: Option<MoveBlend>,
+}
+
+/// The second source of a [`StateMove`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveBlend {
+    /// Source layout index (in the order before the patch).
+    pub with: u32,
+    /// Its weight, in [0, 1].
+    pub t: f32,
+}
+
+impl StateMove {
+    /// The move that starts a node added by a diff at layout index `to`: from its source and
+    /// blend partner, mapped to layout indices before the patch by `rank`.
+    pub(crate) fn added(to: u32, a: &crate::model::AddedNode, rank: &[u32]) -> Self {
+        let from = a.state_from.map(|s| rank[s as usize]);
+        StateMove {
+            to,
+            from,
+            blend: a.blend.filter(|_| from.is_some()).map(|b| MoveBlend {
+                with: rank[b.with as usize],
+                t: b.t as f32,
+            }),
+        }
+    }
+
+    /// The state this move writes, given the state before the patch (one `[f32; 4]` per
+    /// layout index): what the device computes, up to fused multiply-adds.
+    pub fn apply_to(&self, old: &[[f32; 4]]) -> [f32; 4] {
+        let Some(f) = self.from else {
+            return [0.0; 4];
+        };
+        let a = old[f as usize];
+        match self.blend {
+            None => a,
+            Some(b) => {
+                let w = old[b.with as usize];
+                std::array::from_fn(|c| a[c] * (1.0 - b.t) + w[c] * b.t)
+            }
+        }
+    }
 }
 
 /// The result of patching a layout.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct LayoutPatch {
     /// Changed byte ranges, ascending per array, not overlapping.
     pub dirty: Vec<Dirty>,
@@ -136,7 +180,11 @@ impl LayoutPatch {
             if model.fixed[t as usize] {
                 let to = rank[t as usize];
                 self.moves.retain(|m| m.to != to);
-                self.moves.push(StateMove { to, from: None });
+                self.moves.push(StateMove {
+                    to,
+                    from: None,
+                    blend: None,
+                });
             }
         }
     }

@@ -175,8 +175,9 @@ impl ValenceLayout {
     /// Apply `diff` (already applied to `model`, the model after the change). A node whose
     /// valence changes moves to a bucket of its new valence: into a hole, into room at the end
     /// of a bucket, or into a new bucket appended with room for more (a size class of a
-    /// sixteenth of that valence's nodes, at least 32); no other node moves, the rows pointing at a moved
-    /// node are rewritten, and its state moves with it. The result equals
+    /// sixteenth of that valence's nodes, at least 32, or a sixteenth of the nodes on a mesh of
+    /// fewer than 512); no other node moves, the rows pointing at a moved node are rewritten,
+    /// and its state moves with it. The result equals
     /// [`ValenceLayout::arranged`] of `model` in the patched arrangement.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
@@ -195,7 +196,7 @@ impl ValenceLayout {
         }
         let mut patch = LayoutPatch::default();
         let buckets_before = self.buckets.len();
-        let mut moves: BTreeMap<u32, Option<u32>> = BTreeMap::new();
+        let mut moves: BTreeMap<u32, StateMove> = BTreeMap::new();
         let mut moved: Vec<u32> = Vec::new();
         let mut rows: BTreeSet<u32> = BTreeSet::new();
         let mut buckets_changed = false;
@@ -221,16 +222,23 @@ impl ValenceLayout {
                 rows.insert(self.order.rank[t as usize]);
                 continue;
             }
-            let from = if new_node {
-                diff.added_nodes[t as usize - before]
-                    .state_from
-                    .map(|s| old_rank[s as usize])
+            // Where the node's state comes from, in the order before the patch.
+            let source = if new_node {
+                StateMove::added(0, &diff.added_nodes[t as usize - before], &old_rank)
             } else {
                 let idx = self.order.rank[t as usize];
                 self.vacate(idx);
                 rows.insert(idx);
-                moves.entry(idx).or_insert(None);
-                Some(idx)
+                moves.entry(idx).or_insert(StateMove {
+                    to: idx,
+                    from: None,
+                    blend: None,
+                });
+                StateMove {
+                    to: 0,
+                    from: Some(idx),
+                    blend: None,
+                }
             };
             let want = demand.get_mut(&v).expect("counted above");
             let (idx, table_changed) = self.place(v, *want, model.node_count());
@@ -238,7 +246,7 @@ impl ValenceLayout {
             buckets_changed |= table_changed;
             self.order.order[idx as usize] = t;
             self.order.rank[t as usize] = idx;
-            moves.insert(idx, from);
+            moves.insert(idx, StateMove { to: idx, ..source });
             rows.insert(idx);
             moved.push(t);
         }
@@ -280,10 +288,7 @@ impl ValenceLayout {
         if buckets_changed {
             patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
         }
-        patch.moves = moves
-            .into_iter()
-            .map(|(to, from)| StateMove { to, from })
-            .collect();
+        patch.moves = moves.into_values().collect();
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();
         Ok(patch)
@@ -343,8 +348,12 @@ impl ValenceLayout {
             .filter(|b| b.valence == v)
             .map(|b| b.count)
             .sum();
+        // Room for a sixteenth more of this valence's nodes, and at least for a few more cuts:
+        // 32 nodes, or a sixteenth of a mesh smaller than 512 nodes (32 slots of a high valence
+        // would outgrow a small mesh's buffers at every cut).
+        let least = (nodes as u32 / 16).clamp(4, 32);
         let room = (same / 16)
-            .max(32)
+            .max(least)
             .max(want)
             .next_power_of_two()
             .min(nodes.max(32) as u32)

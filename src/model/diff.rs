@@ -25,6 +25,20 @@ pub struct AddedNode {
     /// An existing node whose current state (displacement and velocity) the new node starts
     /// with: a node split by a cut starts where the original is. `None` starts it at rest.
     pub state_from: Option<u32>,
+    /// A second existing node mixed into that state: the new node starts with
+    /// `(1 - t) * state_from + t * with`, as a node put on the edge between them at parameter
+    /// `t` does (its displacement is then the interpolated one, so nothing jumps). Needs
+    /// `state_from`.
+    pub blend: Option<StateBlend>,
+}
+
+/// The second node of an added node's starting state, see [`AddedNode::blend`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StateBlend {
+    /// Dense index of an existing node.
+    pub with: u32,
+    /// Its weight, in [0, 1].
+    pub t: f64,
 }
 
 /// New mass or fixed flag of an existing node.
@@ -108,10 +122,20 @@ impl PackedModel {
             }
         };
         for a in &diff.added_nodes {
-            if let Some(s) = a.state_from {
+            let sources = a.state_from.into_iter().chain(a.blend.map(|b| b.with));
+            for s in sources {
                 if s as usize >= self.node_count() {
                     return Err(Error::Model(format!(
                         "an added node copies the state of node {s}, which does not exist yet"
+                    )));
+                }
+            }
+            if let Some(b) = a.blend {
+                if a.state_from.is_none() || !(0.0..=1.0).contains(&b.t) {
+                    return Err(Error::Model(format!(
+                        "an added node blends node {}'s state with weight {} and source {:?}; \
+                         a blend needs a source node (state_from) and a weight in [0, 1]",
+                        b.with, b.t, a.state_from
                     )));
                 }
             }

@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::mesh::{NodeKey, TetKey, TetMesh, TET_EDGES};
 
 pub use constraints::FixedSelector;
-pub use diff::{AddedNode, ModelDiff, NodeChange};
+pub use diff::{AddedNode, ModelDiff, NodeChange, StateBlend};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
 pub use stability::{stable_time_step, BoundUndo, StabilityBound};
 

@@ -89,11 +89,12 @@ pub fn random_state(model: &PackedModel, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64;
 
 /// A cut-like random change of `model`: some springs removed (as across a cut plane), a few
 /// nodes split (a copy takes half the mass and some of the springs, starting from the
-/// original's state), some springs re-parameterised, a few new springs (raising valences) and a
-/// node freed or fixed.
+/// original's state), a few springs split by a node put on them (starting between their ends,
+/// as subdividing does), some springs re-parameterised, a few new springs (raising valences)
+/// and a node freed or fixed.
 pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
     use lancet::model::PackedSpring;
-    use lancet::model::{AddedNode, ModelDiff, NodeChange};
+    use lancet::model::{AddedNode, ModelDiff, NodeChange, StateBlend};
     use std::collections::BTreeSet;
     let mut rng = Rng(seed ^ 0x9e37_79b9_7f4a_7c15);
     let n = model.node_count();
@@ -118,6 +119,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
             mass: half,
             fixed: model.fixed[orig as usize],
             state_from: Some(orig),
+            blend: None,
         });
         diff.changed_nodes.retain(|c| c.node != orig);
         diff.changed_nodes.push(NodeChange {
@@ -142,6 +144,33 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
             diff.added_springs.push(PackedSpring {
                 nodes: [other.min(copy), other.max(copy)],
                 ..*s
+            });
+        }
+    }
+    // Springs split by a node at parameter t along them; the node starts between the ends.
+    for _ in 0..pick(&mut rng, 4) {
+        let s = model.springs[pick(&mut rng, model.springs.len())];
+        if !gone.insert(s.nodes) {
+            continue;
+        }
+        diff.removed_springs.push(s.nodes);
+        let [a, b] = s.nodes;
+        let (ra, rb) = (model.rest[a as usize], model.rest[b as usize]);
+        let t = 0.2 + 0.6 * rng.next();
+        let k = (n + diff.added_nodes.len()) as u32;
+        diff.added_nodes.push(AddedNode {
+            key: Default::default(),
+            rest: [0, 1, 2].map(|c| ra[c] + t * (rb[c] - ra[c])),
+            mass: 0.5 * (mass[a as usize] + mass[b as usize]),
+            fixed: false,
+            state_from: Some(a),
+            blend: Some(StateBlend { with: b, t }),
+        });
+        for (end, share) in [(a, t), (b, 1.0 - t)] {
+            diff.added_springs.push(PackedSpring {
+                nodes: [end, k],
+                rest_length: share * s.rest_length,
+                ..s
             });
         }
     }
@@ -214,7 +243,7 @@ pub fn moved_state(
     let mut out = state.to_vec();
     out.resize(slots, [0.0; 4]);
     for m in moves {
-        out[m.to as usize] = m.from.map_or([0.0; 4], |f| state[f as usize]);
+        out[m.to as usize] = m.apply_to(state);
     }
     out
 }

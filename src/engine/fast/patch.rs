@@ -59,7 +59,19 @@ impl FastEngine {
                 _ if a.fixed => ([0.0; 4], [0.0; 4]),
                 Some(s) => {
                     let j = self.rank[s as usize] as usize;
-                    (self.x[j], self.second[j])
+                    match a.blend {
+                        None => (self.x[j], self.second[j]),
+                        Some(b) => {
+                            let (k, t) = (self.rank[b.with as usize] as usize, b.t as f32);
+                            let mix = |p: [f32; 4], q: [f32; 4]| {
+                                std::array::from_fn(|c| p[c] * (1.0 - t) + q[c] * t)
+                            };
+                            (
+                                mix(self.x[j], self.x[k]),
+                                mix(self.second[j], self.second[k]),
+                            )
+                        }
+                    }
                 }
                 None => ([0.0; 4], [0.0; 4]),
             };

@@ -116,29 +116,36 @@ pub fn check_binding(ctx: &GpuContext, what: &str, bytes: u64) -> Result<()> {
 pub enum Sizing {
     /// Exactly the data.
     Exact,
-    /// The data and an eighth more: the first upload, so that the first cuts (a few percent
-    /// more nodes and springs) fit without reallocating.
+    /// The data and an eighth more, at least [`MIN_HEADROOM`] bytes: the first upload, so that
+    /// the first cuts (a few percent more nodes and springs on a large mesh, many percent on a
+    /// small one) fit without reallocating.
     Headroom,
     /// The next power of two (after a patch outgrew a buffer: room for the next edits).
     SizeClass,
 }
 
+/// Least room a first upload leaves in a buffer: a small mesh grows by a large fraction of
+/// itself at each cut, and reallocating means uploading everything again.
+pub const MIN_HEADROOM: u64 = 16 << 10;
+
 impl Sizing {
     /// Bytes to allocate for `bytes` of data on `ctx`: at least one element of the largest
-    /// struct bound (32 bytes), since an empty binding is invalid; a size class never past the
+    /// struct bound (32 bytes), since an empty binding is invalid; room is never made past the
     /// binding limit.
     pub fn size(self, ctx: &GpuContext, bytes: u64) -> u64 {
         let bytes = bytes.max(32);
+        let max = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
         match self {
             Sizing::Exact => bytes,
-            Sizing::Headroom => (bytes + bytes / 8).next_multiple_of(16),
-            Sizing::SizeClass => {
-                let max = ctx
-                    .limits
-                    .max_storage_buffer_binding_size
-                    .min(ctx.limits.max_buffer_size);
-                bytes.next_power_of_two().min(max).max(bytes)
-            }
+            // Never past the binding limit for the room alone.
+            Sizing::Headroom => (bytes + (bytes / 8).max(MIN_HEADROOM))
+                .min(max)
+                .max(bytes)
+                .next_multiple_of(16),
+            Sizing::SizeClass => bytes.next_power_of_two().min(max).max(bytes),
         }
     }
 }

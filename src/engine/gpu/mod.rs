@@ -9,6 +9,7 @@
 //! positions (and velocities) are read back, when asked for.
 
 pub mod atomic_edges;
+pub mod blend_state;
 pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
@@ -134,19 +135,35 @@ impl NodeState {
         Ok(next)
     }
 
-    /// Apply state moves: every buffer gets `state[to] = old[from]` (zero without a source),
-    /// all sources read before any destination is written, entirely on the device.
-    fn apply_moves(&self, ctx: &GpuContext, moves: &[StateMove]) {
+    /// Apply state moves: every buffer gets `state[to] = old[from]` (zero without a source;
+    /// the mix of two sources for a blended move, by `blend`), all sources read before any
+    /// destination is written, entirely on the device.
+    fn apply_moves(
+        &self,
+        ctx: &GpuContext,
+        moves: &[StateMove],
+        blend: Option<&blend_state::BlendPass>,
+    ) -> Result<()> {
         if moves.is_empty() {
-            return;
+            return Ok(());
         }
         let bufs = self.buffers();
         let m = moves.len() as u64;
-        // Created zeroed: the entries of moves without a source stay zero.
+        let blended: Vec<(usize, &StateMove)> = moves
+            .iter()
+            .enumerate()
+            .filter(|(_, mv)| mv.blend.is_some())
+            .collect();
+        let nb = blended.len() as u64;
+        // Staging, per buffer: one entry per move (its source), then one per blended move (its
+        // second source). Created zeroed: the entries of moves without a source stay zero.
+        let per = m + nb;
         let temp = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("state moves"),
-            size: m * 16 * bufs.len() as u64,
-            usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            size: per * 16 * bufs.len() as u64,
+            usage: wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
         let mut enc = ctx
@@ -155,20 +172,48 @@ impl NodeState {
                 label: Some("state moves"),
             });
         for (b, buf) in bufs.iter().enumerate() {
+            let base = b as u64 * per;
             for (k, mv) in moves.iter().enumerate() {
                 if let Some(from) = mv.from {
-                    let at = (b as u64 * m + k as u64) * 16;
+                    let at = (base + k as u64) * 16;
                     enc.copy_buffer_to_buffer(buf, from as u64 * 16, &temp, at, 16);
                 }
+            }
+            for (j, (_, mv)) in blended.iter().enumerate() {
+                let with = mv.blend.expect("blended").with;
+                let at = (base + m + j as u64) * 16;
+                enc.copy_buffer_to_buffer(buf, with as u64 * 16, &temp, at, 16);
             }
         }
         for (b, buf) in bufs.iter().enumerate() {
             for (k, mv) in moves.iter().enumerate() {
-                let at = (b as u64 * m + k as u64) * 16;
-                enc.copy_buffer_to_buffer(&temp, at, buf, mv.to as u64 * 16, 16);
+                if mv.blend.is_none() {
+                    let at = (b as u64 * per + k as u64) * 16;
+                    enc.copy_buffer_to_buffer(&temp, at, buf, mv.to as u64 * 16, 16);
+                }
+            }
+        }
+        if !blended.is_empty() {
+            let pass = blend.ok_or_else(|| {
+                crate::Error::Gpu("a patch blends node state but no blend pass was built".into())
+            })?;
+            for (b, buf) in bufs.iter().enumerate() {
+                let base = b as u64 * per;
+                let records: Vec<blend_state::BlendRecord> = blended
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &(k, mv))| blend_state::BlendRecord {
+                        to: mv.to,
+                        first: (base + k as u64) as u32,
+                        second: (base + m + j as u64) as u32,
+                        t: mv.blend.expect("blended").t,
+                    })
+                    .collect();
+                pass.record(ctx, &mut enc, &temp, buf, &records)?;
             }
         }
         ctx.queue.submit([enc.finish()]);
+        Ok(())
     }
 
     /// Number of rotation phases.
@@ -265,6 +310,8 @@ pub struct GpuEngine {
     surface_stale: bool,
     /// The tissue surface and its cullers, built only once a program culls.
     surface: Option<SurfaceCulling>,
+    /// The pass that starts nodes between two others, built at the first patch that needs it.
+    blend: Option<blend_state::BlendPass>,
 }
 
 /// The tissue surface on the device and the broad phases over it.
@@ -352,6 +399,7 @@ impl GpuEngine {
             timer,
             surface_stale: false,
             surface: None,
+            blend: None,
             ctx,
             config,
             layout,
@@ -469,7 +517,11 @@ impl GpuEngine {
                 self.dispatch,
             )?;
         }
-        self.state.apply_moves(&self.ctx, &patch.moves);
+        if self.blend.is_none() && patch.moves.iter().any(|mv| mv.blend.is_some()) {
+            self.blend = Some(blend_state::BlendPass::new(&self.ctx)?);
+        }
+        self.state
+            .apply_moves(&self.ctx, &patch.moves, self.blend.as_ref())?;
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         self.surface_stale = self.surface.is_some();
