@@ -63,6 +63,52 @@ fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
     }
 }
 
+/// What `lancet run --check` asks of a layout after cuts: nothing differs from a rebuild; and
+/// one wrong entry (a slot, a mass, a spring at a node) is found.
+#[rstest]
+fn a_patched_layout_agrees_with_a_rebuild_and_a_wrong_entry_is_found(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let mut model = random_model(21, true);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    for round in 0..4 {
+        let diff = random_diff(&model, 900 + round);
+        model = applied(&model, &diff);
+        layout.patch(&model, &diff).unwrap();
+        let found = layout.differences_from_rebuild(&model).unwrap();
+        assert!(found.is_empty(), "round {round}: {found:?}");
+    }
+    // A free node's mass, and a slot or spring of its row.
+    let node = (0..model.node_count())
+        .find(|&i| !model.fixed[i])
+        .expect("a free node");
+    let idx = layout.order().rank[node] as usize;
+    let mut wrong_mass = layout.clone();
+    let mut wrong_spring = layout.clone();
+    match (&mut wrong_mass, &mut wrong_spring) {
+        (PackedLayout::Connectivity(m), PackedLayout::Connectivity(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            let at = idx * s.capacity as usize;
+            s.slots[at].rest *= 1.5;
+        }
+        (PackedLayout::Valence(m), PackedLayout::Valence(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            s.slots.iter_mut().find(|x| x.rest > 0.0).unwrap().rest *= 1.5;
+        }
+        (PackedLayout::Edges(m), PackedLayout::Edges(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            let [start, _] = s.incidence_rows[idx];
+            let spring = s.incidence[start as usize] & !lancet::layout::edges::B_END;
+            s.springs[spring as usize].k *= 1.5;
+        }
+        _ => unreachable!(),
+    }
+    for (what, wrong) in [("mass", wrong_mass), ("spring", wrong_spring)] {
+        let found = wrong.differences_from_rebuild(&model).unwrap();
+        assert_eq!(found.len(), 1, "{kind:?} wrong {what}: {found:?}");
+    }
+}
+
 #[rstest]
 fn state_moves_keep_every_node_its_own_state(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,

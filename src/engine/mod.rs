@@ -89,6 +89,13 @@ pub trait Engine: Send {
         let _ = (model, diff);
         Ok(None)
     }
+    /// How the engine's structures, after patches, differ from `model` packed from scratch
+    /// (on a device, its buffers included): empty where they agree, or where the engine has
+    /// nothing patched to check (the reference engine is rebuilt at every change).
+    fn differences_from_rebuild(&self, model: &PackedModel) -> Result<Vec<String>> {
+        let _ = model;
+        Ok(Vec::new())
+    }
     /// Positions of the nodes `nodes` (model indices), m, reading back only those where the
     /// state lives on a device. Out-of-range indices are an error.
     fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
@@ -1324,6 +1331,13 @@ impl Simulation {
     /// Memory and per-step traffic of the engine.
     pub fn memory(&self) -> EngineMemory {
         self.engine.memory()
+    }
+
+    /// How the engine, after the changes applied so far, differs from one built from scratch
+    /// for the current model (its layout, and on the GPU every device buffer of it): empty when
+    /// they agree. Reads the layout back from the device: for checks, not for every step.
+    pub fn differences_from_rebuild(&self) -> Result<Vec<String>> {
+        self.engine.differences_from_rebuild(&self.model)
     }
 
     /// Which engine runs.

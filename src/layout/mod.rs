@@ -16,6 +16,7 @@ pub mod edges;
 pub mod patch;
 pub mod rcm;
 pub mod valence;
+mod verify;
 
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;

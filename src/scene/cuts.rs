@@ -47,7 +47,8 @@ pub struct SceneCut {
     /// What a cut that lowers the stable bound below `dt` does.
     #[serde(default)]
     pub time_step: TimeStepPolicy,
-    /// Check the invariants after every cut (also turned on by `lancet run --check`).
+    /// Check the invariants after every cut, and the engine patched so far against one built
+    /// from scratch, device buffers included (also turned on by `lancet run --check`).
     #[serde(default)]
     pub check: bool,
     /// The rest volume-length ratio below which subdividing makes no tet (it snaps instead; see
@@ -338,9 +339,12 @@ impl CutStage {
                     .cutter
                     .check_invariants(self.volume_before, self.check_floor);
                 r.checks += 1;
+                // The engine's patched structures (device buffers included) against a rebuild.
+                let engine = sim.differences_from_rebuild()?;
                 r.violations.extend(
                     inv.violations
                         .into_iter()
+                        .chain(engine)
                         .map(|v| format!("after the cut at step {}: {v}", sim.steps())),
                 );
             }

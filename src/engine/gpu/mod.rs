@@ -416,6 +416,43 @@ impl GpuEngine {
         })
     }
 
+    /// Where the device's copy of the layout differs from the layout on the CPU (each array
+    /// read back whole): empty when every uploaded byte is what the layout holds.
+    pub fn device_differences(&self) -> Result<Vec<String>> {
+        let mut out = Vec::new();
+        for a in LayoutArray::ALL {
+            let (Some(buf), host) = (self.passes.buffer(a), self.layout.array(a)) else {
+                continue;
+            };
+            if host.is_empty() {
+                continue;
+            }
+            if buf.size() < host.len() as u64 {
+                out.push(format!(
+                    "device {a:?} buffer holds {} bytes, the layout {}",
+                    buf.size(),
+                    host.len()
+                ));
+                continue;
+            }
+            let device = buffers::read_bytes(&self.ctx, buf, host.len() as u64)?;
+            if let Some(i) = device.iter().zip(host).position(|(d, h)| d != h) {
+                out.push(format!(
+                    "device {a:?} buffer differs from the layout at byte {i} of {}",
+                    host.len()
+                ));
+            }
+        }
+        // The bucket table is uploaded at the device's uniform offset stride.
+        if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&self.passes, &self.layout) {
+            let device = p.read_buckets(&self.ctx, v.buckets.len())?;
+            if let Some(i) = (0..v.buckets.len()).find(|&i| device.get(i) != Some(&v.buckets[i])) {
+                out.push(format!("device bucket {i} differs from the layout"));
+            }
+        }
+        Ok(out)
+    }
+
     /// Apply a change to the model between steps: `diff` has already been applied to `model`
     /// (the model after it, see [`PackedModel::apply`]). The layout is patched on the CPU and
     /// only its dirty byte ranges are written to the device; node state moves on the device
@@ -965,6 +1002,12 @@ impl Engine for GpuEngine {
         self.ctx
             .queue
             .write_buffer(b.second_in, 0, bytemuck::cast_slice(&second));
+    }
+
+    fn differences_from_rebuild(&self, model: &PackedModel) -> Result<Vec<String>> {
+        let mut out = self.layout.differences_from_rebuild(model)?;
+        out.extend(self.device_differences()?);
+        Ok(out)
     }
 
     fn memory(&self) -> EngineMemory {

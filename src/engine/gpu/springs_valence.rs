@@ -62,7 +62,10 @@ impl ValencePass {
         let table = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("valence buckets"),
             size: entries as u64 * stride,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            // Read back by checks (`read_buckets`).
+            usage: wgpu::BufferUsages::UNIFORM
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let bucket_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -107,8 +110,25 @@ impl ValencePass {
         Ok(pass)
     }
 
+    /// The bucket table as the device holds it, one entry per bucket of `count` (read back:
+    /// for checks).
+    pub fn read_buckets(&self, ctx: &GpuContext, count: usize) -> Result<Vec<Bucket>> {
+        let stride = bucket_stride(ctx);
+        let bytes = (count as u64 * stride).min(self.table.size());
+        if bytes == 0 {
+            return Ok(Vec::new());
+        }
+        let raw = buffers::read_bytes(ctx, &self.table, bytes)?;
+        Ok(raw
+            .chunks(stride as usize)
+            .filter(|c| c.len() >= 16)
+            .map(|c| bytemuck::pod_read_unaligned::<Bucket>(&c[..16]))
+            .collect())
+    }
+
     /// Write the bucket table and recompute the dispatches (after a patch moved nodes between
     /// buckets). False, with nothing written, if the table has no room for that many buckets.
+
     pub fn set_buckets(&mut self, ctx: &GpuContext, buckets: &[Bucket], row: u32) -> bool {
         let stride = bucket_stride(ctx);
         if buckets.len() as u64 * stride > self.table.size() {
