@@ -128,7 +128,6 @@ impl ValencePass {
 
     /// Write the bucket table and recompute the dispatches (after a patch moved nodes between
     /// buckets). False, with nothing written, if the table has no room for that many buckets.
-
     pub fn set_buckets(&mut self, ctx: &GpuContext, buckets: &[Bucket], row: u32) -> bool {
         let stride = bucket_stride(ctx);
         if buckets.len() as u64 * stride > self.table.size() {
