@@ -279,6 +279,10 @@ impl Engine for FastEngine {
         "cpu-fast-f32".into()
     }
 
+    fn differences_from_rebuild(&self, model: &PackedModel) -> crate::Result<Vec<String>> {
+        Ok(self.graph_differences(model))
+    }
+
     fn memory(&self) -> super::EngineMemory {
         let n = self.x.len() as u64;
         let slots = self.graph.adj.len() as u64;

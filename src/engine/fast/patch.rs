@@ -21,6 +21,56 @@ enum RowEdit {
 }
 
 impl FastEngine {
+    /// How the patched graph differs from `model`'s built from scratch in the same internal
+    /// order: each row's springs (in row order, bit for bit), their damping, the inverse masses
+    /// and the fixed flags. Empty when they agree.
+    pub(super) fn graph_differences(&self, model: &PackedModel) -> Vec<String> {
+        let fresh = build_graph(model, &self.order, &self.rank);
+        let bits = |e: &Entry| {
+            (
+                e.other,
+                e.edge.map(f32::to_bits),
+                e.rest.to_bits(),
+                e.k.to_bits(),
+            )
+        };
+        let damping = |g: &super::Graph, i: usize| -> Vec<u32> {
+            let [s, e] = g.rows[i];
+            g.damping
+                .get(s as usize..e as usize)
+                .map_or(Vec::new(), |d| d.iter().map(|c| c.to_bits()).collect())
+        };
+        let mut out = Vec::new();
+        let n = self.graph.rows.len();
+        if n != fresh.rows.len() {
+            out.push(format!(
+                "fast engine: {n} rows, a rebuild has {}",
+                fresh.rows.len()
+            ));
+            return out;
+        }
+        let row_differs = |i: usize| {
+            let (a, b) = (self.graph.row(i), fresh.row(i));
+            a.len() != b.len()
+                || a.iter().zip(b).any(|(x, y)| bits(x) != bits(y))
+                || damping(&self.graph, i) != damping(&fresh, i)
+        };
+        if let Some(i) = (0..n).find(|&i| row_differs(i)) {
+            out.push(format!(
+                "fast engine: the row of node {} differs from a rebuild",
+                self.order[i]
+            ));
+        }
+        let mass = |g: &super::Graph| g.inv_mass.iter().map(|m| m.to_bits()).collect::<Vec<_>>();
+        if mass(&self.graph) != mass(&fresh) {
+            out.push("fast engine: inverse masses differ from a rebuild".into());
+        }
+        if self.graph.fixed != fresh.fixed {
+            out.push("fast engine: fixed flags differ from a rebuild".into());
+        }
+        out
+    }
+
     /// Apply `diff` (already applied to `model`) to the engine's arrays, keeping the state.
     /// `None` where the engine must be rebuilt instead (the first damped spring of an undamped
     /// model needs the damping array built for every row).
@@ -240,6 +290,7 @@ mod tests {
             engine
                 .patch_in_place(&packed, &outcome.diff)
                 .expect("patched in place");
+            assert_eq!(engine.graph_differences(&packed), Vec::<String>::new());
             let fresh = build_graph(&packed, &engine.order, &engine.rank);
             for i in 0..engine.order.len() {
                 let (a, b) = (engine.graph.row(i), fresh.row(i));
@@ -284,6 +335,10 @@ mod tests {
             assert_eq!(engine.positions(), rebuilt.positions(), "after cut {k}");
         }
         assert!(cuts >= 3, "the blade cut {cuts} times");
+        // The check that `lancet run --check` makes sees one wrong stiffness.
+        let [start, _] = engine.graph.rows[0];
+        engine.graph.adj[start as usize].k *= 1.5;
+        assert_eq!(engine.graph_differences(&packed).len(), 1);
     }
 
     #[test]
