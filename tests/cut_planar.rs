@@ -197,3 +197,83 @@ fn a_crossing_near_a_node_snaps_to_it_and_makes_no_sliver() {
         report.min_quality
     );
 }
+
+/// A partial incision: the blade stops halfway down. The box stays one piece with a crack
+/// front (faces cut but still shared, Separate and Subdivide); moving the blade back up and
+/// down the cut, or trembling at its end, cuts nothing new; going on down completes the cut
+/// into two pieces and the front closes.
+#[test]
+fn a_partial_incision_keeps_its_front_and_re_sweeping_it_makes_nothing_new() {
+    for method in [CutMethod::Separate, CutMethod::Subdivide, CutMethod::Remove] {
+        let mesh = box_mesh();
+        let volume = mesh.volume();
+        let model = SpringModel::build(&mesh, &config()).unwrap();
+        let mut cutter = Cutter::new(mesh, model, method).unwrap();
+        let y0 = 1.7 * H;
+        let mut cut = |cutter: &mut Cutter, z0: f64, z1: f64| {
+            let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
+            let rest: Vec<[f64; 3]> = cutter
+                .mesh()
+                .nodes()
+                .map(|(_, n)| n.rest.coords.into())
+                .collect();
+            cutter.cut(&sweep, &rest).unwrap()
+        };
+        // Down to z = 2.5 cm of the 4 cm box, in steps of a fifth of a cell.
+        let path: Vec<f64> = (0..=12).map(|k| 0.05 - 0.002 * k as f64 - 0.001).collect();
+        for w in path.windows(2) {
+            cut(&mut cutter, w[0], w[1]);
+        }
+        assert_eq!(fragment_volumes(&cutter).len(), 1, "{method}: one piece");
+        assert_invariants(&cutter, volume);
+        let front = cutter.crack_front();
+        let end = *path.last().unwrap();
+        match method {
+            // Faces cut but still shared where the opened faces end.
+            CutMethod::Separate => assert!(front > 0, "{method}: a crack front"),
+            // The front is the tets the blade is in, not split yet: no node is made below the
+            // blade's edge, but for snapping (a fifth of an edge).
+            CutMethod::Subdivide => {
+                let lowest = cutter
+                    .mesh()
+                    .nodes()
+                    .skip(box_mesh().node_count())
+                    .map(|(_, n)| n.rest.z)
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    lowest >= end - 0.2 * H,
+                    "{method}: a node made at z = {lowest}, below the blade's edge at {end}"
+                );
+            }
+            CutMethod::Remove => {}
+        }
+        let (nodes, tets) = (cutter.mesh().node_count(), cutter.mesh().tet_count());
+        // Back up the cut and down again, then trembling at its end.
+        let moves = [
+            (end, 0.05),
+            (0.05, end),
+            (end, end + 0.002),
+            (end + 0.002, end),
+        ];
+        for (z0, z1) in moves
+            .into_iter()
+            .chain([(end, end + 0.001), (end + 0.001, end)])
+        {
+            let outcome = cut(&mut cutter, z0, z1);
+            assert!(
+                outcome.is_empty(),
+                "{method}: the blade moved {z0} -> {z1} along its cut and cut again"
+            );
+        }
+        assert_eq!(cutter.mesh().node_count(), nodes, "{method}");
+        assert_eq!(cutter.mesh().tet_count(), tets, "{method}");
+        assert_eq!(cutter.crack_front(), front, "{method}");
+        // On down through the box: two pieces, no front left.
+        cut(&mut cutter, end, -0.01);
+        assert_eq!(fragment_volumes(&cutter).len(), 2, "{method}: two pieces");
+        if method != CutMethod::Remove {
+            assert_eq!(cutter.crack_front(), 0, "{method}: the front closed");
+        }
+        assert_invariants(&cutter, volume);
+    }
+}
