@@ -99,6 +99,25 @@ pub enum Error {
         node: usize,
     },
 
+    /// A cut in a scene lowered the stable bound below the time step, and the scene's cut
+    /// policy is `Stop`. Unlike [`Error::UnstableTimeStep`], `allow_unstable` does not apply:
+    /// the fix is the policy in the scene's `cut` section.
+    #[error(
+        "the cut at step {step} lowered the stable bound to {bound:e} s (limited by node {node}), \
+         below the time step {dt:e} s; set `time_step: Substep` in the scene's `cut` section to \
+         go on at a smaller step, or `time_step: Warn` to go on at this one"
+    )]
+    CutLoweredTimeStep {
+        /// The step after which the cut was made (steps taken so far).
+        step: u64,
+        /// The time step in use, seconds.
+        dt: f64,
+        /// The stable bound after the cut, seconds.
+        bound: f64,
+        /// The node (index in the model's node order) with the smallest per-node bound.
+        node: usize,
+    },
+
     /// The simulation blew up: NaN, infinity or exploding energy.
     #[error(
         "simulation diverged at step {step}, node {node}: {reason} (lower dt or raise damping)"

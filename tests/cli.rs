@@ -47,8 +47,11 @@ fn run_without_arguments_runs_the_embedded_scene_and_reports_json() {
     let v = json_of(&out);
     for key in [
         "steps",
+        "simulated_s",
         "dt",
         "dt_bound",
+        "dt_final",
+        "dt_bound_final",
         "engine",
         "wall_s",
         "max_displacement",
@@ -61,6 +64,18 @@ fn run_without_arguments_runs_the_embedded_scene_and_reports_json() {
     assert_eq!(v["expectations_passed"], true);
     assert!(v["dt"].as_f64().unwrap() <= v["dt_bound"].as_f64().unwrap());
     assert!(v["steps"].as_u64().unwrap() > 0);
+    // Nothing cuts: the step and its bound stay, and the time is the steps at that step.
+    assert_eq!(v["dt_final"], v["dt"]);
+    assert_eq!(v["dt_bound_final"], v["dt_bound"]);
+    let (dt, time) = (
+        v["dt"].as_f64().unwrap(),
+        v["simulated_s"].as_f64().unwrap(),
+    );
+    let expected = v["steps"].as_u64().unwrap() as f64 * dt;
+    assert!(
+        (time - expected).abs() < 1e-12 * expected,
+        "{time} {expected}"
+    );
     assert!(v["max_displacement"].as_f64().unwrap() > 0.0);
 }
 

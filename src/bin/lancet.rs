@@ -566,6 +566,9 @@ fn print_summary(s: &RunSummary) {
         "engine: {} ({}), dt {:.3e} s, stable bound {:.3e} s (node {})",
         s.engine, s.integrator, s.dt, s.dt_bound, s.dt_bound_node
     );
+    if let Some(line) = time_step_change(s) {
+        println!("{line}");
+    }
     if let Some(n) = &s.engine_note {
         println!("note: {n}");
     }
@@ -581,10 +584,7 @@ fn print_summary(s: &RunSummary) {
     }
     println!(
         "ran {} steps ({:.4} s simulated) in {:.3} s wall, {:.0} steps/s",
-        s.steps,
-        s.steps as f64 * s.dt,
-        s.wall_s,
-        s.steps_per_s
+        s.steps, s.simulated_s, s.wall_s, s.steps_per_s
     );
     println!(
         "max displacement {:.4e} m, volume ratio {:.5}, energy: kinetic {:.3e} J, elastic {:.3e} J",
@@ -627,11 +627,12 @@ fn print_summary(s: &RunSummary) {
             100.0 * c.volume_removed_fraction
         );
         println!(
-            "  uploaded {} of {} layout bytes a rebuild per cut would ({:.2}%; at most {:.2}% \
+            "  uploaded {} of {} layout bytes a rebuild per cut would{} ({:.2}%; at most {:.2}% \
              in one cut); per cut p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} invariant checks, \
              {} violations; lowest tet quality {:.3} (uncut {:.3}, floor {})",
             c.bytes_uploaded,
             c.bytes_full,
+            rebuilt(c.bytes_rebuild),
             100.0 * c.bytes_uploaded as f64 / c.bytes_full.max(1) as f64,
             100.0 * c.max_upload_fraction,
             c.p50_ms,
@@ -648,7 +649,7 @@ fn print_summary(s: &RunSummary) {
         for e in c.events.iter().take(SHOWN) {
             println!(
                 "  cut at step {} by {}: {} tets touched ({} removed), {} nodes added, {} springs \
-                 touched, {} of {} layout bytes uploaded, {:.3} ms",
+                 touched, {} of {} layout bytes uploaded{}, {:.3} ms",
                 e.step,
                 e.blade,
                 e.tets_touched,
@@ -657,6 +658,7 @@ fn print_summary(s: &RunSummary) {
                 e.springs_touched,
                 e.bytes_uploaded,
                 e.layout_bytes,
+                rebuilt(e.rebuild_bytes),
                 e.ms
             );
         }
@@ -696,6 +698,34 @@ fn print_summary(s: &RunSummary) {
     );
 }
 
+/// What part of an upload rebuilt the engine at a new time step, for the cut lines.
+fn rebuilt(bytes: u64) -> String {
+    if bytes == 0 {
+        String::new()
+    } else {
+        format!(" ({bytes} of them rebuilding the engine at a new dt)")
+    }
+}
+
+/// A line saying how cuts changed the time step or its bound during the run, if they did (the
+/// engine line gives the values the run started with).
+fn time_step_change(s: &RunSummary) -> Option<String> {
+    let bound = format!(
+        "stable bound now {:.3e} s (node {})",
+        s.dt_bound_final, s.dt_bound_node_final
+    );
+    if s.dt_final != s.dt {
+        Some(format!(
+            "dt changed from {:.3e} s to {:.3e} s during the run; {bound}",
+            s.dt, s.dt_final
+        ))
+    } else if s.dt_bound_final != s.dt_bound {
+        Some(format!("dt unchanged; {bound}"))
+    } else {
+        None
+    }
+}
+
 fn print_table(summaries: &[RunSummary]) {
     let w = summaries
         .iter()
@@ -709,13 +739,15 @@ fn print_table(summaries: &[RunSummary]) {
     );
     for s in summaries {
         let passed = s.expectations.iter().filter(|e| e.passed).count();
+        // The step the run ended at, marked where a cut lowered it.
+        let mark = if s.dt_final != s.dt { '*' } else { ' ' };
         println!(
-            "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10.3e}  {:>9.3}  {:>8}  {}",
+            "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10}  {:>9.3}  {:>8}  {}",
             s.scene,
             s.cut_method.as_deref().unwrap_or("-"),
             s.nodes,
             s.steps,
-            s.dt,
+            format!("{:.3e}{mark}", s.dt_final),
             s.wall_s,
             format!("{passed}/{}", s.expectations.len()),
             if s.expectations_passed {
@@ -724,6 +756,9 @@ fn print_table(summaries: &[RunSummary]) {
                 "FAIL"
             }
         );
+    }
+    if summaries.iter().any(|s| s.dt_final != s.dt) {
+        println!("* a cut lowered dt during the run; the final dt is shown");
     }
     let failed = summaries.iter().filter(|s| !s.expectations_passed).count();
     println!("{} scenes, {} failed", summaries.len(), failed);

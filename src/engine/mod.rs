@@ -811,8 +811,9 @@ impl Simulation {
     /// Change the time step between steps, keeping the state (positions and velocities): the
     /// engine is rebuilt for the new step (on the GPU its pipelines are made again), so this is
     /// for rare events such as a cut that lowers the stable bound. A step above the bound is
-    /// refused unless `allow_unstable`.
-    pub fn set_time_step(&mut self, dt: f64) -> Result<()> {
+    /// refused unless `allow_unstable`. Returns what the rebuild cost: the new engine uploads
+    /// all of itself (layout and state), so `uploaded_bytes` is its whole memory.
+    pub fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::Model(format!(
                 "time step {dt} must be finite and positive"
@@ -834,10 +835,16 @@ impl Simulation {
         }
         self.time_at_dt_change = self.time();
         self.steps_at_dt_change = self.steps;
+        let total = engine.memory().stats.total;
         self.engine = engine;
         self.config = config;
         self.reset_energy_reference();
-        Ok(())
+        Ok(PatchCost {
+            uploaded_bytes: total,
+            layout_bytes: total,
+            state_moves: 0,
+            reallocated: true,
+        })
     }
 
     /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.

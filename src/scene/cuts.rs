@@ -12,15 +12,16 @@ use super::schema::Scene;
 use crate::collide::broad::ToolBox;
 use crate::collide::{Tool, ToolShape};
 use crate::cut::{CutMethod, Cutter, Sweep};
-use crate::engine::Simulation;
+use crate::engine::{PatchCost, Simulation};
 use crate::error::{Error, Result};
 use crate::mesh::TetMesh;
-use crate::model::SpringModel;
+use crate::model::{ModelDiff, SpringModel};
 
 /// What to do when a cut lowers the stable time step below the one in use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum TimeStepPolicy {
-    /// Stop the run with an error naming the node that limits the new bound.
+    /// Stop the run with an error naming the step, the node that limits the new bound, and
+    /// the policies that go on instead.
     #[default]
     Stop,
     /// Go on at the same step and record a warning (the run may then diverge, and is stopped
@@ -78,12 +79,44 @@ pub struct CutEvent {
     pub nodes_added: usize,
     /// Springs removed, added or changed.
     pub springs_touched: usize,
-    /// Layout bytes uploaded.
+    /// Bytes uploaded: the patch, plus `rebuild_bytes` when the engine was rebuilt at a new
+    /// time step (so it can exceed `layout_bytes`).
     pub bytes_uploaded: u64,
     /// Layout bytes a full rebuild would have uploaded.
     pub layout_bytes: u64,
-    /// Time taken (classify, edit, patch the engine, refresh the surface), ms.
+    /// Bytes the engine rebuilt at a lowered time step uploaded (all its memory: layout and
+    /// state; policy `Substep`), included in `bytes_uploaded`; 0 when it was not rebuilt.
+    pub rebuild_bytes: u64,
+    /// The stable bound this cut lowered below the time step, and what the policy did about
+    /// it; `None` when the bound stayed at or above the step.
+    pub time_step: Option<TimeStepChange>,
+    /// Time taken (classify, edit, patch the engine, refresh the surface, rebuild the engine
+    /// at a new time step), ms.
     pub ms: f64,
+}
+
+/// A cut that lowered the stable bound below the time step in use.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TimeStepChange {
+    /// The stable bound after the cut, s.
+    pub bound: f64,
+    /// The node (dense index) that limits it.
+    pub node: usize,
+    /// The time step before the cut, s.
+    pub dt_before: f64,
+    /// The time step after it, s: the scene's bound fraction (or 0.9) of `bound` under
+    /// `Substep`, `dt_before` under `Warn` and `Stop`.
+    pub dt_after: f64,
+}
+
+/// What giving one cut to the simulation did.
+struct Applied {
+    cost: PatchCost,
+    /// Bytes uploaded by rebuilding the engine at a new time step (0 if it was not).
+    rebuild_bytes: u64,
+    time_step: Option<TimeStepChange>,
+    /// The error that ends the run once this cut is reported (policy `Stop`).
+    stop: Option<Error>,
 }
 
 /// What the cuts of a run did.
@@ -103,11 +136,14 @@ pub struct CutReport {
     pub springs_touched: usize,
     /// Rest volume removed, as a fraction of the volume before cutting.
     pub volume_removed_fraction: f64,
-    /// Layout bytes uploaded by all cuts.
+    /// Bytes uploaded by all cuts, engine rebuilds at a new time step included.
     pub bytes_uploaded: u64,
     /// Layout bytes a full rebuild would have uploaded at each cut, summed.
     pub bytes_full: u64,
-    /// Largest fraction of the layout one cut uploaded.
+    /// Of `bytes_uploaded`, the bytes of engine rebuilds at a new time step (`Substep`).
+    pub bytes_rebuild: u64,
+    /// Largest fraction of the layout one cut uploaded (above 1 for a cut after which the
+    /// engine was rebuilt at a new time step).
     pub max_upload_fraction: f64,
     /// Time per cut (classify, edit, patch the engine, refresh the surface), ms: median.
     pub p50_ms: f64,
@@ -240,8 +276,9 @@ impl CutStage {
     /// Cut with every cutting blade's sweep over the step just taken (`tools` at their new
     /// poses, remembering the previous ones), between steps.
     pub fn after_step(&mut self, sim: &mut Simulation, tools: &[Tool]) -> Result<()> {
-        for (slot, &i) in self.blades.iter().enumerate() {
-            let tool = &tools[i];
+        // By index: a cut is applied through `self` while the blades are walked.
+        for slot in 0..self.blades.len() {
+            let tool = &tools[self.blades[slot]];
             let Some(sweep) = Sweep::of_blade(&tool.shape, tool.previous_pose(), tool.pose())
             else {
                 continue;
@@ -267,39 +304,7 @@ impl CutStage {
             }
             self.touching[slot] = true;
             let first = sim.model().node_count() as u32;
-            let mut stop = None;
-            let cost = match sim.apply_at(&outcome.diff, false, &positions) {
-                Ok(cost) => cost,
-                Err(Error::UnstableTimeStep { dt, bound, node }) => match self.settings.time_step {
-                    TimeStepPolicy::Stop => {
-                        // The run ends after this cut, but the cutter already holds it: the
-                        // simulation takes it too (no step is taken with it), so that the
-                        // report counts it and measures a mesh and positions that agree.
-                        stop = Some(Error::UnstableTimeStep { dt, bound, node });
-                        sim.apply_at(&outcome.diff, true, &positions)?
-                    }
-                    TimeStepPolicy::Warn => {
-                        self.report.time_step_events.push(format!(
-                            "step {}: the cut lowered the stable bound to {bound:e} s \
-                                 (node {node}) below dt {dt:e} s; going on",
-                            sim.steps()
-                        ));
-                        sim.apply_at(&outcome.diff, true, &positions)?
-                    }
-                    TimeStepPolicy::Substep => {
-                        let new_dt = self.bound_fraction * bound;
-                        self.report.time_step_events.push(format!(
-                            "step {}: the cut lowered the stable bound to {bound:e} s \
-                                 (node {node}); dt {dt:e} s -> {new_dt:e} s",
-                            sim.steps()
-                        ));
-                        let cost = sim.apply_at(&outcome.diff, true, &positions)?;
-                        sim.set_time_step(new_dt)?;
-                        cost
-                    }
-                },
-                Err(e) => return Err(e),
-            };
+            let applied = self.apply(sim, &outcome.diff, &positions)?;
             sim.edit_surface(&outcome.surface)?;
             let seconds = start.elapsed().as_secs_f64();
             self.latencies.push(seconds);
@@ -312,6 +317,8 @@ impl CutStage {
                     }
                 }
             }
+            let cost = &applied.cost;
+            let uploaded = cost.uploaded_bytes + applied.rebuild_bytes;
             let r = &mut self.report;
             r.events.push(CutEvent {
                 step: sim.steps(),
@@ -320,8 +327,10 @@ impl CutStage {
                 tets_removed: outcome.tets_removed,
                 nodes_added: outcome.nodes_added,
                 springs_touched: outcome.springs_touched,
-                bytes_uploaded: cost.uploaded_bytes,
+                bytes_uploaded: uploaded,
                 layout_bytes: cost.layout_bytes,
+                rebuild_bytes: applied.rebuild_bytes,
+                time_step: applied.time_step,
                 ms: 1e3 * seconds,
             });
             r.cuts += 1;
@@ -329,11 +338,12 @@ impl CutStage {
             r.tets_removed += outcome.tets_removed;
             r.nodes_added += outcome.nodes_added;
             r.springs_touched += outcome.springs_touched;
-            r.bytes_uploaded += cost.uploaded_bytes;
+            r.bytes_uploaded += uploaded;
             r.bytes_full += cost.layout_bytes;
+            r.bytes_rebuild += applied.rebuild_bytes;
             r.max_upload_fraction = r
                 .max_upload_fraction
-                .max(cost.uploaded_bytes as f64 / cost.layout_bytes.max(1) as f64);
+                .max(uploaded as f64 / cost.layout_bytes.max(1) as f64);
             if self.check {
                 let inv = self
                     .cutter
@@ -348,11 +358,77 @@ impl CutStage {
                         .map(|v| format!("after the cut at step {}: {v}", sim.steps())),
                 );
             }
-            if let Some(e) = stop {
+            if let Some(e) = applied.stop {
                 return Err(e);
             }
         }
         Ok(())
+    }
+
+    /// Give a cut's `diff` to the simulation (`positions` as the cutter read them), and when it
+    /// lowers the stable bound below the time step, do what the scene's policy says.
+    fn apply(
+        &mut self,
+        sim: &mut Simulation,
+        diff: &ModelDiff,
+        positions: &[[f64; 3]],
+    ) -> Result<Applied> {
+        let (dt, bound, node) = match sim.apply_at(diff, false, positions) {
+            Ok(cost) => {
+                return Ok(Applied {
+                    cost,
+                    rebuild_bytes: 0,
+                    time_step: None,
+                    stop: None,
+                })
+            }
+            Err(Error::UnstableTimeStep { dt, bound, node }) => (dt, bound, node),
+            Err(e) => return Err(e),
+        };
+        // Under every policy the simulation takes the cut: under `Stop` the run ends after it
+        // (no step is taken with it), but the cutter already holds it, and the report must
+        // count it and measure a mesh and positions that agree.
+        let cost = sim.apply_at(diff, true, positions)?;
+        let step = sim.steps();
+        let mut applied = Applied {
+            cost,
+            rebuild_bytes: 0,
+            time_step: None,
+            stop: None,
+        };
+        let mut change = TimeStepChange {
+            bound,
+            node,
+            dt_before: dt,
+            dt_after: dt,
+        };
+        match self.settings.time_step {
+            TimeStepPolicy::Stop => {
+                applied.stop = Some(Error::CutLoweredTimeStep {
+                    step,
+                    dt,
+                    bound,
+                    node,
+                });
+            }
+            TimeStepPolicy::Warn => self.report.time_step_events.push(format!(
+                "step {step}: the cut lowered the stable bound to {bound:e} s (node {node}) \
+                 below dt {dt:e} s; going on"
+            )),
+            TimeStepPolicy::Substep => {
+                change.dt_after = self.bound_fraction * bound;
+                // The engine is rebuilt for the new step: it uploads all of itself, which the
+                // report counts with the patch.
+                applied.rebuild_bytes = sim.set_time_step(change.dt_after)?.uploaded_bytes;
+                self.report.time_step_events.push(format!(
+                    "step {step}: the cut lowered the stable bound to {bound:e} s (node {node}); \
+                     dt {dt:e} s -> {:e} s",
+                    change.dt_after
+                ));
+            }
+        }
+        applied.time_step = Some(change);
+        Ok(applied)
     }
 
     /// Finish the report (latency percentiles, fragments, opening at the final `positions`).

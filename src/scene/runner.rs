@@ -48,12 +48,21 @@ pub struct RunSummary {
     pub springs: usize,
     /// Steps taken.
     pub steps: u64,
-    /// Time step, s.
+    /// Simulated time, s: the steps taken at each time step, summed (a cut under the `Substep`
+    /// policy lowers the step during the run).
+    pub simulated_s: f64,
+    /// Time step the run started with, s.
     pub dt: f64,
-    /// Stable bound, s.
+    /// Stable bound at the start, s.
     pub dt_bound: f64,
-    /// Node that limits the bound.
+    /// Node that limits the bound at the start.
     pub dt_bound_node: usize,
+    /// Time step at the end, s: `dt` unless a cut lowered it (`Substep`).
+    pub dt_final: f64,
+    /// Stable bound at the end, s (cuts change it).
+    pub dt_bound_final: f64,
+    /// Node that limits the bound at the end.
+    pub dt_bound_node_final: usize,
     /// Engine that ran (with its device for the GPU).
     pub engine: String,
     /// Why the engine differs from the one asked for (no GPU for `Auto`), if it does.
@@ -77,7 +86,7 @@ pub struct RunSummary {
     /// Whether the run stopped early because a cut lowered the stable bound below dt (cut
     /// policy `Stop`).
     pub stopped: bool,
-    /// The divergence or refusal message.
+    /// The divergence, refusal or stop message.
     pub message: Option<String>,
     /// Frames written (VTU files).
     pub frames_written: usize,
@@ -206,9 +215,13 @@ pub fn run_scene(
         tets: mesh.tet_count(),
         springs: packed.springs.len(),
         steps: 0,
+        simulated_s: 0.0,
         dt,
         dt_bound: bound.dt,
         dt_bound_node: bound.node,
+        dt_final: dt,
+        dt_bound_final: bound.dt,
+        dt_bound_node_final: bound.node,
         engine: engine.to_string(),
         engine_note: None,
         integrator: format!("{:?}", scene.integrator),
@@ -300,7 +313,7 @@ pub fn run_scene(
             summary.diverged = matches!(e, Error::Diverged { .. });
             // A cut that lowered the stable bound below dt under the `Stop` policy ends the run
             // here; it is reported, and fails the scene, like a divergence.
-            summary.stopped = matches!(e, Error::UnstableTimeStep { .. });
+            summary.stopped = matches!(e, Error::CutLoweredTimeStep { .. });
             summary.message = Some(e.to_string());
             if !(summary.diverged || summary.stopped) {
                 return Err(e);
@@ -319,6 +332,10 @@ pub fn run_scene(
     }
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.steps = sim.steps();
+    summary.simulated_s = sim.time();
+    summary.dt_final = sim.config().dt;
+    summary.dt_bound_final = sim.bound().dt;
+    summary.dt_bound_node_final = sim.bound().node;
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
     summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
     summary.energy = sim.energy();

@@ -202,7 +202,8 @@ pub enum Expectation {
         #[serde(default)]
         max: Option<f64>,
     },
-    /// Upper bound on the fraction of the layout any one cut uploaded.
+    /// Upper bound on the fraction of the layout any one cut uploaded (an engine rebuilt at a
+    /// lowered time step under `Substep` counts whole, so such a cut uploads more than 1).
     UploadFraction {
         /// Upper bound.
         max: f64,
