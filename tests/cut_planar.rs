@@ -210,7 +210,7 @@ fn a_partial_incision_keeps_its_front_and_re_sweeping_it_makes_nothing_new() {
         let model = SpringModel::build(&mesh, &config()).unwrap();
         let mut cutter = Cutter::new(mesh, model, method).unwrap();
         let y0 = 1.7 * H;
-        let mut cut = |cutter: &mut Cutter, z0: f64, z1: f64| {
+        let cut = |cutter: &mut Cutter, z0: f64, z1: f64| {
             let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
             let rest: Vec<[f64; 3]> = cutter
                 .mesh()
