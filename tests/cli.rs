@@ -105,6 +105,31 @@ fn run_on_a_folder_runs_every_scene_and_prints_a_table() {
         stdout.contains(&format!("{scenes} scenes, 0 failed")),
         "{stdout}"
     );
+    // The columns say what they hold: expectations met of those listed, nodes before and
+    // after cutting.
+    let header = stdout
+        .lines()
+        .find(|l| l.starts_with("scene "))
+        .unwrap_or_else(|| panic!("no table header:\n{stdout}"));
+    for column in ["nodes", "after cut", "expect", "result"] {
+        assert!(header.contains(column), "{header}");
+    }
+    assert!(!header.contains("checks"), "{header}");
+    // A scene that cuts and adds nodes shows more after the cut than before.
+    // Counted from the right, past a scene name that may hold spaces: nodes, after cut, steps,
+    // dt, wall, expect, result.
+    let grew = stdout
+        .lines()
+        .filter_map(|l| {
+            let cells: Vec<&str> = l.split_whitespace().collect();
+            let n = cells.len().checked_sub(7)?;
+            Some((
+                cells[n].parse::<usize>().ok()?,
+                cells[n + 1].parse::<usize>().ok()?,
+            ))
+        })
+        .any(|(before, after)| after > before);
+    assert!(grew, "{stdout}");
 }
 
 #[test]
@@ -689,4 +714,170 @@ fn bench_collide_reports_each_surface_and_tool_count_with_a_culling_ratio() {
             assert!(r[key].as_f64().unwrap() > 0.0, "{key}: {r}");
         }
     }
+}
+
+/// `bench cut` inputs that cannot give a cut, or a quality floor that is not a volume-length
+/// ratio, are refused with exit code 2 and a message saying what to give instead, before any
+/// row is printed (they once gave rows of 0 cuts and NaN nodes/cm2, and exit code 0).
+#[test]
+fn bench_cut_refuses_inputs_that_cannot_cut() {
+    let smallest = lancet::report::cut_bench::smallest_cube();
+    let too_small = (smallest - 1).to_string();
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (
+            vec!["--cube", "1"],
+            format!("give cubes of {smallest} cells or more"),
+        ),
+        (
+            vec!["--cube", "2"],
+            format!("give cubes of {smallest} cells or more"),
+        ),
+        (
+            vec!["--cube", &too_small],
+            format!("give cubes of {smallest} cells or more"),
+        ),
+        (vec!["--length", "0"], "must be positive and finite".into()),
+        (vec!["--length=-0.01"], "must be positive and finite".into()),
+        (
+            vec!["--length", "nan"],
+            "must be positive and finite".into(),
+        ),
+        (
+            vec!["--length", "inf"],
+            "must be positive and finite".into(),
+        ),
+        (vec!["--quality-floor", "nan"], "in [0, 1)".into()),
+        (vec!["--quality-floor", "inf"], "in [0, 1)".into()),
+        (vec!["--quality-floor=-0.1"], "in [0, 1)".into()),
+        (vec!["--quality-floor", "1"], "in [0, 1)".into()),
+        (vec!["--quality-floor", "0.2,1.5"], "in [0, 1)".into()),
+        // Long enough to be valid, too short to meet an edge: found out by trying.
+        (
+            vec!["--cube", "4", "--length", "0.001"],
+            "made no cut".into(),
+        ),
+    ];
+    for (args, says) in cases {
+        let mut all = vec!["bench", "cut", "--engine", "fast"];
+        all.extend(&args);
+        let out = lancet(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&says), "{args:?}: {err}");
+        assert!(out.stdout.is_empty(), "{args:?} printed rows");
+    }
+}
+
+/// The smallest box the refusal names does cut, with every method: a row there has cuts and a
+/// finite growth per cut area.
+#[test]
+fn bench_cut_cuts_in_the_smallest_box_it_accepts() {
+    let smallest = lancet::report::cut_bench::smallest_cube().to_string();
+    let out = lancet(&[
+        "bench", "cut", "--cube", &smallest, "--engine", "fast", "--json",
+    ]);
+    let v = ok_json(&out);
+    let rows = v.as_array().unwrap();
+    assert_eq!(rows.len(), 3, "{v:#}");
+    for r in rows {
+        assert!(r["cuts"].as_u64().unwrap() > 0, "{r:#}");
+        assert!(
+            r["nodes_per_cm2"].as_f64().is_some_and(f64::is_finite),
+            "{r:#}"
+        );
+    }
+}
+
+/// The engine column of the `bench cut` table holds the short engine label; the GPU adapter,
+/// whose name is long, is named once above the table instead of cut off in every row.
+#[test]
+fn bench_cut_table_names_the_adapter_once_above_short_engine_labels() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let smallest = lancet::report::cut_bench::smallest_cube().to_string();
+    let out = lancet(&[
+        "bench",
+        "cut",
+        "--cube",
+        &smallest,
+        "--engine",
+        "gpu",
+        "--layout",
+        "connectivity,valence",
+        "--method",
+        "separate",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let device = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("gpu device: "))
+        .unwrap_or_else(|| panic!("no device line:\n{stdout}"));
+    assert_eq!(stdout.matches(device).count(), 1, "{stdout}");
+    for label in ["gpu-connectivity ", "gpu-valence "] {
+        assert!(
+            stdout.lines().any(|l| l.contains(label)),
+            "{label}: {stdout}"
+        );
+    }
+}
+
+/// `--method` and `--check` act on cuts: on a scene without a `cut` section they are noted on
+/// stderr as having no effect, and the run goes on.
+#[test]
+fn run_notes_that_cut_options_do_nothing_on_a_scene_that_does_not_cut() {
+    let out = lancet(&[
+        "run",
+        "--no-output",
+        "--steps",
+        "10",
+        "--method",
+        "remove",
+        "--check",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    // Ten steps are too few for the default scene's expectations (exit code 1); the point is
+    // that it ran them.
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("ran 10 steps"),
+        "{err}"
+    );
+    assert!(
+        err.contains("--method and --check have no effect: the scene does not cut"),
+        "{err}"
+    );
+    let plain = lancet(&["run", "--no-output", "--steps", "10"]);
+    assert!(!String::from_utf8_lossy(&plain.stderr).contains("no effect"));
+}
+
+/// A scene with a `cut` section and no blade runs (a scene may check that other tools do not
+/// cut) with a warning that nothing will cut.
+#[test]
+fn run_warns_about_a_cut_section_without_a_blade() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bladeless.ron");
+    std::fs::write(
+        &scene,
+        r#"Scene(
+    name: "cut without a blade",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    dt: BoundFraction(0.5),
+    steps: 10,
+    cut: Some((methods: [Separate])),
+)"#,
+    )
+    .unwrap();
+    let out = lancet(&["run", scene.to_str().unwrap(), "--no-output"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("bladeless.ron") && err.contains("no blade"),
+        "{err}"
+    );
 }

@@ -273,3 +273,39 @@ fn crossing_cuts_leave_pieces_that_each_lie_in_one_quadrant() {
     assert_eq!(seen.len(), 4);
     assert!(cutter.check_invariants(6.4e-5, 0.0).passed());
 }
+
+/// `InvariantsHold` in a run whose blade never cut checked nothing, and so does not pass: it
+/// says that no cut was checked, and why.
+#[test]
+fn invariants_hold_fails_when_no_cut_was_checked() {
+    let text = r#"Scene(
+    name: "blade misses",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    dt: BoundFraction(0.5),
+    steps: 20,
+    engine: Fast,
+    tools: [(
+        name: "scalpel",
+        shape: Blade(width: 0.02, length: 0.02, thickness: 2e-4),
+        trajectory: Keyframes([(time: 0.0, translation: (0.005, 0.005, 0.1))]),
+    )],
+    cut: Some((methods: [Separate], check: true)),
+    expect: [InvariantsHold],
+)"#;
+    let path = Path::new("blade_misses.ron");
+    let scene = Scene::from_ron(text, path).unwrap();
+    let opts = RunOptions {
+        no_output: true,
+        ..Default::default()
+    };
+    let s = run_scene(&scene, path, &opts, |_, _| {}).unwrap();
+    assert_eq!(s.cuts.as_ref().unwrap().cuts, 0);
+    let e = &s.expectations[0];
+    assert!(!e.passed, "{e:?}");
+    assert!(
+        e.expectation.contains("no cut was checked") && e.expectation.contains("never cut"),
+        "{e:?}"
+    );
+    assert!(!s.expectations_passed);
+}

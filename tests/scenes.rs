@@ -109,3 +109,97 @@ fn refused_time_step_states_the_bound() {
     let msg = summary.message.unwrap();
     assert!(msg.contains(&format!("{:e}", summary.dt_bound)), "{msg}");
 }
+
+/// A scene of a small box with `tools` and `cut`, as RON.
+fn scene_text(tools: &str, cut: &str) -> String {
+    format!(
+        r#"Scene(
+    name: "x",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    dt: BoundFraction(0.5),
+    steps: 10,
+    tools: [{tools}],
+    cut: {cut},
+)"#
+    )
+}
+
+/// The message a scene is refused with.
+fn refusal(text: &str) -> String {
+    Scene::from_ron(text, Path::new("x.ron"))
+        .expect_err("the scene is refused")
+        .to_string()
+}
+
+/// Messages are read whole: a string broken over two source lines once carried the next line's
+/// indentation into them.
+#[test]
+fn scene_errors_read_as_single_spaced_sentences() {
+    let unknown_blade = refusal(&scene_text(
+        "",
+        r#"Some((methods: [Separate], blades: ["nope"]))"#,
+    ));
+    assert_eq!(
+        unknown_blade,
+        "x.ron: cut: blade \"nope\" is not one of the scene's tools; name a tool from `tools`"
+    );
+    let grasper = |windows: &str| {
+        format!(
+            r#"(name: "g", shape: Grasper(jaw: (0.001, 0.006, 0.003), opening: 0.002),
+               trajectory: Keyframes([(time: 0.0, translation: (0.0, 0.0, 0.02))]),
+               grasp: [{windows}])"#
+        )
+    };
+    let backwards = refusal(&scene_text(&grasper("(close: 0.3, open: 0.2)"), "None"));
+    assert_eq!(
+        backwards,
+        "x.ron: tool 0 (\"g\"): grasp window 0: opens at 0.2 s, not after it closes at 0.3 s; \
+         give open > close"
+    );
+    let overlapping = refusal(&scene_text(
+        &grasper("(close: 0.1, open: 0.3), (close: 0.2, open: 0.4)"),
+        "None",
+    ));
+    assert_eq!(
+        overlapping,
+        "x.ron: tool 0 (\"g\"): grasp window 1 closes at 0.2 s, before window 0 opens at 0.3 s; \
+         list windows in increasing time without overlap"
+    );
+    for m in [unknown_blade, backwards, overlapping] {
+        assert!(!m.contains("  "), "{m}");
+    }
+}
+
+/// A quality floor is a volume-length ratio in [0, 1): 0 turns it off, so a negative one is
+/// refused rather than read as "off".
+#[test]
+fn a_quality_floor_outside_zero_to_one_is_refused() {
+    for floor in ["-0.1", "1.0", "2.0"] {
+        let m = refusal(&scene_text(
+            "",
+            &format!("Some((methods: [Separate], quality_floor: {floor}))"),
+        ));
+        assert!(m.contains("in [0, 1)"), "{floor}: {m}");
+    }
+    let ok = scene_text("", "Some((methods: [Separate], quality_floor: 0.0))");
+    assert!(Scene::from_ron(&ok, Path::new("x.ron")).is_ok());
+}
+
+/// A scene that cuts with no blade among its tools is allowed (a scene may check that other
+/// tools do not cut), but warned about; one with a blade is not.
+#[test]
+fn a_cut_without_a_blade_is_warned_about() {
+    let cut = "Some((methods: [Separate]))";
+    let without = Scene::from_ron(&scene_text("", cut), Path::new("x.ron")).unwrap();
+    let w = without.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].contains("no blade"), "{w:?}");
+    let blade = r#"(name: "b", shape: Blade(width: 0.02, length: 0.02, thickness: 2e-4),
+                    trajectory: Keyframes([(time: 0.0, translation: (0.0, 0.0, 0.05))]))"#;
+    let with = Scene::from_ron(&scene_text(blade, cut), Path::new("x.ron")).unwrap();
+    assert!(with.warnings().is_empty(), "{:?}", with.warnings());
+    // A scene that does not cut has nothing to warn about.
+    let plain = Scene::from_ron(&scene_text("", "None"), Path::new("x.ron")).unwrap();
+    assert!(plain.warnings().is_empty());
+}

@@ -480,6 +480,12 @@ fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<Ex
     let folder = scene.is_some_and(|p| p.is_dir());
     let mut summaries = Vec::with_capacity(scenes.len());
     for (scene, path) in &scenes {
+        for w in scene.warnings() {
+            eprintln!("warning: {}: {w}", path.display());
+        }
+        if let Some(note) = ignored_cut_options(scene, opts) {
+            eprintln!("note: {}: {note}", path.display());
+        }
         // In a folder run, a scene on a real mesh is skipped (with a note) when the folder of
         // real meshes is not configured; run on its own it is an error that says so.
         if folder && needs_mesh_dir(scene) && std::env::var_os("LANCET_MESH_DIR").is_none() {
@@ -531,6 +537,29 @@ fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet::Result<Ex
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
+    })
+}
+
+/// Why `--method` or `--check`, when given, do nothing for `scene`: both act on cuts, and a
+/// scene without a `cut` section makes none. Said rather than refused, so that a folder of
+/// scenes, some of which cut, can still be run with them.
+fn ignored_cut_options(scene: &Scene, opts: &RunOptions) -> Option<String> {
+    if scene.cut.is_some() {
+        return None;
+    }
+    let given: Vec<&str> = [
+        opts.cut_method.map(|_| "--method"),
+        opts.check.then_some("--check"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    (!given.is_empty()).then(|| {
+        format!(
+            "{} {} no effect: the scene does not cut (it has no `cut` section)",
+            given.join(" and "),
+            if given.len() > 1 { "have" } else { "has" }
+        )
     })
 }
 
@@ -726,6 +755,7 @@ fn time_step_change(s: &RunSummary) -> Option<String> {
     }
 }
 
+/// The one-line-per-run table of a folder run.
 fn print_table(summaries: &[RunSummary]) {
     let w = summaries
         .iter()
@@ -734,18 +764,24 @@ fn print_table(summaries: &[RunSummary]) {
         .unwrap_or(5)
         .max(5);
     println!(
-        "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10}  {:>9}  {:>8}  result",
-        "scene", "method", "nodes", "steps", "dt (s)", "wall (s)", "checks"
+        "{:<w$}  {:>9}  {:>8}  {:>9}  {:>8}  {:>10}  {:>9}  {:>6}  result",
+        "scene", "method", "nodes", "after cut", "steps", "dt (s)", "wall (s)", "expect"
     );
     for s in summaries {
         let passed = s.expectations.iter().filter(|e| e.passed).count();
         // The step the run ended at, marked where a cut lowered it.
         let mark = if s.dt_final != s.dt { '*' } else { ' ' };
+        // Cuts only append nodes, so the count at the end is the start's plus those added.
+        let after_cut = s
+            .cuts
+            .as_ref()
+            .map_or("-".to_string(), |c| (s.nodes + c.nodes_added).to_string());
         println!(
-            "{:<w$}  {:>9}  {:>8}  {:>8}  {:>10}  {:>9.3}  {:>8}  {}",
+            "{:<w$}  {:>9}  {:>8}  {:>9}  {:>8}  {:>10}  {:>9.3}  {:>6}  {}",
             s.scene,
             s.cut_method.as_deref().unwrap_or("-"),
             s.nodes,
+            after_cut,
             s.steps,
             format!("{:.3e}{mark}", s.dt_final),
             s.wall_s,
@@ -757,6 +793,10 @@ fn print_table(summaries: &[RunSummary]) {
             }
         );
     }
+    println!(
+        "nodes: before cutting; after cut: at the end of a scene that cuts; expect: expectations \
+         met / listed"
+    );
     if summaries.iter().any(|s| s.dt_final != s.dt) {
         println!("* a cut lowered dt during the run; the final dt is shown");
     }
@@ -841,17 +881,22 @@ fn bench_cut(
         );
         return Ok(ExitCode::SUCCESS);
     }
+    // The engine column holds the short label ("gpu-valence"); the adapter, whose name is long
+    // and the same on every GPU row, is named once above the table.
+    let (labels, devices) = engine_labels(rows.iter().map(|r| r.engine.as_str()));
+    for d in devices {
+        println!("gpu device: {d}");
+    }
+    let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<34} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "cut",
         "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after", "floor",
         "min q"
     );
-    for r in &rows {
-        let mut engine = r.engine.clone();
-        engine.truncate(34);
+    for (r, engine) in rows.iter().zip(&labels) {
         println!(
-            "{:>7} {:>6.1} {:>9} {:<34} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -874,6 +919,21 @@ fn bench_cut(
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Split engine names such as "gpu-valence on llvmpipe (LLVM 15.0.7, 256 bits)" into the short
+/// labels for a table column and the distinct devices, in order of first appearance.
+fn engine_labels<'a>(names: impl Iterator<Item = &'a str>) -> (Vec<&'a str>, Vec<&'a str>) {
+    let mut labels = Vec::new();
+    let mut devices: Vec<&str> = Vec::new();
+    for name in names {
+        let (label, device) = name.split_once(" on ").unwrap_or((name, ""));
+        labels.push(label);
+        if !device.is_empty() && !devices.contains(&device) {
+            devices.push(device);
+        }
+    }
+    (labels, devices)
 }
 
 #[cfg(not(all(feature = "gpu", feature = "collide")))]

@@ -18,7 +18,7 @@ use nalgebra::Isometry3;
 use crate::collide::ToolShape;
 use crate::cut::{CutMethod, Cutter, Sweep};
 use crate::engine::{EngineKind, SimConfig, Simulation};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;
 use crate::model::{stable_time_step, Material, ModelConfig, SpringModel};
@@ -85,6 +85,12 @@ pub fn run(
     layouts: &[LayoutKind],
     floors: &[f64],
 ) -> Result<Vec<CutRow>> {
+    validate(cubes, lengths, floors)?;
+    if methods.is_empty() || engines.is_empty() || layouts.is_empty() {
+        return Err(Error::Options(
+            "give at least one cut method, one engine and one layout".into(),
+        ));
+    }
     let first = [floors
         .first()
         .copied()
@@ -117,6 +123,65 @@ pub fn run(
     Ok(rows)
 }
 
+/// Check the sizes of [`run`] before anything is built: every box must have room for an
+/// incision, every length must be positive and every quality floor a volume-length ratio in
+/// [0, 1). Left unchecked, a box with no room or a zero length cuts nothing and its row divides
+/// by a zero cut area; a floor of 1 or more would refuse every split but a regular tet's.
+pub fn validate(cubes: &[usize], lengths: &[f64], floors: &[f64]) -> Result<()> {
+    if cubes.is_empty() || lengths.is_empty() {
+        return Err(Error::Options(
+            "give at least one cube and one cut length".into(),
+        ));
+    }
+    let smallest = smallest_cube();
+    if let Some(&n) = cubes.iter().find(|&&n| n < smallest) {
+        return Err(Error::Options(format!(
+            "cube {n} is too small to cut: each incision runs at least a cell in from the box's \
+             sides; give cubes of {smallest} cells or more ({} or more fit all {INCISIONS} \
+             incisions)",
+            cube_fitting_all_incisions()
+        )));
+    }
+    if let Some(l) = lengths.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+        return Err(Error::Options(format!(
+            "cut length {l} m must be positive and finite (the default is 0.03 m, three cells)"
+        )));
+    }
+    if let Some(f) = floors.iter().find(|f| !(0.0..1.0).contains(*f)) {
+        return Err(Error::Options(format!(
+            "quality floor {f} must be a volume-length ratio in [0, 1): 0 turns the floor off, \
+             1 is a regular tet's, which no split keeps to (the default is {})",
+            crate::cut::subdivide::DEFAULT_QUALITY_FLOOR
+        )));
+    }
+    Ok(())
+}
+
+/// Where the incisions go in a box `n` cells across: the `y` of each plane, in cells, that
+/// lies at least a cell from both sides of the box. Two cells apart around the middle, off the
+/// grid by 0.3 of a cell.
+fn incision_planes(n: usize) -> Vec<f64> {
+    let middle = 0.5 * n as f64 + 0.3;
+    (0..INCISIONS)
+        .map(|j| middle + 2.0 * (j as f64 - 0.5 * (INCISIONS - 1) as f64))
+        .filter(|y| (1.0..=n as f64 - 1.0).contains(y))
+        .collect()
+}
+
+/// The smallest box (cells across) with room for an incision: smaller ones cannot cut.
+pub fn smallest_cube() -> usize {
+    (1..)
+        .find(|&n| !incision_planes(n).is_empty())
+        .expect("a large enough box has room for an incision")
+}
+
+/// The smallest box with room for all [`INCISIONS`] incisions.
+pub fn cube_fitting_all_incisions() -> usize {
+    (1..)
+        .find(|&n| incision_planes(n).len() == INCISIONS)
+        .expect("a large enough box has room for every incision")
+}
+
 fn percentile(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
@@ -131,7 +196,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Parallel incisions per row, each a blade going down two cells: enough cut events for the
 /// percentiles to mean something (one incision made two to five; four make 8-27).
-const INCISIONS: usize = 4;
+pub const INCISIONS: usize = 4;
 
 fn one(
     n: usize,
@@ -167,22 +232,16 @@ fn one(
         length: 0.1,
         thickness: 2e-4,
     };
-    // [`INCISIONS`] planes y = const (see below), centred in x, edge from just above the top
-    // down two cells, a fifth of a cell per step.
+    // Up to [`INCISIONS`] planes y = const (those that fit, see `incision_planes`), centred in
+    // x, edge from just above the top down two cells, a fifth of a cell per step.
     let (x, top) = (0.5 * n as f64 * h, nz as f64 * h);
     let steps = 11;
     let (mut total, mut read, mut cutting, mut apply, mut surface) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
-    let mut planes = 0;
-    for j in 0..INCISIONS {
-        // Two cells apart around the middle, off the grid by 0.3 of a cell.
-        let y = (0.5 * n as f64 + 0.3 + 2.0 * (j as f64 - 0.5 * (INCISIONS - 1) as f64)) * h;
-        if !(h..=(n as f64 - 1.0) * h).contains(&y) {
-            continue;
-        }
-        planes += 1;
+    let planes = incision_planes(n);
+    for y in planes.iter().map(|y| y * h) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
         for k in 0..steps {
             sim.run(1)?;
@@ -215,9 +274,16 @@ fn one(
         }
     }
     let cuts = total.len();
+    if cuts == 0 {
+        // A row without cuts would report latencies of nothing and zero growth as if measured.
+        return Err(Error::Options(format!(
+            "a {length} m blade made no cut in the box {n} cells across ({method}); lengthen \
+             the cut (a cell is {h} m) or give a larger box"
+        )));
+    }
     let mut sorted = total.clone();
     sorted.sort_by(f64::total_cmp);
-    let area_cm2 = planes as f64 * length.min(n as f64 * h) * 2.0 * h * 1e4;
+    let area_cm2 = planes.len() as f64 * length.min(n as f64 * h) * 2.0 * h * 1e4;
     Ok(CutRow {
         tets,
         nodes,

@@ -261,16 +261,37 @@ fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
             measured: Some(c.max_upload_fraction),
             passed: ran && c.max_upload_fraction <= *max,
         },
-        _ => ExpectationResult {
-            expectation: format!(
-                "invariants hold after every cut ({} checks{})",
-                c.checks,
-                c.violations
-                    .first()
-                    .map_or(String::new(), |v| format!("; first failure: {v}"))
-            ),
-            measured: Some(c.violations.len() as f64),
-            passed: ran && c.checks == c.cuts && c.violations.is_empty(),
-        },
+        _ => invariants_held(c, ran),
+    }
+}
+
+/// [`Expectation::InvariantsHold`]: every cut was checked and none broke an invariant. A run
+/// in which no cut was checked has shown nothing, so it fails, saying why.
+fn invariants_held(c: &super::cuts::CutReport, ran: bool) -> ExpectationResult {
+    let unchecked = if c.checks > 0 {
+        None
+    } else if c.cuts == 0 {
+        Some(
+            "no cut was checked: the blade never cut (move it through the tissue, or give \
+             this expectation only to the methods that cut, with Method(...))",
+        )
+    } else {
+        Some("no cut was checked: turn the checks on with `check: true` or `--check`")
+    };
+    let expectation = match unchecked {
+        Some(why) => format!("invariants hold after every cut: {why}"),
+        None => format!(
+            "invariants hold after every cut ({} checks of {} cuts{})",
+            c.checks,
+            c.cuts,
+            c.violations
+                .first()
+                .map_or(String::new(), |v| format!("; first failure: {v}"))
+        ),
+    };
+    ExpectationResult {
+        expectation,
+        measured: Some(c.violations.len() as f64),
+        passed: ran && unchecked.is_none() && c.checks == c.cuts && c.violations.is_empty(),
     }
 }

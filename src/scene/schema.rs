@@ -397,14 +397,16 @@ impl SceneTool {
             }
             if w.open <= w.close {
                 return Err(format!(
-                    "grasp window {k}: opens at {} s, not after it closes at {} s; give open >                      close",
+                    "grasp window {k}: opens at {} s, not after it closes at {} s; give open > \
+                     close",
                     w.open, w.close
                 ));
             }
             if let Some(prev) = k.checked_sub(1).map(|j| self.grasp[j]) {
                 if w.close < prev.open {
                     return Err(format!(
-                        "grasp window {k} closes at {} s, before window {} opens at {} s; list                          windows in increasing time without overlap",
+                        "grasp window {k} closes at {} s, before window {} opens at {} s; list \
+                         windows in increasing time without overlap",
                         w.close,
                         k - 1,
                         prev.open
@@ -489,7 +491,8 @@ impl Scene {
             match self.tools.iter().find(|t| &t.name == name) {
                 None => {
                     return Err(fail(format!(
-                        "blade {name:?} is not one of the scene's tools; name a tool from                          `tools`"
+                        "blade {name:?} is not one of the scene's tools; name a tool from \
+                         `tools`"
                     )))
                 }
                 Some(t) if !matches!(t.shape, ToolShape::Blade { .. }) => {
@@ -500,13 +503,35 @@ impl Scene {
                 Some(_) => {}
             }
         }
-        if !(cut.quality_floor.is_finite() && cut.quality_floor < 1.0) {
+        // The cutter reads a negative floor as none; refused here, so that "none" is only ever
+        // written as 0.
+        if !(0.0..1.0).contains(&cut.quality_floor) {
             return Err(fail(format!(
-                "quality_floor {} must be a volume-length ratio below 1",
+                "quality_floor {} must be a volume-length ratio in [0, 1) (0 turns the floor off)",
                 cut.quality_floor
             )));
         }
         Ok(())
+    }
+
+    /// What in a valid scene is likely a mistake, one line each, for the command line to print
+    /// as warnings. A `cut` section with no blade among the tools cuts nothing; it is allowed
+    /// (a scene may check that other tools do not cut), but is more often a forgotten or
+    /// misshaped blade.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut warnings = Vec::new();
+        let has_blade = self
+            .tools
+            .iter()
+            .any(|t| matches!(t.shape, ToolShape::Blade { .. }));
+        if self.cut.is_some() && !has_blade {
+            warnings.push(
+                "the scene has a `cut` section but no blade, so nothing will cut (only tools \
+                 of shape Blade cut); add a blade to `tools`, or remove `cut`"
+                    .into(),
+            );
+        }
+        warnings
     }
 
     /// Whether a run must check the cut invariants (asked by the scene or an expectation).
