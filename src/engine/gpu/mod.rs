@@ -142,7 +142,7 @@ impl NodeState {
         &self,
         ctx: &GpuContext,
         moves: &[StateMove],
-        blend: Option<&blend_state::BlendPass>,
+        blend: &blend_state::BlendPass,
     ) -> Result<()> {
         if moves.is_empty() {
             return Ok(());
@@ -194,9 +194,6 @@ impl NodeState {
             }
         }
         if !blended.is_empty() {
-            let pass = blend.ok_or_else(|| {
-                crate::Error::Gpu("a patch blends node state but no blend pass was built".into())
-            })?;
             for (b, buf) in bufs.iter().enumerate() {
                 let base = b as u64 * per;
                 let records: Vec<blend_state::BlendRecord> = blended
@@ -209,7 +206,7 @@ impl NodeState {
                         t: mv.blend.expect("blended").t,
                     })
                     .collect();
-                pass.record(ctx, &mut enc, &temp, buf, &records)?;
+                blend.record(ctx, &mut enc, &temp, buf, &records)?;
             }
         }
         ctx.queue.submit([enc.finish()]);
@@ -310,8 +307,9 @@ pub struct GpuEngine {
     surface_stale: bool,
     /// The tissue surface and its cullers, built only once a program culls.
     surface: Option<SurfaceCulling>,
-    /// The pass that starts nodes between two others, built at the first patch that needs it.
-    blend: Option<blend_state::BlendPass>,
+    /// The pass that starts nodes between two others. Built with the engine: compiling it at
+    /// the first cut that subdivides would stall that cut (about 10 ms on lavapipe).
+    blend: blend_state::BlendPass,
 }
 
 /// The tissue surface on the device and the broad phases over it.
@@ -395,11 +393,12 @@ impl GpuEngine {
         )?;
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         let timer = timing::PassTimer::new(&ctx);
+        let blend = blend_state::BlendPass::new(&ctx)?;
         Ok(GpuEngine {
             timer,
             surface_stale: false,
             surface: None,
-            blend: None,
+            blend,
             ctx,
             config,
             layout,
@@ -554,11 +553,8 @@ impl GpuEngine {
                 self.dispatch,
             )?;
         }
-        if self.blend.is_none() && patch.moves.iter().any(|mv| mv.blend.is_some()) {
-            self.blend = Some(blend_state::BlendPass::new(&self.ctx)?);
-        }
         self.state
-            .apply_moves(&self.ctx, &patch.moves, self.blend.as_ref())?;
+            .apply_moves(&self.ctx, &patch.moves, &self.blend)?;
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         self.surface_stale = self.surface.is_some();
