@@ -7,8 +7,9 @@
 //! between sweeps (a smooth displacement of a few percent of a cell, new for each sweep, now
 //! and then a large one), as a simulation would give the positions, with the quality floor
 //! users get; they sweep earlier strokes again, tremble the blade at a stroke's end and repeat
-//! every sweep at once, which must cut nothing new. Two ignored tests at the end reproduce the
-//! library defects that keep some of those moves from being held to that.
+//! every sweep at once, which must cut nothing new. Two tests at the end keep the defects those
+//! sequences found fixed: a blade pulled out along its axis carving with rounding-level sides,
+//! and subdividing a repeated sweep at a floor pulling nodes onto the cut.
 
 #[path = "common/models.rs"]
 mod models;
@@ -258,8 +259,7 @@ struct Tally {
     repeats: usize,
     /// Moves of a trembling blade.
     trembles: usize,
-    /// Repeats and trembles held to cutting nothing new (the others, see
-    /// [`Run::promises_nothing_new`], are checked as cuts), and of those trembles.
+    /// Repeats and trembles held to cutting nothing new (all of them), and of those trembles.
     held: usize,
     trembles_held: usize,
     /// Repeats and trembles that cut something new (none of those held).
@@ -283,7 +283,7 @@ fn rest_corners(mesh: &TetMesh, nodes: [lancet::mesh::NodeKey; 4]) -> [[u64; 3];
 }
 
 /// Whether `sweep` has a triangle of rounding-level area (below 1e-12 of `size` squared):
-/// a blade side moving along itself, which should have been left out.
+/// a blade side moving along itself, which `Sweep::of_blade` leaves out.
 fn has_slivers(sweep: &Sweep, size: f64) -> bool {
     sweep
         .triangles
@@ -367,24 +367,10 @@ impl Run {
         (outcome, positions)
     }
 
-    /// Whether sweeping `sweep` again within what was just cut, at the same positions, is held
-    /// to cut nothing new: what the library promises, but for two defects that the ignored
-    /// tests at the end reproduce. With a quality floor, subdividing the same sweep again can
-    /// pull nodes just beyond the cut's end onto it. And a blade moved along its own axis, as
-    /// a trembling one is, can keep its sides as sweep triangles of rounding-level area whose
-    /// edges run its whole length and cut what they pass (a repeat of the very same sweep
-    /// finds nothing new along them).
-    fn promises_nothing_new(&self, sweep: &Sweep, trembling: bool) -> bool {
-        let snapping = self.method == CutMethod::Subdivide && self.cutter.quality_floor() > 0.0;
-        let slivers = trembling && has_slivers(sweep, self.size);
-        !(snapping || slivers)
-    }
-
     /// `sweep` again at `positions`, where it, or a sweep whose band holds its band, has just
-    /// been swept: it cuts nothing new (no diff, no surface change, no new crack front) where
-    /// the library promises that ([`Run::promises_nothing_new`]); elsewhere what it cuts is
-    /// checked as any cut is. Returns whether it was held to cutting nothing, whether it cut,
-    /// and the positions after it.
+    /// been swept: it cuts nothing new (no diff, no surface change, no new crack front).
+    /// Returns whether it was held to cutting nothing, whether it cut, and the positions after
+    /// it.
     fn again(
         &mut self,
         sweep: &Sweep,
@@ -399,11 +385,12 @@ impl Run {
         };
         let state = |c: &Cutter| (c.mesh().node_count(), c.mesh().tet_count(), c.crack_front());
         let before = state(&self.cutter);
-        if !self.promises_nothing_new(sweep, trembling) {
-            let (outcome, positions) = self.sweep(sweep, &positions);
-            let cut = !outcome.is_empty() || state(&self.cutter) != before;
-            return (false, cut, positions);
-        }
+        // A blade moved along its own axis has no leading side there: no sweep triangle of
+        // rounding-level area, which would cut what its long edges pass.
+        assert!(
+            !has_slivers(sweep, self.size),
+            "seed {seed} {method}: {what} kept a side moving along itself"
+        );
         let outcome = self.cutter.cut(sweep, &positions).unwrap();
         let after = state(&self.cutter);
         assert!(
@@ -841,14 +828,13 @@ fn rest_positions(cutter: &Cutter) -> Vec<[f64; 3]> {
 
 /// A blade moved along its own axis sweeps with its edge (pushed in) or its back (pulled out)
 /// only: its sides move along themselves. Rounding keeps them as triangles of about 1e-18 m^2
-/// that run the blade's whole length (`moved.dot(&out)` comes out a hair above 0 and the area
-/// test `norm_squared() > 0.0` keeps them), and carving removes every tet their edges pass
+/// that run the blade's whole length unless a side must move outwards by more than rounding
+/// to lead (`Sweep::of_blade`), and carving would remove every tet their edges pass
 /// (`triangle_meets_tet` tests the triangle's edges against the tet's faces): a blade pulled
-/// straight back out of tissue that slid a little sideways carves along its sides. Random
-/// sequences with trembling blades met it (see [`Run::promises_nothing_new`]); with
-/// subdividing it split edges along a trembling blade's side too.
+/// straight back out of tissue that slid a little sideways carved along its sides. Random
+/// sequences with trembling blades met it; with subdividing it split edges along a trembling
+/// blade's side too.
 #[test]
-#[ignore = "library defect: Sweep::of_blade keeps a blade's sides moving along themselves"]
 fn a_blade_pulled_straight_out_carves_nothing() {
     let mut carved = Vec::new();
     for seed in 1..=50 {
@@ -885,13 +871,11 @@ fn a_blade_pulled_straight_out_carves_nothing() {
 
 /// Subdividing at the default floor, the same sweep again at once, at the same (rest)
 /// positions, cuts nothing new. The nodes the first sweep made lie on the sweep, so edges
-/// from them count as crossed (the tie rule), and a neighbour that is not on the cut and lies
-/// within `NODE_SNAP` of its shortest edge from the sweep joins it: one just beyond where the
-/// blade's edge stopped, whose own edges missed the sweep. Faces then open (new copies) or
-/// the crack front changes. Without a floor (no node snapping) this never happened in 20,000
-/// such incisions.
+/// from them meet it (the tie rule); counted as crossed, they pulled a neighbour within
+/// `NODE_SNAP` of the sweep onto the cut, one just beyond where the blade's edge stopped, and
+/// faces opened or the crack front changed. An edge meeting the sweep at a node already on the
+/// cut now crosses nothing new.
 #[test]
-#[ignore = "library defect: subdividing with a floor, a repeated sweep pulls nodes onto the cut"]
 fn subdividing_the_same_sweep_again_at_the_default_floor_cuts_nothing_new() {
     let mut again = Vec::new();
     for seed in 1..=100 {

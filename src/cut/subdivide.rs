@@ -112,6 +112,13 @@ impl Cutter {
                 }
             }
         }
+        // An edge that meets the sweep at an end already on a cut (a node an earlier sweep made
+        // or snapped) crosses nothing new; counting it would pull its other end onto the cut
+        // when the same sweep comes again.
+        crossed.retain(|&[p, q], t| {
+            !((*t < EDGE_SNAP && self.on_cut.contains(&p))
+                || (*t > 1.0 - EDGE_SNAP && self.on_cut.contains(&q)))
+        });
         if crossed.is_empty() {
             return Ok(());
         }

@@ -39,7 +39,12 @@ impl Sweep {
                 out = -out;
             }
             let moved = nalgebra::center(&a1, &b1) - nalgebra::center(&a0, &b0);
-            if moved.dot(&out) <= 0.0 {
+            // A side moving along itself (a blade pushed in or pulled out along its axis) does
+            // not lead, though rounding can leave it a motion of 1e-17 m outwards; that would
+            // make triangles the length of the blade and no width, which still meet tets.
+            // Leading takes an outward motion above a billionth of the side.
+            let side = (b0 - a0).norm();
+            if moved.dot(&out) <= 1e-9 * side * side {
                 continue;
             }
             triangles.push([a0, b0, b1]);
