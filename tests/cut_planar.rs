@@ -30,6 +30,17 @@ fn blade_at(y0: f64, z: f64) -> Isometry3<f64> {
     Isometry3::translation(0.02, y0, z)
 }
 
+/// Sweep the upright blade at `y = y0` from edge height `z0` to `z1` through the mesh at rest.
+fn cut_at_rest(cutter: &mut Cutter, y0: f64, z0: f64, z1: f64) -> lancet::cut::CutOutcome {
+    let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
+    let rest: Vec<[f64; 3]> = cutter
+        .mesh()
+        .nodes()
+        .map(|(_, n)| n.rest.coords.into())
+        .collect();
+    cutter.cut(&sweep, &rest).unwrap()
+}
+
 /// Cut the box with a blade moving down through it from above in `steps` steps. Subdividing
 /// goes without a quality floor: only the parameter rule then decides where the cut goes, so
 /// where it goes is known exactly (the floor's snapping is tested in `cut_snap.rs`).
@@ -44,13 +55,7 @@ fn cut_down(method: CutMethod, y0: f64, steps: usize) -> (Cutter, f64) {
     for k in 0..steps {
         let z0 = top + (bottom - top) * k as f64 / steps as f64;
         let z1 = top + (bottom - top) * (k + 1) as f64 / steps as f64;
-        let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
-        let rest: Vec<[f64; 3]> = cutter
-            .mesh()
-            .nodes()
-            .map(|(_, n)| n.rest.coords.into())
-            .collect();
-        cutter.cut(&sweep, &rest).unwrap();
+        cut_at_rest(&mut cutter, y0, z0, z1);
     }
     (cutter, volume)
 }
@@ -210,15 +215,7 @@ fn a_partial_incision_keeps_its_front_and_re_sweeping_it_makes_nothing_new() {
         let model = SpringModel::build(&mesh, &config()).unwrap();
         let mut cutter = Cutter::new(mesh, model, method).unwrap();
         let y0 = 1.7 * H;
-        let cut = |cutter: &mut Cutter, z0: f64, z1: f64| {
-            let sweep = Sweep::of_blade(&BLADE, &blade_at(y0, z0), &blade_at(y0, z1)).unwrap();
-            let rest: Vec<[f64; 3]> = cutter
-                .mesh()
-                .nodes()
-                .map(|(_, n)| n.rest.coords.into())
-                .collect();
-            cutter.cut(&sweep, &rest).unwrap()
-        };
+        let cut = |cutter: &mut Cutter, z0: f64, z1: f64| cut_at_rest(cutter, y0, z0, z1);
         // Down to z = 2.5 cm of the 4 cm box, in steps of a fifth of a cell.
         let path: Vec<f64> = (0..=12).map(|k| 0.05 - 0.002 * k as f64 - 0.001).collect();
         for w in path.windows(2) {
