@@ -661,19 +661,13 @@ impl Simulation {
                 let before = x.len();
                 for a in &diff.added_nodes {
                     // The source's displacement and velocity, mixed with the blend partner's.
-                    let (p, u) = match a.state_from {
-                        Some(s) => {
-                            let (s, rest) = (s as usize, &self.model.rest);
-                            let (w, t) = a.blend.map_or((s, 0.0), |b| (b.with as usize, b.t));
-                            let mix = |f: &dyn Fn(usize) -> [f64; 3]| {
-                                let (p, q) = (f(s), f(w));
-                                [0, 1, 2].map(|c| (1.0 - t) * p[c] + t * q[c])
-                            };
-                            let d = mix(&|i| [0, 1, 2].map(|c| x[i][c] - rest[i][c]));
-                            ([0, 1, 2].map(|c| a.rest[c] + d[c]), mix(&|i| v[i]))
-                        }
-                        None => (a.rest, [0.0; 3]),
-                    };
+                    let rest = &self.model.rest;
+                    let d = a.start_value(|i| {
+                        let i = i as usize;
+                        [0, 1, 2].map(|c| x[i][c] - rest[i][c])
+                    });
+                    let p = d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]));
+                    let u = a.start_value(|i| v[i as usize]).unwrap_or([0.0; 3]);
                     x.push(p);
                     v.push(u);
                 }
@@ -786,13 +780,11 @@ impl Simulation {
                 return read(i);
             }
             let a = &diff.added_nodes[(i - n) as usize];
-            let Some(s) = a.state_from else {
-                return a.rest;
-            };
-            let (w, t) = a.blend.map_or((s, 0.0), |b| (b.with, b.t));
-            let (ps, pw) = (read(s), read(w));
-            let (rs, rw) = (self.model.rest[s as usize], self.model.rest[w as usize]);
-            [0, 1, 2].map(|c| a.rest[c] + (1.0 - t) * (ps[c] - rs[c]) + t * (pw[c] - rw[c]))
+            let d = a.start_value(|j| {
+                let (p, r) = (read(j), self.model.rest[j as usize]);
+                [0, 1, 2].map(|c| p[c] - r[c])
+            });
+            d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]))
         };
         let energy = |springs: &[crate::model::PackedSpring]| -> f64 {
             springs

@@ -92,12 +92,15 @@ impl StateMove {
         let a = old[f as usize];
         match self.blend {
             None => a,
-            Some(b) => {
-                let w = old[b.with as usize];
-                std::array::from_fn(|c| a[c] * (1.0 - b.t) + w[c] * b.t)
-            }
+            Some(b) => mix_state(a, old[b.with as usize], b.t),
         }
     }
+}
+
+/// `a * (1 - t) + b * t` per component, in the order `shaders/blend_state.wgsl` computes it:
+/// the state a blended move writes, wherever it is computed.
+pub(crate) fn mix_state(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+    std::array::from_fn(|c| a[c] * (1.0 - t) + b[c] * t)
 }
 
 /// The result of patching a layout.

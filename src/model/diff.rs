@@ -32,6 +32,22 @@ pub struct AddedNode {
     pub blend: Option<StateBlend>,
 }
 
+impl AddedNode {
+    /// The node's starting value of a quantity that moves with the nodes (displacement,
+    /// velocity), given that quantity `of` existing nodes: its source's, mixed with its blend
+    /// partner's. `None` without a source: it starts at rest.
+    pub fn start_value(&self, of: impl Fn(u32) -> [f64; 3]) -> Option<[f64; 3]> {
+        let from = of(self.state_from?);
+        Some(match self.blend {
+            None => from,
+            Some(b) => {
+                let with = of(b.with);
+                std::array::from_fn(|c| (1.0 - b.t) * from[c] + b.t * with[c])
+            }
+        })
+    }
+}
+
 /// The second node of an added node's starting state, see [`AddedNode::blend`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StateBlend {

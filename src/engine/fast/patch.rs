@@ -12,6 +12,7 @@ use std::collections::BTreeMap;
 
 use super::{build_graph, entry_of, Entry, FastEngine, P};
 use crate::engine::PatchCost;
+use crate::layout::patch::mix_state;
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
 
 /// What happens to one spring at one of its ends.
@@ -113,12 +114,9 @@ impl FastEngine {
                         None => (self.x[j], self.second[j]),
                         Some(b) => {
                             let (k, t) = (self.rank[b.with as usize] as usize, b.t as f32);
-                            let mix = |p: [f32; 4], q: [f32; 4]| {
-                                std::array::from_fn(|c| p[c] * (1.0 - t) + q[c] * t)
-                            };
                             (
-                                mix(self.x[j], self.x[k]),
-                                mix(self.second[j], self.second[k]),
+                                mix_state(self.x[j], self.x[k], t),
+                                mix_state(self.second[j], self.second[k], t),
                             )
                         }
                     }
