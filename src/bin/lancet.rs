@@ -889,14 +889,14 @@ fn bench_cut(
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
-        "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "cut",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
+        "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes", "cut",
         "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after", "floor",
         "min q"
     );
     for (r, engine) in rows.iter().zip(&labels) {
         println!(
-            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -906,6 +906,7 @@ fn bench_cut(
             r.p99_ms,
             r.max_ms,
             r.read_ms,
+            r.nodes_read,
             r.cut_ms,
             r.apply_ms,
             r.surface_ms,

@@ -11,23 +11,22 @@ use slotmap::SecondaryMap;
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
 use super::sweep::Sweep;
-use crate::mesh::{TetKey, TetMesh};
+use crate::mesh::{NodeKey, TetKey, TetMesh};
 
 /// Current corner positions of a tet.
 pub type Corners = [Point3<f64>; 4];
 
 /// Tets that may meet the sweep, in key order (the candidates of the exact tests below): the
-/// tets at nodes within `reach` of the sweep's bounds (at `positions`, dense order, the mesh's
-/// node order) whose own bounds, at their classification `corners` grown by `margin`, overlap
+/// tets at the `nodes` (with their current positions; others may come too) within `reach` of
+/// the sweep's bounds whose own bounds, at their classification `corners` grown by `margin`, overlap
 /// the sweep's. A tet meeting the sweep has a corner within its longest edge of it, so `reach`
 /// must be at least the longest current edge near the blade; the cutter uses twice the longest
 /// rest edge. Scanning nodes rather than tets reads one position per node; `visited` (stamped
 /// with `epoch`, which must differ from every earlier call's) tests each tet once.
 #[allow(clippy::too_many_arguments)]
 pub fn candidates(
-    mesh: &TetMesh,
     faces: &FaceIndex,
-    positions: &[[f64; 3]],
+    nodes: impl Iterator<Item = (NodeKey, [f64; 3])>,
     reach: f64,
     sweep: &Sweep,
     corners: &impl Fn(TetKey) -> Corners,
@@ -51,7 +50,7 @@ pub fn candidates(
         })
     };
     let mut out: Vec<TetKey> = Vec::new();
-    for ((k, _), p) in mesh.nodes().zip(positions) {
+    for (k, p) in nodes {
         if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
             continue;
         }

@@ -140,8 +140,7 @@ impl Cutter {
         let mut added = Vec::with_capacity(plan.copies.len());
         let mut new_keys = Vec::with_capacity(plan.copies.len());
         for &n in &plan.copies {
-            let k = self.mesh.add_node(self.mesh.rest(n));
-            self.dense.insert(k, self.dense.len() as u32);
+            let k = self.add_node(self.mesh.rest(n));
             if self.on_cut.contains(&n) {
                 self.on_cut.insert(k);
             }

@@ -25,6 +25,7 @@ mod edit;
 pub mod exact;
 pub mod faces;
 pub mod invariants;
+pub mod reading;
 mod snapshot;
 pub mod subdivide;
 pub mod sweep;
@@ -42,6 +43,7 @@ use crate::mesh::{NodeKey, TetKey, TetMesh, TET_FACES};
 use crate::model::{ModelDiff, SpringModel};
 
 pub use faces::FaceIndex;
+pub use reading::{AllPositions, PositionSource, ReadPositions};
 pub use sweep::Sweep;
 
 /// Nodes closer to their rest position than this fraction of the mesh's rest diagonal are
@@ -99,6 +101,10 @@ pub struct CutOutcome {
     pub nodes_retired: usize,
     /// Springs removed, added or changed.
     pub springs_touched: usize,
+    /// Seconds spent reading current positions near the blade (included in `classify_s`).
+    pub read_s: f64,
+    /// Nodes whose current positions the cut read.
+    pub nodes_read: usize,
     /// Seconds spent finding what the sweep cuts.
     pub classify_s: f64,
     /// Seconds spent editing the mesh and model and building the diff.
@@ -119,6 +125,8 @@ pub struct Cutter {
     model: SpringModel,
     faces: FaceIndex,
     dense: SecondaryMap<NodeKey, u32>,
+    /// The key of each dense index (the inverse of `dense`).
+    keys: Vec<NodeKey>,
     method: CutMethod,
     /// Face-neighbour pairs a sweep has crossed whose face is still shared: the crack front of
     /// a partial cut. They stay cut when the blade moves on.
@@ -134,6 +142,8 @@ pub struct Cutter {
     /// Scratch for finding candidates: the last cut that looked at each tet.
     visited: SecondaryMap<TetKey, u32>,
     epoch: u32,
+    /// The positions the last cut read.
+    read: ReadPositions,
     /// Smallest rest volume-length ratio a subdividing split may make (0: no floor).
     quality_floor: f64,
 }
@@ -143,7 +153,8 @@ impl Cutter {
     /// dense indices follow the mesh's node order).
     pub fn new(mesh: TetMesh, model: SpringModel, method: CutMethod) -> Result<Self> {
         let faces = FaceIndex::of(&mesh)?;
-        let dense = mesh.dense_nodes().index;
+        let nodes = mesh.dense_nodes();
+        let (dense, keys) = (nodes.index, nodes.keys);
         let snap = mesh
             .bounds()
             .map_or(0.0, |(lo, hi)| SNAP_RELATIVE * (hi - lo).norm());
@@ -158,6 +169,7 @@ impl Cutter {
             model,
             faces,
             dense,
+            keys,
             method,
             crack: BTreeSet::new(),
             volume_removed: 0.0,
@@ -165,6 +177,7 @@ impl Cutter {
             on_cut: BTreeSet::new(),
             visited: SecondaryMap::new(),
             epoch: 0,
+            read: ReadPositions::default(),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
         })
     }
@@ -252,38 +265,117 @@ impl Cutter {
                 self.mesh.node_count()
             )));
         }
+        self.cut_from(sweep, &mut AllPositions(positions))
+    }
+
+    /// Cut with `sweep` as [`Cutter::cut`] does, reading from `source` only the positions the
+    /// cut looks at: the nodes in a box around the sweep (its bounds grown by three of the
+    /// mesh's longest rest edges), then any node of a tet around a candidate that the box missed. A
+    /// simulation is such a source ([`crate::Simulation::nodes_near`]): on the GPU this reads
+    /// back a few hundred nodes instead of all of them. The outcome is the same as
+    /// [`Cutter::cut`] with every position; what was read stays in
+    /// [`Cutter::positions_read`] for [`crate::Simulation::apply_at`].
+    pub fn cut_from(
+        &mut self,
+        sweep: &Sweep,
+        source: &mut dyn PositionSource,
+    ) -> Result<CutOutcome> {
         let start = Instant::now();
-        let (mesh, dense, snap2) = (&self.mesh, &self.dense, self.snap * self.snap);
-        let corners = |tk: TetKey| {
-            mesh.tet(tk)
-                .expect("candidates are tets of the mesh")
-                .nodes
-                .map(|k| {
-                    let (x, rest) = (Point3::from(positions[dense[k] as usize]), mesh.rest(k));
-                    if (x - rest).norm_squared() <= snap2 {
-                        rest
-                    } else {
-                        x
-                    }
-                })
-        };
+        let mut read = std::mem::take(&mut self.read);
+        read.begin(self.mesh.node_count());
+        if let Some(b) = sweep.aabb() {
+            // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around
+            // them within two edges more: as much again while edges are at rest length, with
+            // room for stretching by half (past that, what the box missed is fetched below).
+            let pad = 1.5 * self.reach;
+            let lo = b.min.coords.add_scalar(-pad);
+            let hi = b.max.coords.add_scalar(pad);
+            read.take_near(source.near([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])?)?;
+        }
+        let read_near_s = start.elapsed().as_secs_f64();
+        let result = self.cut_reading(sweep, source, &mut read, start, read_near_s);
+        self.read = read;
+        result
+    }
+
+    /// Dense indices of the corners of every tet at a corner of `tets` (repeats included).
+    fn ring_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
+        let mut corners: Vec<NodeKey> = tets
+            .iter()
+            .flat_map(|&t| self.mesh.tet(t).expect("a candidate tet").nodes)
+            .collect();
+        corners.sort_unstable();
+        corners.dedup();
+        corners.into_iter().flat_map(move |n| {
+            self.faces.tets_at(n).iter().flat_map(move |&t| {
+                self.mesh
+                    .tet(t)
+                    .expect("a tet at a node")
+                    .nodes
+                    .map(|k| self.dense[k])
+            })
+        })
+    }
+
+    /// Add a node at `rest` to the mesh, with the next dense index.
+    fn add_node(&mut self, rest: Point3<f64>) -> NodeKey {
+        let k = self.mesh.add_node(rest);
+        self.dense.insert(k, self.keys.len() as u32);
+        self.keys.push(k);
+        k
+    }
+
+    /// The positions the last cut read: valid at the nodes it read, stale elsewhere.
+    pub fn positions_read(&self) -> &ReadPositions {
+        &self.read
+    }
+
+    fn cut_reading(
+        &mut self,
+        sweep: &Sweep,
+        source: &mut dyn PositionSource,
+        read: &mut ReadPositions,
+        start: Instant,
+        read_near_s: f64,
+    ) -> Result<CutOutcome> {
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             // Wrapped: stale stamps could equal the new epoch.
             self.visited.clear();
             self.epoch = 1;
         }
-        let candidates = classify::candidates(
-            mesh,
-            &self.faces,
-            positions,
-            self.reach,
-            sweep,
-            &corners,
-            self.snap,
-            &mut self.visited,
-            self.epoch,
-        );
+        let (snap2, keys) = (self.snap * self.snap, &self.keys);
+        let candidates = {
+            let (mesh, dense, at) = (&self.mesh, &self.dense, read.positions());
+            let corners = |tk: TetKey| corners_at(mesh, dense, at, snap2, tk);
+            let near = read
+                .near
+                .iter()
+                .map(|&i| (keys[i as usize], at[i as usize]));
+            classify::candidates(
+                &self.faces,
+                near,
+                self.reach,
+                sweep,
+                &corners,
+                self.snap,
+                &mut self.visited,
+                self.epoch,
+            )
+        };
+        // Every classification reads corners of candidates, of their face neighbours and of the
+        // tets around their nodes (a subdivision's trial splits): read what the box missed.
+        let before = Instant::now();
+        read.complete(self.ring_of(&candidates), source)?;
+        let read_s = read_near_s + before.elapsed().as_secs_f64();
+        let (mesh, dense, positions) = (&self.mesh, &self.dense, read.positions());
+        let known = &*read;
+        let corners = |tk: TetKey| {
+            debug_assert!(mesh
+                .tet(tk)
+                .is_some_and(|t| t.nodes.iter().all(|&k| known.knows(dense[k]))));
+            corners_at(mesh, dense, positions, snap2, tk)
+        };
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {
@@ -307,7 +399,7 @@ impl Cutter {
             }
             CutMethod::Subdivide => {
                 outcome.classify_s = start.elapsed().as_secs_f64();
-                let classify = subdivide::Classify { positions, snap2 };
+                let classify = subdivide::Classify { read: known, snap2 };
                 self.subdivide(sweep, &classify, &candidates, &mut outcome)?;
             }
         }
@@ -321,9 +413,33 @@ impl Cutter {
             added: to_dense(changes.added),
         };
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;
+        outcome.read_s = read_s;
+        outcome.nodes_read = read.near.len() + read.fetched;
         let d = &outcome.diff;
         outcome.springs_touched =
             d.removed_springs.len() + d.added_springs.len() + d.changed_springs.len();
         Ok(outcome)
     }
+}
+
+/// The classification corners of tet `tk`: each at its position in `at` (dense order), or at
+/// rest within the snap distance (squared, `snap2`) of it.
+fn corners_at(
+    mesh: &TetMesh,
+    dense: &SecondaryMap<NodeKey, u32>,
+    at: &[[f64; 3]],
+    snap2: f64,
+    tk: TetKey,
+) -> classify::Corners {
+    mesh.tet(tk)
+        .expect("candidates are tets of the mesh")
+        .nodes
+        .map(|k| {
+            let (x, rest) = (Point3::from(at[dense[k] as usize]), mesh.rest(k));
+            if (x - rest).norm_squared() <= snap2 {
+                rest
+            } else {
+                x
+            }
+        })
 }

@@ -189,8 +189,7 @@ impl Cutter {
         let mut children: BTreeSet<TetKey> = BTreeSet::new();
         for ([a, b], t) in splits {
             let rest = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
-            let k = self.mesh.add_node(rest);
-            self.dense.insert(k, self.dense.len() as u32);
+            let k = self.add_node(rest);
             self.on_cut.insert(k);
             let (xa, xb) = (self.classified(classify, a), self.classified(classify, b));
             extra.insert(k, xa + (xb - xa) * t);
@@ -429,7 +428,7 @@ impl Cutter {
 /// rest where they are within the snap distance of it (squared, `snap2`), so that a resting
 /// mesh is cut exactly as its rest geometry says.
 pub(super) struct Classify<'a> {
-    pub(super) positions: &'a [[f64; 3]],
+    pub(super) read: &'a super::ReadPositions,
     pub(super) snap2: f64,
 }
 
@@ -437,8 +436,10 @@ impl Cutter {
     /// The classification position of existing node `k`. Read from the slice at each use, not
     /// copied into a map of every node first (that cost 0.2 ms a cut on 100k tets).
     fn classified(&self, at: &Classify, k: NodeKey) -> Point3<f64> {
+        let i = self.dense[k];
+        debug_assert!(at.read.knows(i), "node {i} was not read");
         let (x, rest) = (
-            Point3::from(at.positions[self.dense[k] as usize]),
+            Point3::from(at.read.positions()[i as usize]),
             self.mesh.rest(k),
         );
         if (x - rest).norm_squared() <= at.snap2 {

@@ -109,6 +109,13 @@ pub trait Engine: Send {
             })
             .collect()
     }
+    /// The nodes (model indices, ascending) whose current position lies in the box `lo..=hi`
+    /// (m), with their positions exactly as [`Engine::positions`] gives them; a few just outside
+    /// may come too. What a cut reads ([`crate::cut::Cutter::cut_from`]): engines whose state
+    /// lives on a device find the nodes there and read back only those.
+    fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&self.positions()), lo, hi)
+    }
     /// Positions of the nodes `nodes` (model indices) at the start of the last step, m: where
     /// the step's motion began, after any correction made before it. Both integrators make the
     /// current position less `dt` times the velocity exactly that (Verlet's velocity is the
@@ -605,8 +612,10 @@ impl Simulation {
     /// [`Simulation::apply_with`], given the current positions (as [`Simulation::positions`]
     /// gave them, with no step since: what a cutter just read). The energy bookkeeping takes
     /// the positions of the touched springs' nodes from them instead of reading them back from
-    /// the engine, which on the GPU is a round trip to the device per cut. Positions of another
-    /// length than the model's node count are an error, and nothing changes.
+    /// the engine, which on the GPU is a round trip to the device per cut. Only those entries
+    /// are read, so the positions of a cut that read only the nodes near its blade
+    /// ([`crate::cut::ReadPositions::positions`]) will do. Positions of another length than
+    /// the model's node count are an error, and nothing changes.
     pub fn apply_at(
         &mut self,
         diff: &ModelDiff,
@@ -1197,6 +1206,12 @@ impl Simulation {
         self.engine.node_positions(nodes)
     }
 
+    /// The nodes whose current position lies in the box `lo..=hi` (m), with their positions
+    /// ([`Engine::nodes_near`]): on the GPU found on the device, and only they are read back.
+    pub fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        self.engine.nodes_near(lo, hi)
+    }
+
     /// Positions of a few nodes at the start of the last step (after the corrections made
     /// before it), m: with [`Simulation::node_positions`] they give each node's motion over the
     /// step, which friction needs. On the GPU only those nodes are read back.
@@ -1342,5 +1357,17 @@ impl Simulation {
     /// Which engine runs.
     pub fn kind(&self) -> EngineKind {
         self.kind
+    }
+}
+
+/// A simulation is where a cut reads the positions near its blade
+/// ([`crate::cut::Cutter::cut_from`]).
+impl crate::cut::PositionSource for Simulation {
+    fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        self.nodes_near(lo, hi)
+    }
+
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        self.node_positions(nodes)
     }
 }

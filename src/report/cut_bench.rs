@@ -44,8 +44,10 @@ pub struct CutRow {
     pub p99_ms: f64,
     /// Largest, ms.
     pub max_ms: f64,
-    /// Median of each part, ms: reading the positions back.
+    /// Median of each part, ms: reading back the positions near the blade.
     pub read_ms: f64,
+    /// Median nodes whose positions a cut event read back (of `nodes` and those added).
+    pub nodes_read: f64,
     /// Classifying and editing (the cutter).
     pub cut_ms: f64,
     /// Patching the engine (diff applied, dirty ranges uploaded, time step re-checked).
@@ -238,6 +240,7 @@ fn one(
     let steps = 11;
     let (mut total, mut read, mut cutting, mut apply, mut surface) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut nodes_read = Vec::new();
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
     let planes = incision_planes(n);
@@ -248,21 +251,22 @@ fn one(
             let z0 = top + 0.1 * h - 0.2 * h * k as f64;
             let sweep =
                 Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");
+            // The cutter reads only the positions near the blade, from the simulation.
             let t0 = Instant::now();
-            let positions = sim.positions();
-            let t1 = Instant::now();
-            let outcome = cutter.cut(&sweep, &positions)?;
+            let outcome = cutter.cut_from(&sweep, &mut sim)?;
             let t2 = Instant::now();
             if outcome.is_empty() {
                 continue;
             }
-            let cost = sim.apply_at(&outcome.diff, true, &positions)?;
+            let positions = cutter.positions_read().positions();
+            let cost = sim.apply_at(&outcome.diff, true, positions)?;
             let t3 = Instant::now();
             sim.edit_surface(&outcome.surface)?;
             let t4 = Instant::now();
             total.push((t4 - t0).as_secs_f64() * 1e3);
-            read.push((t1 - t0).as_secs_f64() * 1e3);
-            cutting.push((t2 - t1).as_secs_f64() * 1e3);
+            read.push(outcome.read_s * 1e3);
+            cutting.push(((t2 - t0).as_secs_f64() - outcome.read_s) * 1e3);
+            nodes_read.push(outcome.nodes_read as f64);
             apply.push((t3 - t2).as_secs_f64() * 1e3);
             surface.push((t4 - t3).as_secs_f64() * 1e3);
             bytes += cost.uploaded_bytes;
@@ -295,6 +299,7 @@ fn one(
         p99_ms: percentile(&sorted, 0.99),
         max_ms: sorted.last().copied().unwrap_or(0.0),
         read_ms: median(read),
+        nodes_read: median(nodes_read),
         cut_ms: median(cutting),
         apply_ms: median(apply),
         surface_ms: median(surface),

@@ -297,14 +297,14 @@ impl CutStage {
                 continue;
             }
             let start = Instant::now();
-            let positions = sim.positions();
-            let outcome = self.cutter.cut(&sweep, &positions)?;
+            // The cutter reads back only the positions near the blade.
+            let outcome = self.cutter.cut_from(&sweep, sim)?;
             if outcome.is_empty() {
                 continue;
             }
             self.touching[slot] = true;
             let first = sim.model().node_count() as u32;
-            let applied = self.apply(sim, &outcome.diff, &positions)?;
+            let applied = self.apply(sim, &outcome.diff)?;
             sim.edit_surface(&outcome.surface)?;
             let seconds = start.elapsed().as_secs_f64();
             self.latencies.push(seconds);
@@ -365,14 +365,10 @@ impl CutStage {
         Ok(())
     }
 
-    /// Give a cut's `diff` to the simulation (`positions` as the cutter read them), and when it
+    /// Give a cut's `diff` to the simulation (with the positions the cutter read), and when it
     /// lowers the stable bound below the time step, do what the scene's policy says.
-    fn apply(
-        &mut self,
-        sim: &mut Simulation,
-        diff: &ModelDiff,
-        positions: &[[f64; 3]],
-    ) -> Result<Applied> {
+    fn apply(&mut self, sim: &mut Simulation, diff: &ModelDiff) -> Result<Applied> {
+        let positions = self.cutter.positions_read().positions();
         let (dt, bound, node) = match sim.apply_at(diff, false, positions) {
             Ok(cost) => {
                 return Ok(Applied {

@@ -345,6 +345,18 @@ impl Engine for FastEngine {
         self.in_model_order(|i| self.velocity_at(i))
     }
 
+    fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> crate::Result<Vec<(u32, [f64; 3])>> {
+        // A scan of the engine's own arrays, in their order: no copy of every position.
+        let mut out: Vec<(u32, [f64; 3])> = (0..self.order.len())
+            .filter_map(|i| {
+                let x = self.position_at(i);
+                crate::cut::reading::inside(&x, &lo, &hi).then_some((self.order[i], x))
+            })
+            .collect();
+        out.sort_unstable_by_key(|e| e.0);
+        Ok(out)
+    }
+
     fn node_positions(&self, nodes: &[u32]) -> crate::Result<Vec<[f64; 3]>> {
         self.at_nodes(nodes, |i| self.position_at(i))
     }

@@ -139,6 +139,11 @@ impl ToolCuller {
         Ok(())
     }
 
+    /// The rest positions of every node slot, layout order (for passes that share them).
+    pub fn rest(&self) -> &wgpu::Buffer {
+        &self.rest
+    }
+
     /// Rebuild the bind groups (after the node state or an output buffer was reallocated).
     pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
         self.bind_groups = (0..state.phases())

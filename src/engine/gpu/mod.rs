@@ -16,6 +16,7 @@ pub mod buffers;
 pub mod context;
 pub mod health;
 pub mod node_gather;
+pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
@@ -317,6 +318,9 @@ struct SurfaceCulling {
     /// Boundary triangles, model order.
     triangles: Vec<[u32; 3]>,
     tool: broad_tool::ToolCuller,
+    /// Nodes near a blade, over the culler's rest positions (built with it: a cut that reads
+    /// them never waits for a pipeline).
+    near: nodes_near::NodesNear,
     /// The self-contact broad phase and the margin it was built for, once asked for.
     self_contact: Option<(f64, broad_self::SelfCuller)>,
 }
@@ -586,14 +590,17 @@ impl GpuEngine {
         match &mut self.surface {
             Some(s) => {
                 s.tool.set_surface(&self.ctx, &tris, &rest, &self.state)?;
+                s.near.rebind(&self.ctx, s.tool.rest(), &self.state);
                 s.triangles = triangles.to_vec();
                 s.self_contact = None;
             }
             None => {
                 let tool = broad_tool::ToolCuller::new(&self.ctx, &tris, &rest, &self.state)?;
+                let near = nodes_near::NodesNear::new(&self.ctx, tool.rest(), &self.state)?;
                 self.surface = Some(SurfaceCulling {
                     triangles: triangles.to_vec(),
                     tool,
+                    near,
                     self_contact: None,
                 });
             }
@@ -649,6 +656,54 @@ impl GpuEngine {
             return Err(no_surface());
         };
         surface.tool.cull(&self.ctx, &self.state, self.phase, boxes)
+    }
+
+    /// The nodes (model indices, ascending) whose current position lies in `lo..=hi` (m), with
+    /// their positions as [`Engine::positions`] gives them, found on the device with one pass
+    /// over the nodes; only those nodes are read back (16 bytes each). A few just outside the
+    /// box may come too. Before a surface is given ([`GpuEngine::set_surface`]; the pass
+    /// shares its rest positions) every position is read back and scanned instead.
+    pub fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        self.refresh_surface()?;
+        let Some(surface) = &mut self.surface else {
+            let x = self.state_f64().0;
+            return crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&x), lo, hi);
+        };
+        // Grown by float32 rounding of the positions and the box, so that every node inside
+        // in float64 is inside in float32 too.
+        let scale = (0..3)
+            .map(|c| lo[c].abs().max(hi[c].abs()) + (hi[c] - lo[c]).abs())
+            .fold(0.0, f64::max);
+        let pad = 1e-6 * scale;
+        let found = surface.near.find(
+            &self.ctx,
+            surface.tool.rest(),
+            &self.state,
+            self.phase,
+            self.layout.node_slots() as u32,
+            lo.map(|v| (v - pad) as f32),
+            hi.map(|v| (v + pad) as f32),
+        )?;
+        let order = &self.layout.order().order;
+        let mut out: Vec<(u32, [f64; 3])> = found
+            .into_iter()
+            .filter_map(|(slot, u)| {
+                let old = *order.get(slot as usize)?;
+                if old == crate::layout::NodeOrder::HOLE {
+                    return None;
+                }
+                let r = self.rest[old as usize];
+                // The same arithmetic as `state_f64`: a cut reads what a full readback gives.
+                let x = if self.fixed[old as usize] {
+                    r
+                } else {
+                    [0, 1, 2].map(|c| r[c] + u[c] as f64)
+                };
+                Some((old, x))
+            })
+            .collect();
+        out.sort_unstable_by_key(|e| e.0);
+        Ok(out)
     }
 
     /// Broad phase of the tissue against itself on the device: pairs of surface triangles that
@@ -1154,6 +1209,10 @@ impl Engine for GpuEngine {
 
     fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
         GpuEngine::set_surface(self, triangles)
+    }
+
+    fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        GpuEngine::nodes_near(self, lo, hi)
     }
 
     fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<Option<Vec<[u32; 2]>>> {

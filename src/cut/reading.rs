@@ -1,0 +1,172 @@
+//! The current positions a cut reads. A cut only looks at the tissue near the blade, so it asks
+//! its [`PositionSource`] for the nodes in a box around the sweep (on the GPU, one pass over the
+//! nodes and a readback of just those) instead of every node's position, then for the few
+//! nodes around its candidates that the box missed (tissue stretched past twice its rest
+//! edges). What it read sits in a [`ReadPositions`]: an array over every node, valid only where
+//! this cut read, which is all the cut and [`crate::Simulation::apply_at`] look at.
+
+use crate::error::{Error, Result};
+
+/// Where a cut reads current node positions (m, dense model indices).
+pub trait PositionSource {
+    /// Every node whose current position lies in the box `lo..=hi` (a few outside it may come
+    /// too), with its position, in any order.
+    fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>>;
+    /// The current positions of `nodes`, in their order.
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>>;
+}
+
+/// Every node's current position, already read (dense order).
+pub struct AllPositions<'a>(pub &'a [[f64; 3]]);
+
+impl PositionSource for AllPositions<'_> {
+    fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        Ok(self
+            .0
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| inside(p, &lo, &hi))
+            .map(|(i, &p)| (i as u32, p))
+            .collect())
+    }
+
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        nodes
+            .iter()
+            .map(|&i| {
+                self.0.get(i as usize).copied().ok_or_else(|| {
+                    Error::Model(format!(
+                        "node {i} asked of {} positions; give every node's position",
+                        self.0.len()
+                    ))
+                })
+            })
+            .collect()
+    }
+}
+
+/// Whether `p` lies in the box `lo..=hi`.
+pub fn inside(p: &[f64; 3], lo: &[f64; 3], hi: &[f64; 3]) -> bool {
+    (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c])
+}
+
+/// The positions one cut read: `at` has an entry per node (dense order, as many as the mesh
+/// had when the cut began), valid where `known` carries the cut's stamp.
+#[derive(Debug, Clone, Default)]
+pub struct ReadPositions {
+    at: Vec<[f64; 3]>,
+    known: Vec<u32>,
+    stamp: u32,
+    /// Nodes read in the box around the sweep.
+    pub near: Vec<u32>,
+    /// Nodes read afterwards because the box missed them.
+    pub fetched: usize,
+}
+
+impl ReadPositions {
+    /// Start a new cut over `nodes` nodes: nothing is known.
+    pub(super) fn begin(&mut self, nodes: usize) {
+        self.at.resize(nodes, [f64::NAN; 3]);
+        self.at.truncate(nodes);
+        self.known.resize(nodes, 0);
+        self.known.truncate(nodes);
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            // Wrapped: old stamps could equal the new one.
+            self.known.fill(0);
+            self.stamp = 1;
+        }
+        self.near.clear();
+        self.fetched = 0;
+    }
+
+    /// Take what the source gave for the box.
+    pub(super) fn take_near(&mut self, read: Vec<(u32, [f64; 3])>) -> Result<()> {
+        for (i, p) in read {
+            self.set(i, p)?;
+            self.near.push(i);
+        }
+        Ok(())
+    }
+
+    /// Read the nodes of `needed` not known yet from `source`.
+    pub(super) fn complete(
+        &mut self,
+        needed: impl IntoIterator<Item = u32>,
+        source: &mut dyn PositionSource,
+    ) -> Result<()> {
+        let mut missing: Vec<u32> = needed.into_iter().filter(|&i| !self.knows(i)).collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        missing.sort_unstable();
+        missing.dedup();
+        let got = source.of(&missing)?;
+        if got.len() != missing.len() {
+            return Err(Error::Model(format!(
+                "{} positions read for {} nodes",
+                got.len(),
+                missing.len()
+            )));
+        }
+        for (&i, p) in missing.iter().zip(got) {
+            self.set(i, p)?;
+        }
+        self.fetched += missing.len();
+        Ok(())
+    }
+
+    fn set(&mut self, i: u32, p: [f64; 3]) -> Result<()> {
+        let n = self.at.len();
+        let (Some(slot), Some(k)) = (self.at.get_mut(i as usize), self.known.get_mut(i as usize))
+        else {
+            return Err(Error::Model(format!(
+                "a position was read for node {i} of a mesh of {n} nodes"
+            )));
+        };
+        *slot = p;
+        *k = self.stamp;
+        Ok(())
+    }
+
+    /// Whether this cut read node `i`.
+    pub fn knows(&self, i: u32) -> bool {
+        self.known.get(i as usize) == Some(&self.stamp)
+    }
+
+    /// Positions of every node the mesh had when the cut began, valid only at the nodes this
+    /// cut read (the others hold stale values): what the cut classified with, to hand to
+    /// [`crate::Simulation::apply_at`].
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.at
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_positions_lists_the_nodes_in_the_box_and_refuses_unknown_ones() {
+        let x = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.5, 0.5]];
+        let mut s = AllPositions(&x);
+        let mut near = s.near([0.4, -1.0, -1.0], [1.0, 1.0, 1.0]).unwrap();
+        near.sort_by_key(|e| e.0);
+        assert_eq!(near, vec![(1, x[1]), (2, x[2])]);
+        assert!(s.of(&[3]).is_err());
+    }
+
+    #[test]
+    fn a_new_cut_forgets_what_the_last_one_read() {
+        let x = [[0.0; 3], [1.0; 3]];
+        let mut r = ReadPositions::default();
+        r.begin(2);
+        r.take_near(vec![(0, x[0])]).unwrap();
+        r.complete([0, 1], &mut AllPositions(&x)).unwrap();
+        assert!(r.knows(0) && r.knows(1));
+        assert_eq!(r.fetched, 1);
+        r.begin(3);
+        assert!(!r.knows(0) && !r.knows(1) && !r.knows(2));
+        assert!(r.take_near(vec![(3, x[0])]).is_err());
+    }
+}

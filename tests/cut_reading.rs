@@ -1,0 +1,139 @@
+//! A cut reads only the positions near its blade (`Cutter::cut_from`): the nodes in a box
+//! around the sweep, then those of the tets around its candidates that the box missed. Reading
+//! every node instead must give the same cut, in undeformed, bent and strongly stretched
+//! tissue (where the box misses nodes and they are fetched), by every method; and a cut on a
+//! large mesh reads a small part of it.
+
+use lancet::collide::ToolShape;
+use lancet::cut::{CutMethod, CutOutcome, Cutter, PositionSource, Sweep};
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{Material, ModelConfig, SpringModel};
+use lancet::Result;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rstest::rstest;
+
+const H: f64 = 0.01;
+const BLADE: ToolShape = ToolShape::Blade {
+    width: 0.03,
+    length: 0.1,
+    thickness: 1e-4,
+};
+
+/// Every node's position, whatever the box: the reference.
+struct Everything<'a>(&'a [[f64; 3]]);
+
+impl PositionSource for Everything<'_> {
+    fn near(&mut self, _: [f64; 3], _: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        Ok(self
+            .0
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| (i as u32, p))
+            .collect())
+    }
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        panic!("asked for {} nodes after giving every node", nodes.len())
+    }
+}
+
+/// The nodes in the box only, counting what is read.
+struct Counting<'a> {
+    x: &'a [[f64; 3]],
+    fetched: usize,
+}
+
+impl PositionSource for Counting<'_> {
+    fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        lancet::cut::AllPositions(self.x).near(lo, hi)
+    }
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        self.fetched += nodes.len();
+        lancet::cut::AllPositions(self.x).of(nodes)
+    }
+}
+
+/// The tissue's deformations: none, a bend of a few millimetres, and a stretch to three times
+/// its length along x about the box's centre (edges past the box's room around the sweep).
+#[derive(Debug, Clone, Copy)]
+enum Deform {
+    None,
+    Bend,
+    Stretch,
+}
+
+fn deformed(cutter: &Cutter, d: Deform, c: f64) -> Vec<[f64; 3]> {
+    cutter
+        .mesh()
+        .nodes()
+        .map(|(_, n)| {
+            let r = n.rest;
+            match d {
+                Deform::None => [r.x, r.y, r.z],
+                Deform::Bend => [r.x, r.y + 0.004 * (r.x / c - 1.0).powi(2), r.z],
+                Deform::Stretch => [c + 3.0 * (r.x - c), r.y, r.z],
+            }
+        })
+        .collect()
+}
+
+fn same(a: &CutOutcome, b: &CutOutcome) {
+    assert_eq!(a.diff, b.diff);
+    assert_eq!(a.surface, b.surface);
+    assert_eq!(
+        (a.tets_touched, a.faces_cut, a.nodes_added, a.tets_removed),
+        (b.tets_touched, b.faces_cut, b.nodes_added, b.tets_removed)
+    );
+}
+
+#[rstest]
+fn reading_near_the_blade_cuts_as_reading_everything(
+    #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
+    #[values(Deform::None, Deform::Bend, Deform::Stretch)] deform: Deform,
+) {
+    let cells = 14;
+    let mesh = BoxGrid::cube_cells([cells, cells, cells], H)
+        .build()
+        .unwrap();
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
+    let mut near = Cutter::new(mesh, model, method).unwrap();
+    let mut all = near.clone();
+    let c = 0.5 * cells as f64 * H;
+    let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3);
+    let (mut cuts, mut fetched, mut read, mut nodes) = (0, 0, 0, 0);
+    // A turned blade drawn down and along, a few millimetres a step.
+    for k in 0..8 {
+        let pose = |k: f64| {
+            let at = Translation3::new(c - 0.01 + 0.003 * k, c + 0.0013, 0.143 - 0.004 * k);
+            Isometry3::from_parts(at, turn)
+        };
+        let sweep = Sweep::of_blade(&BLADE, &pose(k as f64), &pose(k as f64 + 1.0)).unwrap();
+        let x = deformed(&near, deform, c);
+        let mut counting = Counting { x: &x, fetched: 0 };
+        let a = near.cut_from(&sweep, &mut counting).unwrap();
+        let b = all.cut_from(&sweep, &mut Everything(&x)).unwrap();
+        same(&a, &b);
+        cuts += usize::from(!a.is_empty());
+        fetched += counting.fetched;
+        read += a.nodes_read;
+        nodes += x.len();
+    }
+    // Cells stretched to three centimetres are crossed by fewer sweeps.
+    let least = if matches!(deform, Deform::Stretch) {
+        1
+    } else {
+        2
+    };
+    assert!(cuts >= least, "the blade cut only {cuts} times");
+    match deform {
+        // The box around the sweep holds every node a cut reads.
+        Deform::None | Deform::Bend => assert_eq!(fetched, 0),
+        // Edges three times their rest length leave nodes of the tets around the candidates
+        // outside it: they were fetched, and the cut is the same.
+        Deform::Stretch => assert!(fetched > 0, "the stretch left nothing to fetch"),
+    }
+    assert!(
+        read < nodes / 2,
+        "the cuts read {read} positions of {nodes}: most of the mesh"
+    );
+}
