@@ -26,6 +26,7 @@ pub mod exact;
 pub mod faces;
 pub mod invariants;
 pub mod reading;
+mod resweep;
 mod snapshot;
 pub mod subdivide;
 pub mod sweep;
@@ -131,6 +132,9 @@ pub struct Cutter {
     /// Face-neighbour pairs a sweep has crossed whose face is still shared: the crack front of
     /// a partial cut. They stay cut when the blade moves on.
     crack: BTreeSet<(TetKey, TetKey)>,
+    /// Tets separated by a cut along faces, per tet: a later sweep along that cut makes nothing
+    /// new where the load carried a lip across the blade's plane (see `resweep.rs`).
+    partners: resweep::CutPartners,
     volume_removed: f64,
     /// Nodes displaced less than this from rest are classified at rest (m).
     snap: f64,
@@ -172,6 +176,7 @@ impl Cutter {
             keys,
             method,
             crack: BTreeSet::new(),
+            partners: resweep::CutPartners::default(),
             volume_removed: 0.0,
             snap,
             on_cut: BTreeSet::new(),
@@ -298,7 +303,8 @@ impl Cutter {
         result
     }
 
-    /// Dense indices of the corners of every tet at a corner of `tets` (repeats included).
+    /// Dense indices of the corners of every tet at a corner of `tets`, and of the tets a cut
+    /// separated from those (repeats included).
     fn ring_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
         let mut corners: Vec<NodeKey> = tets
             .iter()
@@ -308,11 +314,10 @@ impl Cutter {
         corners.dedup();
         corners.into_iter().flat_map(move |n| {
             self.faces.tets_at(n).iter().flat_map(move |&t| {
-                self.mesh
-                    .tet(t)
-                    .expect("a tet at a node")
-                    .nodes
-                    .map(|k| self.dense[k])
+                std::iter::once(t)
+                    .chain(self.partners.of(t).iter().copied())
+                    .filter_map(|t| self.mesh.tet(t))
+                    .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
             })
         })
     }
@@ -389,9 +394,16 @@ impl Cutter {
                 let crossed =
                     classify::faces_crossed(mesh, &self.faces, &candidates, &corners, sweep);
                 outcome.classify_s = start.elapsed().as_secs_f64();
+                let centroids = resweep::Centroids {
+                    now: |t: TetKey| centroid_of(corners(t)),
+                    rest: |t: TetKey| {
+                        centroid_of(mesh.tet(t).expect("a tet").nodes.map(|k| mesh.rest(k)))
+                    },
+                };
                 let new: Vec<(TetKey, TetKey)> = crossed
                     .into_iter()
                     .filter(|p| !self.crack.contains(p))
+                    .filter(|&p| !resweep::along_old_cut(p, &self.partners, sweep, &centroids))
                     .collect();
                 if !new.is_empty() {
                     self.separate(&new, &mut outcome)?;
@@ -442,4 +454,8 @@ fn corners_at(
                 x
             }
         })
+}
+
+fn centroid_of(p: [Point3<f64>; 4]) -> Point3<f64> {
+    Point3::from((p[0].coords + p[1].coords + p[2].coords + p[3].coords) * 0.25)
 }
