@@ -1,7 +1,8 @@
 //! The surface a simulation culls against, edited in place by each cut's `CutOutcome::surface`
 //! (`Simulation::edit_surface`) instead of being rebuilt: it stays the cutter's boundary, as a
 //! set of outward triangles, on every engine and layout; the device culler over the edited
-//! surface finds exactly what the float64 brute force finds (up to float32 rounding); and an
+//! surface finds exactly what the float64 brute force finds (up to float32 rounding), and its
+//! buffers, written slot by slot, equal an upload from scratch; and an
 //! edit that does not fit the surface is refused with nothing changed.
 
 mod common;
@@ -92,6 +93,10 @@ fn edited_surface_stays_the_boundary(method: CutMethod, kind: EngineKind, layout
             oriented_set(&boundary),
             "cut {cuts}: the edited surface is not the cutter's boundary"
         );
+        // The device holds what it would after an upload from scratch (the surface written
+        // slot by slot, with the triangles and rest positions of nodes the layout moved).
+        let diffs = sim.differences_from_rebuild().unwrap();
+        assert!(diffs.is_empty(), "cut {cuts}: {diffs:?}");
 
         // Boxes around the blade's path and over the whole box: the culler over the edited
         // surface (on the device for the GPU engine) against the float64 brute force.

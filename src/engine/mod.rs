@@ -158,6 +158,13 @@ pub trait Engine: Send {
         let _ = triangles;
         Ok(())
     }
+    /// The surface after an edit: `triangles` is the whole new list, of which only the slots
+    /// `changed` (and any appended) differ from the last list given. Engines that hold the
+    /// surface write only those; the default gives the whole list to [`Engine::set_surface`].
+    fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
+        let _ = changed;
+        self.set_surface(triangles)
+    }
     /// Broad phase of the surface given to [`Engine::set_surface`] against tool boxes where
     /// the state lives (the GPU engine); `Ok(None)` where the caller should cull on the CPU.
     fn cull_tools(
@@ -1093,18 +1100,22 @@ impl Simulation {
             }
         }
         let old = triangles.clone();
+        // The slots whose triangle changed, so that the engine writes only those.
+        let mut changed = Vec::with_capacity(edit.removed.len() + edit.added.len());
         for t in &edit.removed {
             let slot = slots.remove(&key(t)).expect("validated") as usize;
             triangles.swap_remove(slot);
             if let Some(moved) = triangles.get(slot) {
                 slots.insert(key(moved), slot as u32);
+                changed.push(slot as u32);
             }
         }
         for t in &edit.added {
             slots.insert(key(t), triangles.len() as u32);
+            changed.push(triangles.len() as u32);
             triangles.push(*t);
         }
-        if let Err(e) = self.engine.set_surface(triangles) {
+        if let Err(e) = self.engine.edit_surface(triangles, &changed) {
             *slots = old
                 .iter()
                 .enumerate()

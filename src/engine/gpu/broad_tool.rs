@@ -139,6 +139,54 @@ impl ToolCuller {
         Ok(())
     }
 
+    /// Write only what an edit changed: the surface has `count` triangles, of which those in
+    /// `triangles` (slot, layout-order corners) are new, and the layout `slots` node slots, of
+    /// which those in `rest` (slot, position) are new. Returns false, writing nothing, when a
+    /// buffer is too small: then give the whole surface to [`ToolCuller::set_surface`].
+    pub fn edit(
+        &mut self,
+        ctx: &GpuContext,
+        count: usize,
+        triangles: &[(u32, [u32; 3])],
+        slots: usize,
+        rest: &[(u32, [f32; 4])],
+    ) -> bool {
+        if (count * 16) as u64 > self.triangles.size() || (slots * 16) as u64 > self.rest.size() {
+            return false;
+        }
+        self.triangles_host.resize(count, [0; 4]);
+        let mut written: Vec<u32> = Vec::with_capacity(triangles.len());
+        for &(i, t) in triangles {
+            self.triangles_host[i as usize] = [t[0], t[1], t[2], 0];
+            written.push(i);
+        }
+        buffers::write_slots(ctx, &self.triangles, &self.triangles_host, &mut written);
+        self.rest_host.resize(slots, [0.0; 4]);
+        written.clear();
+        for &(i, r) in rest {
+            self.rest_host[i as usize] = r;
+            written.push(i);
+        }
+        buffers::write_slots(ctx, &self.rest, &self.rest_host, &mut written);
+        self.triangle_count = count as u32;
+        true
+    }
+
+    /// Read back the first `count` triangles and `slots` rest positions (a check).
+    pub fn read_surface(
+        &self,
+        ctx: &GpuContext,
+        count: usize,
+        slots: usize,
+    ) -> Result<(Vec<[u32; 4]>, Vec<[f32; 4]>)> {
+        let tris = buffers::read_bytes(ctx, &self.triangles, (count.max(1) * 16) as u64)?;
+        let rest = buffers::read_bytes(ctx, &self.rest, (slots.max(1) * 16) as u64)?;
+        Ok((
+            bytemuck::pod_collect_to_vec(&tris),
+            bytemuck::pod_collect_to_vec(&rest),
+        ))
+    }
+
     /// The rest positions of every node slot, layout order (for passes that share them).
     pub fn rest(&self) -> &wgpu::Buffer {
         &self.rest

@@ -209,6 +209,37 @@ pub fn write_changed<T: bytemuck::Pod + PartialEq>(
     Ok((written, false))
 }
 
+/// Write the elements `indices` of `host` (what `buffer` should hold) to `buffer`, one copy per
+/// run of consecutive indices. Returns the bytes written.
+pub fn write_slots<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    buffer: &wgpu::Buffer,
+    host: &[T],
+    indices: &mut Vec<u32>,
+) -> u64 {
+    indices.sort_unstable();
+    indices.dedup();
+    let elem = std::mem::size_of::<T>();
+    let mut written = 0;
+    let mut k = 0;
+    while k < indices.len() {
+        let start = indices[k] as usize;
+        let mut end = start + 1;
+        while k + 1 < indices.len() && indices[k + 1] as usize == end {
+            k += 1;
+            end += 1;
+        }
+        k += 1;
+        ctx.queue.write_buffer(
+            buffer,
+            (start * elem) as u64,
+            bytemuck::cast_slice(&host[start..end]),
+        );
+        written += ((end - start) * elem) as u64;
+    }
+    written
+}
+
 /// The element ranges where `data` differs from `old` (elements past the end of `old` differ),
 /// ascending; runs separated by at most `gap` equal elements are merged into one (fewer,
 /// larger copies).

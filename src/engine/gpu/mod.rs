@@ -304,8 +304,8 @@ pub struct GpuEngine {
     fixed_point: FixedPoint,
     /// Device timing of the step pass, where the adapter has timestamp queries.
     timer: Option<timing::PassTimer>,
-    /// Whether a patch changed nodes under the surface since it was last written.
-    surface_stale: bool,
+    /// What patches changed under the surface since the culler last saw it.
+    surface_sync: SurfaceSync,
     /// The tissue surface and its cullers, built only once a program culls.
     surface: Option<SurfaceCulling>,
     /// The pass that starts nodes between two others. Built with the engine: compiling it at
@@ -314,6 +314,16 @@ pub struct GpuEngine {
 }
 
 /// The tissue surface on the device and the broad phases over it.
+/// What changed under the surface culler since it last saw the layout.
+enum SurfaceSync {
+    /// Nothing: its triangles and rest positions match the layout.
+    Current,
+    /// The nodes at these layout slots moved there or were added (from patches' state moves).
+    Moved(Vec<u32>),
+    /// The layout or the node state was rebuilt: compare everything.
+    Full,
+}
+
 struct SurfaceCulling {
     /// Boundary triangles, model order.
     triangles: Vec<[u32; 3]>,
@@ -400,7 +410,7 @@ impl GpuEngine {
         let blend = blend_state::BlendPass::new(&ctx)?;
         Ok(GpuEngine {
             timer,
-            surface_stale: false,
+            surface_sync: SurfaceSync::Current,
             surface: None,
             blend,
             ctx,
@@ -446,12 +456,52 @@ impl GpuEngine {
                 ));
             }
         }
+        out.extend(self.surface_differences()?);
         // The bucket table is uploaded at the device's uniform offset stride.
         if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&self.passes, &self.layout) {
             let device = p.read_buckets(&self.ctx, v.buckets.len())?;
             if let Some(i) = (0..v.buckets.len()).find(|&i| device.get(i) != Some(&v.buckets[i])) {
                 out.push(format!("device bucket {i} differs from the layout"));
             }
+        }
+        Ok(out)
+    }
+
+    /// Where the surface culler's device buffers (triangles in layout order, rest positions of
+    /// every node slot) differ from the surface and layout, once it is up to date (after a
+    /// patch it catches up at its next use). Empty without a surface.
+    pub fn surface_differences(&self) -> Result<Vec<String>> {
+        let Some(s) = &self.surface else {
+            return Ok(Vec::new());
+        };
+        if !matches!(self.surface_sync, SurfaceSync::Current) {
+            return Ok(Vec::new());
+        }
+        let mut out = Vec::new();
+        let want: Vec<[u32; 4]> = self
+            .in_layout_order(&s.triangles)
+            .into_iter()
+            .map(|t| [t[0], t[1], t[2], 0])
+            .collect();
+        let (tris, rest) = s
+            .tool
+            .read_surface(&self.ctx, want.len(), self.layout.node_slots())?;
+        if let Some(i) = (0..want.len()).find(|&i| tris[i] != want[i]) {
+            out.push(format!(
+                "device surface triangle {i} is {:?}, the surface's {:?}",
+                tris[i], want[i]
+            ));
+        }
+        let order = &self.layout.order().order;
+        let rest_want = self.rest_f32();
+        // Holes hold no node: whatever they hold is never read.
+        if let Some(i) = (0..rest_want.len())
+            .find(|&i| order[i] != crate::layout::NodeOrder::HOLE && rest[i] != rest_want[i])
+        {
+            out.push(format!(
+                "device rest position of slot {i} is {:?}, the layout's {:?}",
+                rest[i], rest_want[i]
+            ));
         }
         Ok(out)
     }
@@ -561,7 +611,7 @@ impl GpuEngine {
             .apply_moves(&self.ctx, &patch.moves, &self.blend)?;
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
-        self.surface_stale = self.surface.is_some();
+        self.note_surface_moves(&patch.moves, realloc || patch.repacked);
         Ok(PatchCost {
             uploaded_bytes: uploaded,
             layout_bytes,
@@ -605,19 +655,123 @@ impl GpuEngine {
                 });
             }
         }
-        self.surface_stale = false;
+        self.surface_sync = SurfaceSync::Current;
         Ok(())
+    }
+
+    /// The surface after an edit: `triangles` is the whole new list (dense model indices), of
+    /// which only the slots `changed` differ from the last one given (a cut swapped out the
+    /// triangles it removed and appended those it added, as [`crate::Simulation::edit_surface`]
+    /// does). Writes only those triangles, those at nodes a patch moved in the layout, and the
+    /// rest positions of the moved and added nodes: a cut costs what it changed, not a pass
+    /// over the surface and every node. Falls back to [`GpuEngine::set_surface`] (which
+    /// compares everything) when a buffer must grow or the layout was rebuilt.
+    pub fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
+        let moved = match &self.surface_sync {
+            SurfaceSync::Full => return self.set_surface(triangles),
+            SurfaceSync::Moved(slots) => slots.clone(),
+            SurfaceSync::Current => Vec::new(),
+        };
+        let Some(known) = self.surface.as_ref().map(|s| s.triangles.len()) else {
+            return self.set_surface(triangles);
+        };
+        let n = self.rest.len();
+        let mut slots: Vec<u32> = changed
+            .iter()
+            .copied()
+            .filter(|&c| (c as usize) < triangles.len())
+            .collect();
+        // Appended slots are always written, named or not.
+        slots.extend(known as u32..triangles.len() as u32);
+        if let Some(t) = slots
+            .iter()
+            .map(|&c| &triangles[c as usize])
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(crate::Error::Model(format!(
+                "surface triangle {t:?} names a node past the model's {n} nodes"
+            )));
+        }
+        let order = &self.layout.order();
+        if !moved.is_empty() {
+            // Triangles at a node whose layout index changed hold stale indices.
+            let mut at_moved = vec![false; n];
+            for &slot in &moved {
+                match order.order.get(slot as usize) {
+                    Some(&old) if old != crate::layout::NodeOrder::HOLE => {
+                        at_moved[old as usize] = true
+                    }
+                    _ => {}
+                }
+            }
+            slots.extend(
+                (0..triangles.len() as u32)
+                    .filter(|&i| triangles[i as usize].iter().any(|&k| at_moved[k as usize])),
+            );
+        }
+        slots.sort_unstable();
+        slots.dedup();
+        let tris: Vec<(u32, [u32; 3])> = slots
+            .iter()
+            .map(|&i| (i, triangles[i as usize].map(|k| order.rank[k as usize])))
+            .collect();
+        let rest: Vec<(u32, [f32; 4])> = moved
+            .iter()
+            .map(|&slot| {
+                let r = match order.order.get(slot as usize) {
+                    Some(&old) if old != crate::layout::NodeOrder::HOLE => {
+                        let r = self.rest[old as usize];
+                        [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]
+                    }
+                    _ => [0.0; 4],
+                };
+                (slot, r)
+            })
+            .collect();
+        let slots_total = self.layout.node_slots();
+        let s = self.surface.as_mut().expect("checked above");
+        if !s
+            .tool
+            .edit(&self.ctx, triangles.len(), &tris, slots_total, &rest)
+        {
+            return self.set_surface(triangles);
+        }
+        s.triangles.resize(triangles.len(), [0; 3]);
+        for &i in &slots {
+            s.triangles[i as usize] = triangles[i as usize];
+        }
+        debug_assert_eq!(s.triangles, triangles, "the edit named every changed slot");
+        s.self_contact = None;
+        self.surface_sync = SurfaceSync::Current;
+        Ok(())
+    }
+
+    /// Remember what a patch's `moves` changed under the surface (every slot when `rebuilt`).
+    fn note_surface_moves(&mut self, moves: &[crate::layout::patch::StateMove], rebuilt: bool) {
+        if self.surface.is_none() {
+            return;
+        }
+        self.surface_sync = match std::mem::replace(&mut self.surface_sync, SurfaceSync::Full) {
+            _ if rebuilt => SurfaceSync::Full,
+            SurfaceSync::Full => SurfaceSync::Full,
+            SurfaceSync::Current => SurfaceSync::Moved(moves.iter().map(|m| m.to).collect()),
+            SurfaceSync::Moved(mut slots) => {
+                slots.extend(moves.iter().map(|m| m.to));
+                SurfaceSync::Moved(slots)
+            }
+        };
     }
 
     /// Bring the culler up to date after a patch (nodes appended or renumbered, state
     /// reallocated), before it is used.
     fn refresh_surface(&mut self) -> Result<()> {
-        if self.surface_stale {
-            if let Some(triangles) = self.surface.as_ref().map(|s| s.triangles.clone()) {
-                self.set_surface(&triangles)?;
-            }
-            self.surface_stale = false;
+        if matches!(self.surface_sync, SurfaceSync::Current) {
+            return Ok(());
         }
+        if let Some(triangles) = self.surface.as_ref().map(|s| s.triangles.clone()) {
+            self.edit_surface(&triangles, &[])?;
+        }
+        self.surface_sync = SurfaceSync::Current;
         Ok(())
     }
 
@@ -1209,6 +1363,10 @@ impl Engine for GpuEngine {
 
     fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
         GpuEngine::set_surface(self, triangles)
+    }
+
+    fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
+        GpuEngine::edit_surface(self, triangles, changed)
     }
 
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
