@@ -34,6 +34,10 @@ pub struct CullResult {
     pub regrown: u32,
 }
 
+/// What the device holds of a surface: triangles (layout-order corners, padded to four) and
+/// rest positions of every node slot.
+pub type DeviceSurface = (Vec<[u32; 4]>, Vec<[f32; 4]>);
+
 /// The pass, its surface and its output buffers.
 pub struct ToolCuller {
     pipeline: wgpu::ComputePipeline,
@@ -178,7 +182,7 @@ impl ToolCuller {
         ctx: &GpuContext,
         count: usize,
         slots: usize,
-    ) -> Result<(Vec<[u32; 4]>, Vec<[f32; 4]>)> {
+    ) -> Result<DeviceSurface> {
         let tris = buffers::read_bytes(ctx, &self.triangles, (count.max(1) * 16) as u64)?;
         let rest = buffers::read_bytes(ctx, &self.rest, (slots.max(1) * 16) as u64)?;
         Ok((
