@@ -1,11 +1,15 @@
 //! A cut reads only the positions near its blade (`Cutter::cut_from`): the nodes in a box
 //! around the sweep, then those of the tets around its candidates that the box missed. Reading
 //! every node instead must give the same cut, in undeformed, bent and strongly stretched
-//! tissue (where the box misses nodes and they are fetched), by every method; and a cut on a
-//! large mesh reads a small part of it.
+//! tissue (where the box misses nodes and they are fetched), by every method; a cut on a
+//! large mesh reads a small part of it; and the CPU engines find the nodes in a box exactly.
+
+#[path = "common/models.rs"]
+mod models;
 
 use lancet::collide::ToolShape;
 use lancet::cut::{CutMethod, CutOutcome, Cutter, PositionSource, Sweep};
+use lancet::engine::{EngineKind, SimConfig, Simulation};
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, SpringModel};
 use lancet::Result;
@@ -135,5 +139,55 @@ fn reading_near_the_blade_cuts_as_reading_everything(
     assert!(
         read < nodes / 2,
         "the cuts read {read} positions of {nodes}: most of the mesh"
+    );
+}
+
+/// Every CPU engine's `nodes_near` finds exactly the nodes the float64 scan of its positions
+/// finds, with those positions bit for bit, before and after cut-like patches (appended
+/// nodes). The GPU engine's is tested in `gpu_nodes_near.rs`.
+#[rstest]
+fn cpu_engines_find_the_nodes_in_a_box(
+    #[values(EngineKind::Reference, EngineKind::Fast)] kind: EngineKind,
+) {
+    let mut model = models::random_model(5, true);
+    let config = SimConfig {
+        allow_unstable: true,
+        ..SimConfig::new(2e-5)
+    };
+    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let (x, v) = models::random_state(&model, 5);
+    sim.set_state(&x, &v).unwrap();
+    let mut rng = models::Rng(17);
+    let mut found = 0;
+    for round in 0..4 {
+        sim.run(3).unwrap();
+        for _ in 0..10 {
+            let x = sim.positions();
+            let c = x[(rng.next() * x.len() as f64) as usize];
+            let half = [0, 1, 2].map(|_| 2e-3 + 2e-2 * rng.next());
+            let (lo, hi) = (
+                [0, 1, 2].map(|k| c[k] - half[k]),
+                [0, 1, 2].map(|k| c[k] + half[k]),
+            );
+            let got = sim.nodes_near(lo, hi).unwrap();
+            let want: Vec<(u32, [f64; 3])> = x
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+                .map(|(i, &p)| (i as u32, p))
+                .collect();
+            let bits = |v: &[(u32, [f64; 3])]| -> Vec<(u32, [u64; 3])> {
+                v.iter().map(|&(i, p)| (i, p.map(f64::to_bits))).collect()
+            };
+            assert_eq!(bits(&got), bits(&want), "round {round}");
+            found += want.len();
+        }
+        let diff = models::random_diff(&model, 40 + round);
+        sim.apply(&diff).unwrap();
+        model.apply(&diff).unwrap();
+    }
+    assert!(
+        found > 100,
+        "the boxes held too few nodes to test ({found})"
     );
 }

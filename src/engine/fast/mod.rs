@@ -91,6 +91,9 @@ pub struct FastEngine {
     rank: Vec<u32>,
     /// Rest positions in model order, returned exactly for fixed nodes.
     rest: Vec<[f64; 3]>,
+    /// Rest positions in internal order, float32: a scan for the nodes in a box reads them
+    /// next to the displacements instead of gathering `rest` node by node.
+    rest_inner: Vec<P>,
     /// Current displacements from rest.
     x: Vec<P>,
     /// Verlet: previous displacements. Symplectic Euler: velocities.
@@ -105,6 +108,10 @@ impl FastEngine {
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
         let n = model.node_count();
         let order = config.node_order.order(model).order;
+        let rest_inner = order
+            .iter()
+            .map(|&o| rest_f32(model.rest[o as usize]))
+            .collect();
         let mut rank = vec![0u32; n];
         for (new, &old) in order.iter().enumerate() {
             rank[old as usize] = new as u32;
@@ -139,11 +146,13 @@ impl FastEngine {
             second,
             order,
             rank,
+            rest_inner,
             rest: model.rest.clone(),
         };
         engine.order.reserve(n / 8);
         engine.rank.reserve(n / 8);
         engine.rest.reserve(n / 8);
+        engine.rest_inner.reserve(n / 8);
         engine.graph.inv_mass.reserve(n / 8);
         engine.graph.fixed.reserve(n / 8);
         engine
@@ -346,13 +355,28 @@ impl Engine for FastEngine {
     }
 
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> crate::Result<Vec<(u32, [f64; 3])>> {
-        // A scan of the engine's own arrays, in their order: no copy of every position.
-        let mut out: Vec<(u32, [f64; 3])> = (0..self.order.len())
-            .filter_map(|i| {
-                let x = self.position_at(i);
-                crate::cut::reading::inside(&x, &lo, &hi).then_some((self.order[i], x))
-            })
-            .collect();
+        // A scan of the engine's own arrays, in their order: no copy of every position. The box
+        // is first tested in float32 (rest and displacement side by side), grown by the
+        // rounding of that sum, which rejects most nodes without gathering their float64 rest.
+        let scale = (0..3)
+            .map(|c| lo[c].abs().max(hi[c].abs()) + (hi[c] - lo[c]).abs())
+            .fold(0.0, f64::max);
+        let pad = 1e-6 * scale;
+        let (lo32, hi32) = (lo.map(|v| (v - pad) as f32), hi.map(|v| (v + pad) as f32));
+        let mut out = Vec::new();
+        for (i, (r, u)) in self.rest_inner.iter().zip(&self.x).enumerate() {
+            if (0..3).any(|c| {
+                let x = r[c] + u[c];
+                x < lo32[c] || x > hi32[c]
+            }) && !self.graph.fixed[i]
+            {
+                continue;
+            }
+            let x = self.position_at(i);
+            if crate::cut::reading::inside(&x, &lo, &hi) {
+                out.push((self.order[i], x));
+            }
+        }
         out.sort_unstable_by_key(|e| e.0);
         Ok(out)
     }
@@ -693,6 +717,10 @@ fn spring_vector(edge: [f32; 3], ui: P, uj: P) -> [f32; 3] {
 
 fn to_p(v: [f64; 3]) -> P {
     [v[0] as f32, v[1] as f32, v[2] as f32, 0.0]
+}
+
+fn rest_f32(r: [f64; 3]) -> P {
+    [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]
 }
 
 fn to_f64(p: P) -> [f64; 3] {

@@ -103,6 +103,7 @@ impl FastEngine {
             self.order.push(m);
             self.rank.push(i as u32);
             self.rest.push(a.rest);
+            self.rest_inner.push(super::rest_f32(a.rest));
             // `second` is the previous displacement (Verlet) or the velocity (symplectic Euler):
             // either way a copy keeps its source's velocity.
             let (x, second) = match a.state_from {
