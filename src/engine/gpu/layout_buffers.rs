@@ -9,6 +9,16 @@ use super::{GpuContext, NodeState};
 use crate::error::{Error, Result};
 use crate::layout::patch::LayoutArray;
 
+/// A layout array that outgrew its device buffer, as patched.
+pub struct Outgrown<'a> {
+    /// Which array.
+    pub array: LayoutArray,
+    /// Its bytes after the patch.
+    pub data: &'a [u8],
+    /// The byte ranges the patch changed, ascending.
+    pub dirty: Vec<Range<u64>>,
+}
+
 /// A pass that owns the device buffers of some layout arrays and binds them.
 pub trait LayoutBuffers {
     /// The device buffer of a layout array, if this pass holds it.
@@ -23,23 +33,23 @@ pub trait LayoutBuffers {
         -> Result<()>;
 
     /// Replace the buffers of `arrays` by larger ones holding the arrays' new contents (see
-    /// [`buffers::grown`]; each entry gives the array's bytes and dirty ranges), then rebind
-    /// once.
+    /// [`buffers::grown`]), then rebind once.
     fn grow(
         &mut self,
         ctx: &GpuContext,
-        arrays: &[(LayoutArray, &[u8], Vec<Range<u64>>)],
+        arrays: &[Outgrown<'_>],
         uniform: &wgpu::Buffer,
         state: &NodeState,
     ) -> Result<Growth> {
         let mut cost = Growth::default();
-        for (array, data, dirty) in arrays {
-            let old = self.buffer_mut(*array).ok_or_else(|| {
+        for a in arrays {
+            let old = self.buffer_mut(a.array).ok_or_else(|| {
                 Error::Gpu(format!(
-                    "no device buffer holds the {array:?} array to grow"
+                    "no device buffer holds the {:?} array to grow",
+                    a.array
                 ))
             })?;
-            let (new, g) = buffers::grown(ctx, label(*array), old, data, dirty)?;
+            let (new, g) = buffers::grown(ctx, label(a.array), old, a.data, &a.dirty)?;
             *old = new;
             cost += g;
         }

@@ -607,13 +607,14 @@ impl GpuEngine {
     fn grow(&mut self, arrays: &[LayoutArray], dirty: &[Dirty]) -> Result<Growth> {
         let grown: Vec<_> = arrays
             .iter()
-            .map(|&a| {
-                let ranges = dirty
+            .map(|&array| layout_buffers::Outgrown {
+                array,
+                data: self.layout.array(array),
+                dirty: dirty
                     .iter()
-                    .filter(|d| d.array == a)
+                    .filter(|d| d.array == array)
                     .map(|d| d.bytes.clone())
-                    .collect();
-                (a, self.layout.array(a), ranges)
+                    .collect(),
             })
             .collect();
         self.passes
