@@ -10,8 +10,11 @@ mod models;
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
 use lancet::layout::edges::Accumulation;
+use lancet::layout::patch::LayoutArray;
 use lancet::layout::{LayoutKind, PackedLayout};
-use models::{fresh, moved_state, random_diff, random_model, random_state, widen_node_0};
+use models::{
+    floating_ring, fresh, moved_state, random_diff, random_model, random_state, widen_node_0,
+};
 use rstest::rstest;
 
 type Raw = (Vec<[f32; 4]>, Vec<[f32; 4]>);
@@ -320,4 +323,123 @@ fn an_edge_row_outgrowing_its_room_moves_alone_and_steps_like_a_rebuild_on_the_d
         "no patch moved a row without a full upload"
     );
     assert!(compacted, "40 rounds of growth never compacted the table");
+}
+
+/// The layout arrays whose device buffers `engine` would outgrow by patching in `diff` (whose
+/// model after it is `next`), found on a copy of its layout.
+fn outgrown_by(
+    engine: &GpuEngine,
+    next: &lancet::model::PackedModel,
+    diff: &lancet::model::ModelDiff,
+) -> Vec<LayoutArray> {
+    let mut layout = engine.layout().clone();
+    layout.patch(next, diff).unwrap();
+    LayoutArray::ALL
+        .into_iter()
+        .filter(|&a| {
+            engine
+                .buffer_size(a)
+                .is_some_and(|room| layout.array(a).len() as u64 > room)
+        })
+        .collect()
+}
+
+/// The smallest floating ring (each node joined to the next `reach`) whose nodes make some
+/// array outgrow its device buffer, with the model after it and the arrays that outgrow.
+fn smallest_outgrowing_ring(
+    engine: &GpuEngine,
+    model: &lancet::model::PackedModel,
+    reach: usize,
+) -> (
+    lancet::model::ModelDiff,
+    lancet::model::PackedModel,
+    Vec<LayoutArray>,
+) {
+    for n in 2 * reach + 1..2000 {
+        let diff = floating_ring(model, n, reach);
+        let mut next = model.clone();
+        next.apply(&diff).unwrap();
+        let outgrown = outgrown_by(engine, &next, &diff);
+        if !outgrown.is_empty() {
+            return (diff, next, outgrown);
+        }
+    }
+    panic!("no ring of up to 2000 nodes outgrows a buffer");
+}
+
+/// A patch that makes layout arrays outgrow their device buffers grows those buffers alone: the
+/// passes keep their pipelines (not `reallocated`), the old contents are copied on the device
+/// and only the dirty ranges and the new tails go up (less than the layout), the device then
+/// holds exactly the layout, and the engine steps like its CPU twin and like one built from
+/// scratch; so does it after a random cut-like patch on top (which the valence layout's
+/// appended buckets may make grow again). The ring's `reach` sets which
+/// arrays outgrow first: one (the edge layout's springs alone with `reach` 2), or, for the
+/// edge gather with `reach` 1, its springs and incidence at once.
+#[rstest]
+#[case::connectivity(LayoutKind::Connectivity, Accumulation::Gather, 1, 1)]
+#[case::valence(LayoutKind::Valence, Accumulation::Gather, 1, 1)]
+#[case::edges(LayoutKind::Edges, Accumulation::Gather, 2, 1)]
+#[case::edges_two_at_once(LayoutKind::Edges, Accumulation::Gather, 1, 2)]
+#[case::edges_fixed_point(LayoutKind::Edges, Accumulation::AtomicFixed, 1, 1)]
+fn buffers_outgrown_by_a_patch_grow_alone_and_the_passes_are_kept(
+    #[case] kind: LayoutKind,
+    #[case] accumulation: Accumulation,
+    #[case] reach: usize,
+    #[case] arrays: usize,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(47, true);
+    let mut config = SimConfig::new(2e-5);
+    config.accumulation = accumulation;
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let (x, v) = random_state(&model, 47);
+    engine.set_state(&x, &v);
+    engine.step(5);
+    let capacity = engine.state_capacity();
+    let (ring, next, outgrown) = smallest_outgrowing_ring(&engine, &model, reach);
+    assert_eq!(outgrown.len(), arrays, "{kind:?}: {outgrown:?} outgrow");
+    let rooms: Vec<u64> = outgrown
+        .iter()
+        .map(|&a| engine.buffer_size(a).unwrap())
+        .collect();
+    for (round, diff) in [ring, random_diff(&next, 300)].into_iter().enumerate() {
+        let mut after = model.clone();
+        after.apply(&diff).unwrap();
+        let cost = engine.patch(&after, &diff).unwrap();
+        model = after;
+        assert_eq!(engine.state_capacity(), capacity, "the node state had room");
+        assert!(!cost.reallocated, "round {round}: the passes were rebuilt");
+        assert!(
+            cost.uploaded_bytes < cost.layout_bytes,
+            "round {round}: uploaded {} of {}",
+            cost.uploaded_bytes,
+            cost.layout_bytes
+        );
+        if round == 0 {
+            for (&a, &room) in outgrown.iter().zip(&rooms) {
+                assert!(engine.buffer_size(a).unwrap() > room, "{a:?} grew");
+            }
+            assert_eq!(cost.buffers_grown, arrays, "{outgrown:?} alone grew");
+            assert!(
+                cost.copied_bytes > 0,
+                "the old contents moved on the device"
+            );
+        }
+        assert_eq!(engine.device_differences().unwrap(), Vec::<String>::new());
+        let want = engine.raw_state().unwrap();
+        let expect_twin = twin(&engine, accumulation, want.clone(), 13);
+        engine.step(13);
+        let got = engine.raw_state().unwrap();
+        assert_eq!(bits(&got.0), bits(&expect_twin.0), "round {round}: twin");
+        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
+        if accumulation != Accumulation::AtomicFixed {
+            let r = rebuilt_steps(&engine, &model, config, &want, 13);
+            assert_eq!(
+                bits(&r.0),
+                bits(&got.0),
+                "round {round}: patched != rebuilt"
+            );
+        }
+        assert!(got.0.iter().flatten().all(|x| x.is_finite()));
+    }
 }

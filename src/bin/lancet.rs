@@ -657,13 +657,17 @@ fn print_summary(s: &RunSummary) {
         );
         println!(
             "  uploaded {} of {} layout bytes a rebuild per cut would{} ({:.2}%; at most {:.2}% \
-             in one cut); per cut p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} invariant checks, \
+             in one cut); passes rebuilt at {} cuts, {} buffers grown ({} bytes copied on the \
+             device); per cut p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} invariant checks, \
              {} violations; lowest tet quality {:.3} (uncut {:.3}, floor {})",
             c.bytes_uploaded,
             c.bytes_full,
             rebuilt(c.bytes_rebuild),
             100.0 * c.bytes_uploaded as f64 / c.bytes_full.max(1) as f64,
             100.0 * c.max_upload_fraction,
+            c.passes_rebuilt,
+            c.buffers_grown,
+            c.bytes_copied,
             c.p50_ms,
             c.p99_ms,
             c.max_ms,
@@ -678,7 +682,7 @@ fn print_summary(s: &RunSummary) {
         for e in c.events.iter().take(SHOWN) {
             println!(
                 "  cut at step {} by {}: {} tets touched ({} removed), {} nodes added, {} springs \
-                 touched, {} of {} layout bytes uploaded{}, {:.3} ms",
+                 touched, {} of {} layout bytes uploaded{}{}, {:.3} ms",
                 e.step,
                 e.blade,
                 e.tets_touched,
@@ -688,6 +692,7 @@ fn print_summary(s: &RunSummary) {
                 e.bytes_uploaded,
                 e.layout_bytes,
                 rebuilt(e.rebuild_bytes),
+                patched(e),
                 e.ms
             );
         }
@@ -728,6 +733,22 @@ fn print_summary(s: &RunSummary) {
 }
 
 /// What part of an upload rebuilt the engine at a new time step, for the cut lines.
+/// How a cut's patch met buffers without room: ", passes rebuilt", ", 1 buffer grown (N
+/// bytes copied on the device)", or nothing.
+fn patched(e: &lancet::scene::cuts::CutEvent) -> String {
+    if e.passes_rebuilt {
+        ", passes rebuilt".into()
+    } else if e.buffers_grown > 0 {
+        let s = if e.buffers_grown == 1 { "" } else { "s" };
+        format!(
+            ", {} buffer{s} grown ({} bytes copied on the device)",
+            e.buffers_grown, e.bytes_copied
+        )
+    } else {
+        String::new()
+    }
+}
+
 fn rebuilt(bytes: u64) -> String {
     if bytes == 0 {
         String::new()
@@ -889,14 +910,14 @@ fn bench_cut(
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>8} {:>9} {:>9} {:>5} {:>5}",
-        "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes", "cut",
-        "apply", "surf", "bytes/cut", "% lay", "nodes/cm2", "dt before", "dt after", "floor",
-        "min q"
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}",
+        "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes",
+        "cut", "apply", "surf", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
+        "dt after", "floor", "min q"
     );
     for (r, engine) in rows.iter().zip(&labels) {
         println!(
-            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -912,6 +933,8 @@ fn bench_cut(
             r.surface_ms,
             r.bytes_per_cut,
             100.0 * r.bytes_per_cut / r.layout_bytes.max(1) as f64,
+            r.passes_rebuilt,
+            r.buffers_grown,
             r.nodes_per_cm2,
             r.dt_before,
             r.dt_after,

@@ -225,11 +225,16 @@ pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) 
 pub struct PatchCost {
     /// Bytes of layout data written to the device (all of it for a rebuilt engine).
     pub uploaded_bytes: u64,
+    /// Bytes copied on the device from buffers that outgrew their room into their larger
+    /// successors: moved, not uploaded, so not in `uploaded_bytes`.
+    pub copied_bytes: u64,
+    /// Layout buffers replaced by larger ones while the passes kept their pipelines.
+    pub buffers_grown: usize,
     /// Bytes of layout data in all (a full upload would write this much).
     pub layout_bytes: u64,
     /// Node states moved or cleared.
     pub state_moves: usize,
-    /// Whether buffers were reallocated (or the engine rebuilt) and uploaded whole.
+    /// Whether the passes (or the engine) were rebuilt and the layout uploaded whole.
     pub reallocated: bool,
 }
 
@@ -697,6 +702,8 @@ impl Simulation {
                 self.engine = engine;
                 PatchCost {
                     uploaded_bytes: memory.stats.total,
+                    copied_bytes: 0,
+                    buffers_grown: 0,
                     layout_bytes: memory.stats.total,
                     state_moves: diff.added_nodes.len(),
                     reallocated: true,
@@ -849,6 +856,8 @@ impl Simulation {
         self.reset_energy_reference();
         Ok(PatchCost {
             uploaded_bytes: total,
+            copied_bytes: 0,
+            buffers_grown: 0,
             layout_bytes: total,
             state_moves: 0,
             reallocated: true,

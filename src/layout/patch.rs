@@ -4,7 +4,8 @@
 //! Every layout's `patch(model_after, diff)` edits its CPU arrays in place so that they equal
 //! a from-scratch packing of the changed model in the same arrangement (same node order, same
 //! capacities), and returns a [`LayoutPatch`]. The GPU engine writes only the dirty ranges; an
-//! array that outgrew its device buffer is reallocated by size class and uploaded whole.
+//! array that outgrew its device buffer moves to a buffer of the next size class (its old
+//! contents copied on the device, then its dirty ranges and new tail written).
 
 use std::ops::Range;
 

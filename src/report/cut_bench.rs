@@ -58,6 +58,10 @@ pub struct CutRow {
     pub bytes_per_cut: f64,
     /// Bytes of the whole layout (a rebuild would upload this much per cut).
     pub layout_bytes: u64,
+    /// Cut events whose patch rebuilt the engine's passes and uploaded the layout whole.
+    pub passes_rebuilt: usize,
+    /// Layout buffers grown by patches (replaced by larger ones, the passes kept).
+    pub buffers_grown: usize,
     /// Cut area, cm^2.
     pub area_cm2: f64,
     /// Nodes added per cm^2 of cut.
@@ -243,6 +247,7 @@ fn one(
     let mut nodes_read = Vec::new();
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
+    let (mut passes_rebuilt, mut buffers_grown) = (0, 0);
     let planes = incision_planes(n);
     for y in planes.iter().map(|y| y * h) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
@@ -271,6 +276,8 @@ fn one(
             surface.push((t4 - t3).as_secs_f64() * 1e3);
             bytes += cost.uploaded_bytes;
             layout_bytes = cost.layout_bytes;
+            passes_rebuilt += cost.reallocated as usize;
+            buffers_grown += cost.buffers_grown;
             added += outcome.nodes_added;
             removed += outcome.tets_removed;
             springs +=
@@ -305,6 +312,8 @@ fn one(
         surface_ms: median(surface),
         bytes_per_cut: bytes as f64 / cuts.max(1) as f64,
         layout_bytes,
+        passes_rebuilt,
+        buffers_grown,
         area_cm2,
         nodes_per_cm2: added as f64 / area_cm2,
         springs_per_cm2: springs as f64 / area_cm2,

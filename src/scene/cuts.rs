@@ -87,6 +87,13 @@ pub struct CutEvent {
     /// Bytes the engine rebuilt at a lowered time step uploaded (all its memory: layout and
     /// state; policy `Substep`), included in `bytes_uploaded`; 0 when it was not rebuilt.
     pub rebuild_bytes: u64,
+    /// Whether the patch rebuilt the engine's passes and uploaded the layout whole (a repack,
+    /// or node state outgrowing its buffers).
+    pub passes_rebuilt: bool,
+    /// Layout buffers the patch replaced by larger ones, the passes kept.
+    pub buffers_grown: usize,
+    /// Bytes those grown buffers took over on the device (copied, not uploaded).
+    pub bytes_copied: u64,
     /// The stable bound this cut lowered below the time step, and what the policy did about
     /// it; `None` when the bound stayed at or above the step.
     pub time_step: Option<TimeStepChange>,
@@ -142,6 +149,12 @@ pub struct CutReport {
     pub bytes_full: u64,
     /// Of `bytes_uploaded`, the bytes of engine rebuilds at a new time step (`Substep`).
     pub bytes_rebuild: u64,
+    /// Cuts whose patch rebuilt the engine's passes and uploaded the layout whole.
+    pub passes_rebuilt: usize,
+    /// Layout buffers grown by patches (replaced by larger ones, the passes kept).
+    pub buffers_grown: usize,
+    /// Bytes grown buffers took over on the device (copied, not uploaded).
+    pub bytes_copied: u64,
     /// Largest fraction of the layout one cut uploaded (above 1 for a cut after which the
     /// engine was rebuilt at a new time step).
     pub max_upload_fraction: f64,
@@ -330,6 +343,9 @@ impl CutStage {
                 bytes_uploaded: uploaded,
                 layout_bytes: cost.layout_bytes,
                 rebuild_bytes: applied.rebuild_bytes,
+                passes_rebuilt: cost.reallocated,
+                buffers_grown: cost.buffers_grown,
+                bytes_copied: cost.copied_bytes,
                 time_step: applied.time_step,
                 ms: 1e3 * seconds,
             });
@@ -341,6 +357,9 @@ impl CutStage {
             r.bytes_uploaded += uploaded;
             r.bytes_full += cost.layout_bytes;
             r.bytes_rebuild += applied.rebuild_bytes;
+            r.passes_rebuilt += cost.reallocated as usize;
+            r.buffers_grown += cost.buffers_grown;
+            r.bytes_copied += cost.copied_bytes;
             r.max_upload_fraction = r
                 .max_upload_fraction
                 .max(uploaded as f64 / cost.layout_bytes.max(1) as f64);

@@ -335,3 +335,52 @@ pub fn join_nearest(model: &PackedModel, a: u32, k: usize) -> lancet::model::Mod
         ..ModelDiff::default()
     }
 }
+
+/// A diff adding `n` nodes joined in a ring only to each other, each to the next `reach` nodes
+/// along it (valence `2 * reach`; `n > 2 * reach`): every array a layout uploads grows with `n`
+/// (rows, slots, springs, incidence), at rates set by `reach`, while no existing node's row
+/// changes. Each new node starts from the state of an existing one.
+pub fn floating_ring(model: &PackedModel, n: usize, reach: usize) -> lancet::model::ModelDiff {
+    use lancet::model::{AddedNode, ModelDiff, PackedSpring};
+    assert!(
+        n > 2 * reach,
+        "a ring of {n} nodes cannot join each to the next {reach}"
+    );
+    let before = model.node_count();
+    let rest = |k: usize| {
+        let r = model.rest[k % before];
+        [r[0] + 0.1, r[1], r[2]]
+    };
+    let added_nodes = (0..n)
+        .map(|k| AddedNode {
+            key: model.node_keys[0],
+            rest: rest(k),
+            mass: 1e-4,
+            fixed: false,
+            state_from: Some((k % before) as u32),
+            blend: None,
+        })
+        .collect();
+    let mut added_springs: Vec<PackedSpring> = (0..n)
+        .flat_map(|k| (1..=reach).map(move |j| (k, (k + j) % n)))
+        .map(|(a, b)| {
+            let length = (0..3)
+                .map(|c| (rest(a)[c] - rest(b)[c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let (a, b) = ((before + a) as u32, (before + b) as u32);
+            PackedSpring {
+                nodes: [a.min(b), a.max(b)],
+                rest_length: length,
+                stiffness: 50.0,
+                damping: 0.01,
+            }
+        })
+        .collect();
+    added_springs.sort_by_key(|s| s.nodes);
+    ModelDiff {
+        added_nodes,
+        added_springs,
+        ..ModelDiff::default()
+    }
+}

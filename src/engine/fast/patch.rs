@@ -229,6 +229,8 @@ impl FastEngine {
         }
         Some(PatchCost {
             uploaded_bytes: written,
+            copied_bytes: 0,
+            buffers_grown: 0,
             layout_bytes,
             state_moves: diff.added_nodes.len(),
             reallocated,

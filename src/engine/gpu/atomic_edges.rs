@@ -7,6 +7,7 @@
 use wgpu::util::DeviceExt;
 
 use super::buffers::{self, Sizing};
+use super::layout_buffers::{self, LayoutBuffers};
 use super::springs_edges::upload;
 use super::{GpuContext, NodeState};
 use crate::error::{Error, Result};
@@ -40,6 +41,10 @@ pub struct AtomicEdgePasses {
     overflow: Option<wgpu::Buffer>,
     /// Springs, inverse masses, accumulators, fixed-point constants, overflow flag.
     buffers: [wgpu::Buffer; 5],
+    /// Bind-group layouts of the accumulating and the integrating pass.
+    layouts: [wgpu::BindGroupLayout; 2],
+    /// The fixed-point variant (binds the constants and the overflow flag).
+    fixed: bool,
 }
 
 impl AtomicEdgePasses {
@@ -79,18 +84,20 @@ impl AtomicEdgePasses {
             }
         };
         let d = &ctx.device;
-        let springs = upload(ctx, "edge springs", &layout.springs, sizing)?;
-        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass, sizing)?;
-        // Three accumulators for every node the mass buffer has room for.
-        let acc_bytes = inv_mass.size() / 4 * 12;
-        buffers::check_binding(ctx, "accumulators", acc_bytes)?;
-        // Created zeroed; the node pass leaves them zero after every step.
-        let acc = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accumulators"),
-            size: acc_bytes,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
+        let label = |a| layout_buffers::label(a);
+        let springs = upload(
+            ctx,
+            label(LayoutArray::EdgeSprings),
+            &layout.springs,
+            sizing,
+        )?;
+        let inv_mass = upload(
+            ctx,
+            label(LayoutArray::InvMass),
+            &layout.nodes.inv_mass,
+            sizing,
+        )?;
+        let acc = accumulators(ctx, &inv_mass)?;
         let fx = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("fixed-point constants"),
             contents: bytemuck::bytes_of(&fp),
@@ -153,50 +160,6 @@ impl AtomicEdgePasses {
             label: Some("integrate_edges"),
             entries: &integrate_entries,
         });
-        let bind_groups = (0..state.phases())
-            .map(|phase| {
-                let b = state.bindings(phase);
-                let (a, i) = if fixed {
-                    (
-                        vec![uniform, &springs, b.second_in, b.cur, &acc, &fx, &overflow],
-                        vec![
-                            uniform,
-                            &fx,
-                            &acc,
-                            &inv_mass,
-                            b.second_in,
-                            b.cur,
-                            b.next,
-                            b.second_out,
-                        ],
-                    )
-                } else {
-                    (
-                        vec![uniform, &springs, b.second_in, b.cur, &acc],
-                        vec![
-                            uniform,
-                            &acc,
-                            &inv_mass,
-                            b.second_in,
-                            b.cur,
-                            b.next,
-                            b.second_out,
-                        ],
-                    )
-                };
-                let accumulate = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("accumulate_edges"),
-                    layout: &accumulate_layout,
-                    entries: &buffers::entries(&a),
-                });
-                let integrate = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("integrate_edges"),
-                    layout: &integrate_layout,
-                    entries: &buffers::entries(&i),
-                });
-                (accumulate, integrate)
-            })
-            .collect();
         let (a_src, i_src, a_name, i_name) = if fixed {
             (
                 ACCUMULATE_FIXED,
@@ -212,24 +175,19 @@ impl AtomicEdgePasses {
                 "integrate_float",
             )
         };
-        Ok(AtomicEdgePasses {
+        let mut passes = AtomicEdgePasses {
             passes: super::springs_edges::SpringThenNode {
                 springs: buffers::compute_pipeline(ctx, a_name, a_src, &[&accumulate_layout])?,
                 nodes: buffers::compute_pipeline(ctx, i_name, i_src, &[&integrate_layout])?,
-                bind_groups,
+                bind_groups: Vec::new(),
             },
             overflow: fixed.then(|| overflow.clone()),
             buffers: [springs, inv_mass, acc, fx, overflow],
-        })
-    }
-
-    /// The device buffer of a layout array, if this pass holds it.
-    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        match array {
-            LayoutArray::EdgeSprings => Some(&self.buffers[0]),
-            LayoutArray::InvMass => Some(&self.buffers[1]),
-            _ => None,
-        }
+            layouts: [accumulate_layout, integrate_layout],
+            fixed,
+        };
+        passes.rebind(ctx, uniform, state)?;
+        Ok(passes)
     }
 
     /// Replace the fixed-point constants (after a patch raised the largest valence past what
@@ -259,5 +217,97 @@ impl AtomicEdgePasses {
                 .iter()
                 .any(|v| v.iter().any(|x| x.to_bits() != 0))),
         }
+    }
+}
+
+/// Three accumulators for every node the mass buffer has room for, created zeroed (the node pass
+/// leaves them zero after every step).
+fn accumulators(ctx: &GpuContext, inv_mass: &wgpu::Buffer) -> Result<wgpu::Buffer> {
+    let acc_bytes = inv_mass.size() / 4 * 12;
+    buffers::check_binding(ctx, "accumulators", acc_bytes)?;
+    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("accumulators"),
+        size: acc_bytes,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    }))
+}
+
+impl LayoutBuffers for AtomicEdgePasses {
+    fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        Some(&self.buffers[atomic_buffer_index(array)?])
+    }
+
+    fn buffer_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
+        Some(&mut self.buffers[atomic_buffer_index(array)?])
+    }
+
+    fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) -> Result<()> {
+        let d = &ctx.device;
+        // Grown masses: accumulators for all the nodes they have room for.
+        if self.buffers[2].size() < self.buffers[1].size() / 4 * 12 {
+            self.buffers[2] = accumulators(ctx, &self.buffers[1])?;
+        }
+        let [springs, inv_mass, acc, fx, overflow] = &self.buffers;
+        let [accumulate_layout, integrate_layout] = &self.layouts;
+        self.passes.bind_groups = (0..state.phases())
+            .map(|phase| {
+                let b = state.bindings(phase);
+                let (a, i) = if self.fixed {
+                    (
+                        vec![uniform, springs, b.second_in, b.cur, acc, fx, overflow],
+                        vec![
+                            uniform,
+                            fx,
+                            acc,
+                            inv_mass,
+                            b.second_in,
+                            b.cur,
+                            b.next,
+                            b.second_out,
+                        ],
+                    )
+                } else {
+                    (
+                        vec![uniform, springs, b.second_in, b.cur, acc],
+                        vec![
+                            uniform,
+                            acc,
+                            inv_mass,
+                            b.second_in,
+                            b.cur,
+                            b.next,
+                            b.second_out,
+                        ],
+                    )
+                };
+                let accumulate = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("accumulate_edges"),
+                    layout: accumulate_layout,
+                    entries: &buffers::entries(&a),
+                });
+                let integrate = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("integrate_edges"),
+                    layout: integrate_layout,
+                    entries: &buffers::entries(&i),
+                });
+                (accumulate, integrate)
+            })
+            .collect();
+        Ok(())
+    }
+}
+
+/// Where [`AtomicEdgePasses`] keeps the buffer of a layout array.
+fn atomic_buffer_index(array: LayoutArray) -> Option<usize> {
+    match array {
+        LayoutArray::EdgeSprings => Some(0),
+        LayoutArray::InvMass => Some(1),
+        _ => None,
     }
 }

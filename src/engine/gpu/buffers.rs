@@ -158,22 +158,106 @@ pub fn storage_buffer(
     data: &[u8],
     sizing: Sizing,
 ) -> Result<wgpu::Buffer> {
-    let size = sizing.size(ctx, data.len() as u64).next_multiple_of(4);
-    check_binding(ctx, label, size)?;
-    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    let buffer = zeroed_storage(ctx, label, data.len() as u64, sizing)?;
     // New buffers are zeroed; the data (a whole number of 4-byte words) lands before the next
     // submission.
     if !data.is_empty() {
         ctx.queue.write_buffer(&buffer, 0, data);
     }
     Ok(buffer)
+}
+
+/// A zeroed storage buffer with room for `bytes` by `sizing`, a copy source and destination
+/// (patches write it in place, a grown successor copies from it).
+fn zeroed_storage(
+    ctx: &GpuContext,
+    label: &str,
+    bytes: u64,
+    sizing: Sizing,
+) -> Result<wgpu::Buffer> {
+    let size = sizing.size(ctx, bytes).next_multiple_of(4);
+    check_binding(ctx, label, size)?;
+    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    }))
+}
+
+/// What replacing a buffer by a larger one cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Growth {
+    /// Bytes written from the host.
+    pub uploaded: u64,
+    /// Bytes copied from the old buffer to the new one on the device.
+    pub copied: u64,
+}
+
+impl std::ops::AddAssign for Growth {
+    fn add_assign(&mut self, o: Growth) {
+        self.uploaded += o.uploaded;
+        self.copied += o.copied;
+    }
+}
+
+/// A buffer of the next size class holding `data`, to replace `old`, which `data` outgrew and
+/// which holds `data` as it was before a patch: equal outside the byte ranges `dirty`
+/// (ascending, 4-byte aligned) up to the old array's end, and nothing yet past it. Either the
+/// old contents are copied on the device and only the dirty ranges and the bytes past the old
+/// buffer are written, or, where that would upload as much (a rewrite of the whole array),
+/// `data` is written whole.
+pub fn grown(
+    ctx: &GpuContext,
+    label: &str,
+    old: &wgpu::Buffer,
+    data: &[u8],
+    dirty: &[std::ops::Range<u64>],
+) -> Result<(wgpu::Buffer, Growth)> {
+    let len = data.len() as u64;
+    // Bytes the device may keep: the old buffer, cut to the new array.
+    let keep = old.size().min(len);
+    let inside = |r: &std::ops::Range<u64>| r.start..r.end.min(keep);
+    let stale: u64 = dirty
+        .iter()
+        .map(|r| inside(r).end.saturating_sub(r.start))
+        .sum();
+    if stale + (len - keep) >= len {
+        let buffer = storage_buffer(ctx, label, data, Sizing::SizeClass)?;
+        return Ok((
+            buffer,
+            Growth {
+                uploaded: len,
+                copied: 0,
+            },
+        ));
+    }
+    let buffer = zeroed_storage(ctx, label, len, Sizing::SizeClass)?;
+    let mut enc = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("grow buffer"),
+        });
+    enc.copy_buffer_to_buffer(old, 0, &buffer, 0, keep);
+    // Queue writes land at the start of the next submission: after this copy.
+    ctx.queue.submit([enc.finish()]);
+    for r in dirty.iter().map(inside).filter(|r| r.start < r.end) {
+        ctx.queue
+            .write_buffer(&buffer, r.start, &data[r.start as usize..r.end as usize]);
+    }
+    if keep < len {
+        ctx.queue
+            .write_buffer(&buffer, keep, &data[keep as usize..]);
+    }
+    Ok((
+        buffer,
+        Growth {
+            uploaded: stale + (len - keep),
+            copied: keep,
+        },
+    ))
 }
 
 /// Bring `buffer` (whose contents are `host`) to `data`, writing only the runs of elements that

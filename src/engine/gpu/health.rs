@@ -80,6 +80,7 @@ pub fn health_cpu(
 /// The pass with its output buffers and one bind group per rotation phase.
 pub struct HealthPass {
     pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
     bind_groups: Vec<wgpu::BindGroup>,
     partials: wgpu::Buffer,
     first_bad: wgpu::Buffer,
@@ -95,7 +96,6 @@ impl HealthPass {
         state: &NodeState,
         groups: u32,
     ) -> Result<Self> {
-        let d = &ctx.device;
         let partials = buffers::storage_buffer(
             ctx,
             "health partials",
@@ -104,30 +104,44 @@ impl HealthPass {
         )?;
         let first_bad = buffers::storage_buffer(ctx, "first bad node", &[0u8; 4], Sizing::Exact)?;
         let layout = buffers::pass_layout(ctx, "health", &[true, true, true, false, false]);
-        let bind_groups = (0..state.phases())
+        let pipeline = buffers::compute_pipeline(ctx, "health", SOURCE, &[&layout])?;
+        let mut pass = HealthPass {
+            pipeline,
+            layout,
+            bind_groups: Vec::new(),
+            partials,
+            first_bad,
+        };
+        pass.rebind(ctx, inv_mass, uniform, state);
+        Ok(pass)
+    }
+
+    /// Bind the pass to `inv_mass`, `uniform` and the node state afresh, keeping its pipeline
+    /// and outputs (after a patch replaced the mass buffer by a larger one).
+    pub fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        inv_mass: &wgpu::Buffer,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) {
+        self.bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
-                d.create_bind_group(&wgpu::BindGroupDescriptor {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("health"),
-                    layout: &layout,
+                    layout: &self.layout,
                     entries: &buffers::entries(&[
                         uniform,
                         inv_mass,
                         b.second_in,
                         b.cur,
-                        &partials,
-                        &first_bad,
+                        &self.partials,
+                        &self.first_bad,
                     ]),
                 })
             })
             .collect();
-        let pipeline = buffers::compute_pipeline(ctx, "health", SOURCE, &[&layout])?;
-        Ok(HealthPass {
-            pipeline,
-            bind_groups,
-            partials,
-            first_bad,
-        })
     }
 
     /// Whether the pass has room for a node dispatch of `groups` workgroups.

@@ -15,6 +15,7 @@ pub mod broad_tool;
 pub mod buffers;
 pub mod context;
 pub mod health;
+pub mod layout_buffers;
 pub mod node_gather;
 pub mod nodes_near;
 pub mod springs_connectivity;
@@ -31,10 +32,11 @@ use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::connectivity::StepParams;
 use crate::layout::edges::{Accumulation, FixedPoint};
-use crate::layout::patch::{LayoutArray, StateMove};
+use crate::layout::patch::{Dirty, LayoutArray, StateMove};
 use crate::layout::{LayoutKind, NodeOrder, PackedLayout};
 use crate::model::{ModelDiff, PackedModel};
-use buffers::Sizing;
+use buffers::{Growth, Sizing};
+use layout_buffers::LayoutBuffers;
 
 /// Per-step constants; mirrors `struct Params` in `shaders/common.wgsl` (64 bytes).
 #[repr(C)]
@@ -247,14 +249,29 @@ enum Passes {
 }
 
 impl Passes {
+    /// The layout buffers of the chosen passes.
+    fn layout_buffers(&self) -> &dyn LayoutBuffers {
+        match self {
+            Passes::Connectivity(p) => &p.gather,
+            Passes::Valence(p) => &p.gather,
+            Passes::Edges(p) => p,
+            Passes::AtomicEdges(p) => p,
+        }
+    }
+
+    /// The same, to grow.
+    fn layout_buffers_mut(&mut self) -> &mut dyn LayoutBuffers {
+        match self {
+            Passes::Connectivity(p) => &mut p.gather,
+            Passes::Valence(p) => &mut p.gather,
+            Passes::Edges(p) => p,
+            Passes::AtomicEdges(p) => p,
+        }
+    }
+
     /// The device buffer of a layout array.
     fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        match self {
-            Passes::Connectivity(p) => p.gather.buffer(array),
-            Passes::Valence(p) => p.gather.buffer(array),
-            Passes::Edges(p) => p.buffer(array),
-            Passes::AtomicEdges(p) => p.buffer(array),
-        }
+        self.layout_buffers().buffer(array)
     }
 }
 
@@ -429,6 +446,16 @@ impl GpuEngine {
         })
     }
 
+    /// Bytes of the device buffer holding `array` (the room it has), where the passes hold one.
+    pub fn buffer_size(&self, array: LayoutArray) -> Option<u64> {
+        self.passes.buffer(array).map(|b| b.size())
+    }
+
+    /// Node states the state buffers have room for.
+    pub fn state_capacity(&self) -> usize {
+        self.state.capacity()
+    }
+
     /// Where the device's copy of the layout differs from the layout on the CPU (each array
     /// read back whole): empty when every uploaded byte is what the layout holds.
     pub fn device_differences(&self) -> Result<Vec<String>> {
@@ -510,7 +537,10 @@ impl GpuEngine {
     /// (the model after it, see [`PackedModel::apply`]). The layout is patched on the CPU and
     /// only its dirty byte ranges are written to the device; node state moves on the device
     /// (new nodes start from the state of the node they copy, or at rest). A buffer that
-    /// outgrows its room is reallocated by size class and uploaded whole.
+    /// outgrows its room is replaced by one of the next size class, its old contents copied on
+    /// the device, and rebound; the passes keep their pipelines. Only a repack of a
+    /// node-centric layout or node state outgrowing its buffers rebuilds the passes and
+    /// uploads the layout whole.
     ///
     /// On an error (a diff that does not match the model) the engine is left inconsistent:
     /// build a new one.
@@ -527,64 +557,32 @@ impl GpuEngine {
         debug_assert_eq!(self.fixed, model.fixed);
         let slots = self.layout.node_slots();
         // An edge-layout compaction rewrites only its two incidence arrays, both marked dirty
-        // whole: written in place like any dirty range while they fit, it keeps the passes and
-        // their pipelines. A repack of the node-centric layouts rebuilds them.
-        let mut realloc = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
+        // whole: written in place like any dirty range (or grown like any array), it keeps the
+        // passes and their pipelines. A repack of the node-centric layouts rebuilds them.
+        let mut rebuild = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
         if slots > self.state.capacity() {
             self.state = self.state.grown(&self.ctx, slots)?;
-            realloc = true;
+            rebuild = true;
         }
-        for a in LayoutArray::ALL {
-            let bytes = self.layout.array(a).len() as u64;
-            if let Some(buf) = self.passes.buffer(a) {
-                realloc |= bytes > buf.size();
-            }
-        }
-        if let (PackedLayout::Edges(e), Accumulation::AtomicFixed) =
-            (&self.layout, self.config.accumulation)
-        {
-            let fp = e.fixed_point(model);
-            // Re-quantize only when the larger valence could wrap an accumulator: keeping the
-            // constants keeps the step bit-identical to before the patch otherwise.
-            if fp.limit < self.fixed_point.limit {
-                self.fixed_point = fp;
-                if let Passes::AtomicEdges(p) = &self.passes {
-                    p.set_fixed_point(&self.ctx, &fp);
-                }
-            }
-        }
+        self.update_fixed_point(model);
         self.dispatch = Dispatch::new(&self.ctx, slots as u32, spring_records(&self.layout));
         self.uniform_data = constants(self.uniform_data, &self.layout, self.dispatch);
         self.ctx
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.uniform_data));
-        let mut uploaded = 0u64;
-        if !realloc {
-            for d in &patch.dirty {
-                let Some(buf) = self.passes.buffer(d.array) else {
-                    continue;
-                };
-                let data =
-                    &self.layout.array(d.array)[d.bytes.start as usize..d.bytes.end as usize];
-                self.ctx.queue.write_buffer(buf, d.bytes.start, data);
-                uploaded += data.len() as u64;
-            }
-            if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&mut self.passes, &self.layout)
-            {
-                if patch.dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
-                    if p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row) {
-                        uploaded += v.buckets.len() as u64 * 16;
-                    } else {
-                        realloc = true;
-                    }
-                }
-            }
-        }
         let layout_bytes: u64 = LayoutArray::ALL
             .iter()
             .map(|&a| self.layout.array(a).len() as u64)
             .sum();
-        if realloc {
+        let mut cost = PatchCost {
+            uploaded_bytes: layout_bytes,
+            copied_bytes: 0,
+            buffers_grown: 0,
+            layout_bytes,
+            state_moves: patch.moves.len(),
+            reallocated: rebuild,
+        };
+        if rebuild {
             self.passes = build_passes(
                 &self.ctx,
                 &self.layout,
@@ -595,10 +593,16 @@ impl GpuEngine {
                 self.fixed_point,
                 Sizing::SizeClass,
             )?;
-            uploaded = layout_bytes;
+        } else {
+            let grown = self.outgrown();
+            let growth = self.grow(&grown, &patch.dirty)?;
+            let (written, tables) = self.write_dirty(&patch.dirty, &grown);
+            cost.uploaded_bytes = growth.uploaded + written;
+            cost.copied_bytes = growth.copied;
+            cost.buffers_grown = grown.len() + tables;
         }
-        // Rebound to new buffers, or grown with the node dispatch.
-        if realloc || !self.health.fits(self.dispatch.nodes) {
+        if rebuild || !self.health.fits(self.dispatch.nodes) {
+            // Bound to new buffers, or grown with the node dispatch.
             self.health = health_pass(
                 &self.ctx,
                 &self.passes,
@@ -606,18 +610,93 @@ impl GpuEngine {
                 &self.state,
                 self.dispatch,
             )?;
+        } else if cost.buffers_grown > 0 {
+            // The mass buffer may be a new one: the probe keeps its pipeline.
+            let inv_mass = self
+                .passes
+                .buffer(LayoutArray::InvMass)
+                .expect("every layout uploads inverse masses");
+            self.health
+                .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
         }
         self.state
             .apply_moves(&self.ctx, &patch.moves, &self.blend)?;
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
-        self.note_surface_moves(&patch.moves, realloc || patch.repacked);
-        Ok(PatchCost {
-            uploaded_bytes: uploaded,
-            layout_bytes,
-            state_moves: patch.moves.len(),
-            reallocated: realloc,
-        })
+        self.note_surface_moves(&patch.moves, rebuild || patch.repacked);
+        Ok(cost)
+    }
+
+    /// Re-quantize the fixed-point accumulation (edge layout, atomic fixed point) only when the
+    /// patched model's larger valence could wrap an accumulator: keeping the constants keeps
+    /// the step bit-identical to before the patch otherwise.
+    fn update_fixed_point(&mut self, model: &PackedModel) {
+        if let (PackedLayout::Edges(e), Accumulation::AtomicFixed) =
+            (&self.layout, self.config.accumulation)
+        {
+            let fp = e.fixed_point(model);
+            if fp.limit < self.fixed_point.limit {
+                self.fixed_point = fp;
+                if let Passes::AtomicEdges(p) = &self.passes {
+                    p.set_fixed_point(&self.ctx, &fp);
+                }
+            }
+        }
+    }
+
+    /// The layout arrays that outgrew their device buffers.
+    fn outgrown(&self) -> Vec<LayoutArray> {
+        LayoutArray::ALL
+            .into_iter()
+            .filter(|&a| {
+                self.passes
+                    .buffer(a)
+                    .is_some_and(|b| self.layout.array(a).len() as u64 > b.size())
+            })
+            .collect()
+    }
+
+    /// Replace the buffers of `arrays` by larger ones holding the patched arrays (`dirty`: the
+    /// patch's ranges), rebinding the passes that use them.
+    fn grow(&mut self, arrays: &[LayoutArray], dirty: &[Dirty]) -> Result<Growth> {
+        let grown: Vec<_> = arrays
+            .iter()
+            .map(|&array| layout_buffers::Outgrown {
+                array,
+                data: self.layout.array(array),
+                dirty: dirty
+                    .iter()
+                    .filter(|d| d.array == array)
+                    .map(|d| d.bytes.clone())
+                    .collect(),
+            })
+            .collect();
+        self.passes
+            .layout_buffers_mut()
+            .grow(&self.ctx, &grown, &self.uniform, &self.state)
+    }
+
+    /// Write the dirty ranges of every array but those in `skip` (grown: already written) in
+    /// place, and the valence bucket table when it changed. Returns the bytes written and how
+    /// many tables outgrew their buffers on the way (the bucket table grows as it is written).
+    fn write_dirty(&mut self, dirty: &[Dirty], skip: &[LayoutArray]) -> (u64, usize) {
+        let mut written = 0u64;
+        for d in dirty.iter().filter(|d| !skip.contains(&d.array)) {
+            let Some(buf) = self.passes.buffer(d.array) else {
+                continue;
+            };
+            let data = &self.layout.array(d.array)[d.bytes.start as usize..d.bytes.end as usize];
+            self.ctx.queue.write_buffer(buf, d.bytes.start, data);
+            written += data.len() as u64;
+        }
+        let mut grown = 0;
+        if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&mut self.passes, &self.layout) {
+            if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
+                grown += p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row) as usize;
+                written += v.buckets.len() as u64 * 16;
+            }
+        }
+        (written, grown)
     }
 
     /// Give the engine the tissue's boundary triangles (dense model indices, as

@@ -2,6 +2,7 @@
 //! group-0 bindings of `shaders/node_gather.wgsl`, one bind group per rotation phase.
 
 use super::buffers::{self, Sizing};
+use super::layout_buffers::{self, LayoutBuffers};
 use super::{GpuContext, NodeState};
 use crate::error::Result;
 use crate::layout::patch::LayoutArray;
@@ -13,6 +14,7 @@ pub struct NodeGather {
     pub layout: wgpu::BindGroupLayout,
     /// One bind group per rotation phase of the node state.
     pub bind_groups: Vec<wgpu::BindGroup>,
+    label: &'static str,
     slots: wgpu::Buffer,
     inv_mass: wgpu::Buffer,
 }
@@ -21,33 +23,72 @@ impl NodeGather {
     /// Upload `slots` and `inv_mass` and bind them with the step constants and node state.
     pub fn new(
         ctx: &GpuContext,
-        label: &str,
+        label: &'static str,
         slots: &[Slot],
         inv_mass: &[f32],
         uniform: &wgpu::Buffer,
         state: &NodeState,
         sizing: Sizing,
     ) -> Result<Self> {
-        let d = &ctx.device;
-        let slots = buffers::storage_buffer(ctx, "slots", bytemuck::cast_slice(slots), sizing)?;
+        let slots = buffers::storage_buffer(
+            ctx,
+            layout_buffers::label(LayoutArray::Slots),
+            bytemuck::cast_slice(slots),
+            sizing,
+        )?;
         let inv_mass = buffers::storage_buffer(
             ctx,
-            "inverse masses",
+            layout_buffers::label(LayoutArray::InvMass),
             bytemuck::cast_slice(inv_mass),
             sizing,
         )?;
         // slots, masses, second state, current (read); next, second out (written).
         let layout = buffers::pass_layout(ctx, label, &[true, true, true, true, false, false]);
-        let bind_groups = (0..state.phases())
+        let mut gather = NodeGather {
+            layout,
+            bind_groups: Vec::new(),
+            label,
+            slots,
+            inv_mass,
+        };
+        gather.rebind(ctx, uniform, state)?;
+        Ok(gather)
+    }
+}
+
+impl LayoutBuffers for NodeGather {
+    fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match array {
+            LayoutArray::Slots => Some(&self.slots),
+            LayoutArray::InvMass => Some(&self.inv_mass),
+            _ => None,
+        }
+    }
+
+    fn buffer_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
+        match array {
+            LayoutArray::Slots => Some(&mut self.slots),
+            LayoutArray::InvMass => Some(&mut self.inv_mass),
+            _ => None,
+        }
+    }
+
+    fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) -> Result<()> {
+        self.bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
-                d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some(label),
-                    layout: &layout,
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(self.label),
+                    layout: &self.layout,
                     entries: &buffers::entries(&[
                         uniform,
-                        &slots,
-                        &inv_mass,
+                        &self.slots,
+                        &self.inv_mass,
                         b.second_in,
                         b.cur,
                         b.next,
@@ -56,20 +97,6 @@ impl NodeGather {
                 })
             })
             .collect();
-        Ok(NodeGather {
-            layout,
-            bind_groups,
-            slots,
-            inv_mass,
-        })
-    }
-
-    /// The device buffer of a layout array, if this pass holds it.
-    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        match array {
-            LayoutArray::Slots => Some(&self.slots),
-            LayoutArray::InvMass => Some(&self.inv_mass),
-            _ => None,
-        }
+        Ok(())
     }
 }

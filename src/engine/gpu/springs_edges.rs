@@ -3,6 +3,7 @@
 //! pipelines, their bind-group layouts and one bind group per rotation phase are made once.
 
 use super::buffers::{self, Sizing};
+use super::layout_buffers::{self, LayoutBuffers};
 use super::{GpuContext, NodeState};
 use crate::error::Result;
 use crate::layout::edges::EdgeLayout;
@@ -23,6 +24,8 @@ pub struct EdgePasses {
     passes: SpringThenNode,
     /// Springs, incidence rows, incidence, inverse masses, forces.
     buffers: [wgpu::Buffer; 5],
+    /// Bind-group layouts of the spring pass and the gather.
+    layouts: [wgpu::BindGroupLayout; 2],
 }
 
 /// A pass over springs followed by a pass over nodes, each with one bind group per rotation
@@ -74,21 +77,32 @@ impl EdgePasses {
         state: &NodeState,
         sizing: Sizing,
     ) -> Result<Self> {
-        let d = &ctx.device;
-        let springs = upload(ctx, "edge springs", &layout.springs, sizing)?;
-        let rows = upload(ctx, "incidence rows", &layout.incidence_rows, sizing)?;
-        let incidence = upload(ctx, "incidence", &layout.incidence, sizing)?;
-        let inv_mass = upload(ctx, "inverse masses", &layout.nodes.inv_mass, sizing)?;
-        // One force per record the spring buffer can hold, so patches that fill its room
-        // need no new force buffer.
-        let force_bytes = springs.size() / 32 * 16;
-        buffers::check_binding(ctx, "spring forces", force_bytes)?;
-        let forces = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("spring forces"),
-            size: force_bytes,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
+        let label = |a| layout_buffers::label(a);
+        let springs = upload(
+            ctx,
+            label(LayoutArray::EdgeSprings),
+            &layout.springs,
+            sizing,
+        )?;
+        let rows = upload(
+            ctx,
+            label(LayoutArray::IncidenceRows),
+            &layout.incidence_rows,
+            sizing,
+        )?;
+        let incidence = upload(
+            ctx,
+            label(LayoutArray::Incidence),
+            &layout.incidence,
+            sizing,
+        )?;
+        let inv_mass = upload(
+            ctx,
+            label(LayoutArray::InvMass),
+            &layout.nodes.inv_mass,
+            sizing,
+        )?;
+        let forces = force_buffer(ctx, &springs)?;
         // springs, second state, current (read); forces (written).
         let spring_layout = buffers::pass_layout(ctx, "springs_edges", &[true, true, true, false]);
         // rows, incidence, forces, masses, second state, current (read); next, second out.
@@ -97,33 +111,7 @@ impl EdgePasses {
             "gather_edges",
             &[true, true, true, true, true, true, false, false],
         );
-        let bind_groups = (0..state.phases())
-            .map(|phase| {
-                let b = state.bindings(phase);
-                let spring = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("springs_edges"),
-                    layout: &spring_layout,
-                    entries: &buffers::entries(&[uniform, &springs, b.second_in, b.cur, &forces]),
-                });
-                let gather = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("gather_edges"),
-                    layout: &gather_layout,
-                    entries: &buffers::entries(&[
-                        uniform,
-                        &rows,
-                        &incidence,
-                        &forces,
-                        &inv_mass,
-                        b.second_in,
-                        b.cur,
-                        b.next,
-                        b.second_out,
-                    ]),
-                });
-                (spring, gather)
-            })
-            .collect();
-        Ok(EdgePasses {
+        let mut passes = EdgePasses {
             passes: SpringThenNode {
                 springs: buffers::compute_pipeline(
                     ctx,
@@ -132,22 +120,13 @@ impl EdgePasses {
                     &[&spring_layout],
                 )?,
                 nodes: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
-                bind_groups,
+                bind_groups: Vec::new(),
             },
             buffers: [springs, rows, incidence, inv_mass, forces],
-        })
-    }
-
-    /// The device buffer of a layout array, if this pass holds it.
-    pub fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        let [springs, rows, incidence, inv_mass, _] = &self.buffers;
-        match array {
-            LayoutArray::EdgeSprings => Some(springs),
-            LayoutArray::IncidenceRows => Some(rows),
-            LayoutArray::Incidence => Some(incidence),
-            LayoutArray::InvMass => Some(inv_mass),
-            _ => None,
-        }
+            layouts: [spring_layout, gather_layout],
+        };
+        passes.rebind(ctx, uniform, state)?;
+        Ok(passes)
     }
 
     /// Record one step in phase `phase`: the spring pass, then the node gather.
@@ -159,5 +138,83 @@ impl EdgePasses {
         node_groups: (u32, u32),
     ) {
         self.passes.record(pass, phase, spring_groups, node_groups);
+    }
+}
+
+/// One force per record the spring buffer can hold, so patches that fill its room need no new
+/// force buffer. Scratch: the spring pass writes every force before the gather reads it.
+fn force_buffer(ctx: &GpuContext, springs: &wgpu::Buffer) -> Result<wgpu::Buffer> {
+    let force_bytes = springs.size() / 32 * 16;
+    buffers::check_binding(ctx, "spring forces", force_bytes)?;
+    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("spring forces"),
+        size: force_bytes,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    }))
+}
+
+impl LayoutBuffers for EdgePasses {
+    fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        let i = edge_buffer_index(array)?;
+        Some(&self.buffers[i])
+    }
+
+    fn buffer_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
+        let i = edge_buffer_index(array)?;
+        Some(&mut self.buffers[i])
+    }
+
+    fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        uniform: &wgpu::Buffer,
+        state: &NodeState,
+    ) -> Result<()> {
+        let d = &ctx.device;
+        // Grown springs: forces for all the records they have room for.
+        if self.buffers[4].size() < self.buffers[0].size() / 32 * 16 {
+            self.buffers[4] = force_buffer(ctx, &self.buffers[0])?;
+        }
+        let [springs, rows, incidence, inv_mass, forces] = &self.buffers;
+        let [spring_layout, gather_layout] = &self.layouts;
+        self.passes.bind_groups = (0..state.phases())
+            .map(|phase| {
+                let b = state.bindings(phase);
+                let spring = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("springs_edges"),
+                    layout: spring_layout,
+                    entries: &buffers::entries(&[uniform, springs, b.second_in, b.cur, forces]),
+                });
+                let gather = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("gather_edges"),
+                    layout: gather_layout,
+                    entries: &buffers::entries(&[
+                        uniform,
+                        rows,
+                        incidence,
+                        forces,
+                        inv_mass,
+                        b.second_in,
+                        b.cur,
+                        b.next,
+                        b.second_out,
+                    ]),
+                });
+                (spring, gather)
+            })
+            .collect();
+        Ok(())
+    }
+}
+
+/// Where [`EdgePasses`] keeps the buffer of a layout array.
+fn edge_buffer_index(array: LayoutArray) -> Option<usize> {
+    match array {
+        LayoutArray::EdgeSprings => Some(0),
+        LayoutArray::IncidenceRows => Some(1),
+        LayoutArray::Incidence => Some(2),
+        LayoutArray::InvMass => Some(3),
+        _ => None,
     }
 }

@@ -20,6 +20,8 @@ pub struct ValencePass {
     pipeline: wgpu::ComputePipeline,
     /// The slot and mass buffers with their bind groups.
     pub gather: NodeGather,
+    /// Layout of group 1, for rebinding a grown table.
+    bucket_layout: wgpu::BindGroupLayout,
     buckets: wgpu::BindGroup,
     table: wgpu::Buffer,
     /// Per bucket: its dynamic offset and its workgroup counts.
@@ -52,22 +54,12 @@ impl ValencePass {
             state,
             sizing,
         )?;
-        let stride = bucket_stride(ctx);
         let entries = match sizing {
             Sizing::Exact => layout.buckets.len().max(1),
             // Room for the buckets the first cuts append.
             Sizing::Headroom => layout.buckets.len() + 16,
             Sizing::SizeClass => layout.buckets.len().max(1).next_power_of_two(),
         };
-        let table = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("valence buckets"),
-            size: entries as u64 * stride,
-            // Read back by checks (`read_buckets`).
-            usage: wgpu::BufferUsages::UNIFORM
-                | wgpu::BufferUsages::COPY_DST
-                | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
         let bucket_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("valence bucket"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -81,18 +73,7 @@ impl ValencePass {
                 count: None,
             }],
         });
-        let buckets = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("valence bucket"),
-            layout: &bucket_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &table,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(std::mem::size_of::<Bucket>() as u64),
-                }),
-            }],
-        });
+        let (table, buckets) = bucket_table(ctx, &bucket_layout, entries);
         let pipeline = buffers::compute_pipeline(
             ctx,
             "springs_valence",
@@ -102,6 +83,7 @@ impl ValencePass {
         let mut pass = ValencePass {
             pipeline,
             gather,
+            bucket_layout,
             buckets,
             table,
             dispatches: Vec::new(),
@@ -127,11 +109,14 @@ impl ValencePass {
     }
 
     /// Write the bucket table and recompute the dispatches (after a patch moved nodes between
-    /// buckets). False, with nothing written, if the table has no room for that many buckets.
+    /// buckets). A table without room for that many buckets is first replaced by one of the
+    /// next size class, rebound in place (the pipeline is kept). Returns whether it was.
     pub fn set_buckets(&mut self, ctx: &GpuContext, buckets: &[Bucket], row: u32) -> bool {
         let stride = bucket_stride(ctx);
-        if buckets.len() as u64 * stride > self.table.size() {
-            return false;
+        let grow = buckets.len() as u64 * stride > self.table.size();
+        if grow {
+            let entries = buckets.len().next_power_of_two();
+            (self.table, self.buckets) = bucket_table(ctx, &self.bucket_layout, entries);
         }
         let mut table = vec![0u8; (buckets.len() as u64 * stride) as usize];
         for (b, bucket) in buckets.iter().enumerate() {
@@ -152,7 +137,7 @@ impl ValencePass {
                 ((i as u64 * stride) as u32, size)
             })
             .collect();
-        true
+        grow
     }
 
     /// Record one step in phase `phase` of the state rotation: one dispatch per bucket.
@@ -164,4 +149,35 @@ impl ValencePass {
             pass.dispatch_workgroups(x, y, 1);
         }
     }
+}
+
+/// A bucket table with room for `entries` buckets (uninitialised: [`ValencePass::set_buckets`]
+/// writes it) and its bind group: one bucket at a dynamic offset.
+fn bucket_table(
+    ctx: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
+    entries: usize,
+) -> (wgpu::Buffer, wgpu::BindGroup) {
+    let table = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("valence buckets"),
+        size: entries.max(1) as u64 * bucket_stride(ctx),
+        // Read back by checks (`read_buckets`).
+        usage: wgpu::BufferUsages::UNIFORM
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("valence bucket"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &table,
+                offset: 0,
+                size: wgpu::BufferSize::new(std::mem::size_of::<Bucket>() as u64),
+            }),
+        }],
+    });
+    (table, group)
 }
