@@ -252,21 +252,13 @@ impl ToolCuller {
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             ctx.queue.write_buffer(&self.count, 0, &0u32.to_le_bytes());
-            let mut enc = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("broad_tool"),
-                });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("broad_tool"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &self.bind_groups[phase], &[]);
-                pass.dispatch_workgroups(groups.0, groups.1, 1);
-            }
-            ctx.queue.submit([enc.finish()]);
+            buffers::dispatch_once(
+                ctx,
+                "broad_tool",
+                &self.pipeline,
+                &self.bind_groups[phase],
+                groups,
+            );
             let n = u32::from_le_bytes(
                 buffers::read_bytes(ctx, &self.count, 4)?
                     .try_into()

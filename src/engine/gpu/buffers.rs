@@ -354,6 +354,30 @@ pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> 
     )?))
 }
 
+/// Submit one dispatch of `pipeline` over `groups` workgroups (x, y) with `bind_group`: the
+/// passes that run alone between steps (culling, finding nodes, the health probe).
+pub fn dispatch_once(
+    ctx: &GpuContext,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: (u32, u32),
+) {
+    let mut enc = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.dispatch_workgroups(groups.0, groups.1, 1);
+    }
+    ctx.queue.submit([enc.finish()]);
+}
+
 /// Read back the vec4 entries `indices` of `src`: each is copied next to the others on the
 /// device, so only `16 * indices.len()` bytes cross back.
 pub fn read_entries(

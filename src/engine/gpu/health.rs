@@ -166,21 +166,13 @@ impl HealthPass {
         }
         ctx.queue
             .write_buffer(&self.first_bad, 0, &u32::MAX.to_le_bytes());
-        let mut enc = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("health"),
-            });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("health"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.bind_groups[phase], &[]);
-            pass.dispatch_workgroups(groups.0, groups.1, 1);
-        }
-        ctx.queue.submit([enc.finish()]);
+        buffers::dispatch_once(
+            ctx,
+            "health",
+            &self.pipeline,
+            &self.bind_groups[phase],
+            groups,
+        );
         let raw = buffers::read_bytes(ctx, &self.partials, count * 16)?;
         let bad = buffers::read_bytes(ctx, &self.first_bad, 4)?;
         let floats: Vec<f32> = bytemuck::pod_collect_to_vec(&raw);

@@ -117,21 +117,13 @@ impl NodesNear {
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             ctx.queue.write_buffer(&self.found, 0, &[0u8; 4]);
-            let mut enc = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("nodes near"),
-                });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("nodes near"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &self.bind_groups[phase], &[]);
-                pass.dispatch_workgroups(groups.0, groups.1, 1);
-            }
-            ctx.queue.submit([enc.finish()]);
+            buffers::dispatch_once(
+                ctx,
+                "nodes near",
+                &self.pipeline,
+                &self.bind_groups[phase],
+                groups,
+            );
             let raw = buffers::read_bytes(ctx, &self.found, self.found.size())?;
             let count = u32::from_le_bytes(
                 raw[..4]
