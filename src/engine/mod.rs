@@ -900,6 +900,13 @@ impl Simulation {
         Ok(())
     }
 
+    /// Wait until the steps already submitted have run (the GPU engine queues them; the CPU
+    /// engines have finished when `run` returns). For timing what follows a step apart from
+    /// the step itself.
+    pub fn wait(&mut self) {
+        self.engine.wait();
+    }
+
     /// Advance `steps` steps with no divergence check (for timing); call
     /// [`Simulation::check`] afterwards.
     pub fn step_unchecked(&mut self, steps: u32) {

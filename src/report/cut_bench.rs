@@ -253,6 +253,9 @@ fn one(
         let pose = |z: f64| Isometry3::translation(x, y, z);
         for k in 0..steps {
             sim.run(1)?;
+            // The cut's latency, not the step's: on the GPU the step may still be running, and
+            // the first readback would wait for it.
+            sim.wait();
             let z0 = top + 0.1 * h - 0.2 * h * k as f64;
             let sweep =
                 Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");

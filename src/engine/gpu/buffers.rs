@@ -355,7 +355,7 @@ pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> 
 }
 
 /// Submit one dispatch of `pipeline` over `groups` workgroups (x, y) with `bind_group`: the
-/// passes that run alone between steps (culling, finding nodes, the health probe).
+/// passes that run alone between steps (culling, the health probe).
 pub fn dispatch_once(
     ctx: &GpuContext,
     label: &str,
@@ -363,6 +363,19 @@ pub fn dispatch_once(
     bind_group: &wgpu::BindGroup,
     groups: (u32, u32),
 ) {
+    let enc = encode_dispatch(ctx, label, pipeline, bind_group, groups);
+    ctx.queue.submit([enc.finish()]);
+}
+
+/// An encoder holding one dispatch of `pipeline` (see [`dispatch_once`]), for more commands
+/// (a readback copy) to follow in the same submission.
+pub fn encode_dispatch(
+    ctx: &GpuContext,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: (u32, u32),
+) -> wgpu::CommandEncoder {
     let mut enc = ctx
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
@@ -375,7 +388,7 @@ pub fn dispatch_once(
         pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(groups.0, groups.1, 1);
     }
-    ctx.queue.submit([enc.finish()]);
+    enc
 }
 
 /// Read back the vec4 entries `indices` of `src`: each is copied next to the others on the
@@ -411,32 +424,50 @@ pub fn read_entries(
 
 /// Read back the first `size` bytes of `src` (a multiple of 4).
 pub fn read_bytes(ctx: &GpuContext, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
-    let d = &ctx.device;
-    let staging = d.create_buffer(&wgpu::BufferDescriptor {
+    let staging = staging_buffer(ctx, size);
+    let mut enc = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("readback"),
+        });
+    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+    submit_and_read(ctx, enc, &staging, size)
+}
+
+/// A buffer the host can map to read `size` bytes copied into it.
+pub fn staging_buffer(ctx: &GpuContext, size: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
         size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
-    });
-    let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("readback"),
-    });
-    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+    })
+}
+
+/// Submit `enc` (whose last command copies into `staging`), wait for it and read the first
+/// `size` bytes of `staging` back: the work and its readback in one submission.
+pub fn submit_and_read(
+    ctx: &GpuContext,
+    enc: wgpu::CommandEncoder,
+    staging: &wgpu::Buffer,
+    size: u64,
+) -> Result<Vec<u8>> {
     let index = ctx.queue.submit([enc.finish()]);
     let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+    staging.map_async(wgpu::MapMode::Read, ..size, move |r| {
         let _ = tx.send(r);
     });
-    d.poll(wgpu::PollType::Wait {
-        submission_index: Some(index),
-        timeout: None,
-    })
-    .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+    ctx.device
+        .poll(wgpu::PollType::Wait {
+            submission_index: Some(index),
+            timeout: None,
+        })
+        .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
     rx.recv()
         .map_err(|_| Error::Gpu("readback was never answered".into()))?
         .map_err(|e| Error::Gpu(format!("mapping the readback buffer: {e}")))?;
     let bytes = staging
-        .get_mapped_range(..)
+        .get_mapped_range(..size)
         .map_err(|e| Error::Gpu(format!("reading the mapped buffer: {e}")))?
         .to_vec();
     staging.unmap();

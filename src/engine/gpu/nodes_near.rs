@@ -39,6 +39,8 @@ pub struct NodesNear {
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     found: wgpu::Buffer,
+    /// Where `found` is copied for the host to read, kept from one cut to the next.
+    staging: wgpu::Buffer,
     /// One bind group per rotation phase (the displacement buffer differs).
     bind_groups: Vec<wgpu::BindGroup>,
 }
@@ -59,11 +61,13 @@ impl NodesNear {
         let layout = buffers::pass_layout(ctx, "nodes near", &[true, true, false]);
         let pipeline = buffers::compute_pipeline(ctx, "nodes near", SOURCE, &[&layout])?;
         let found = found_buffer(ctx, FIRST_CAPACITY)?;
+        let staging = buffers::staging_buffer(ctx, found.size());
         let mut pass = NodesNear {
             pipeline,
             layout,
             params,
             found,
+            staging,
             bind_groups: Vec::new(),
         };
         pass.rebind(ctx, rest, state);
@@ -117,14 +121,17 @@ impl NodesNear {
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             ctx.queue.write_buffer(&self.found, 0, &[0u8; 4]);
-            buffers::dispatch_once(
+            // The pass and the copy of its output in one submission: one round trip.
+            let mut enc = buffers::encode_dispatch(
                 ctx,
                 "nodes near",
                 &self.pipeline,
                 &self.bind_groups[phase],
                 groups,
             );
-            let raw = buffers::read_bytes(ctx, &self.found, self.found.size())?;
+            let size = self.found.size();
+            enc.copy_buffer_to_buffer(&self.found, 0, &self.staging, 0, size);
+            let raw = buffers::submit_and_read(ctx, enc, &self.staging, size)?;
             let count = u32::from_le_bytes(
                 raw[..4]
                     .try_into()
@@ -142,6 +149,7 @@ impl NodesNear {
             }
             // More nodes than room: grow to hold them all and run again.
             self.found = found_buffer(ctx, count)?;
+            self.staging = buffers::staging_buffer(ctx, self.found.size());
             self.rebind(ctx, rest, state);
         }
     }
