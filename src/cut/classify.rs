@@ -16,21 +16,18 @@ use crate::mesh::{NodeKey, TetKey, TetMesh};
 /// Current corner positions of a tet.
 pub type Corners = [Point3<f64>; 4];
 
-/// Tets that may meet the sweep, in key order (the candidates of the exact tests below): the
-/// tets at the `nodes` (with their current positions; others may come too) within `reach` of
-/// the sweep's bounds whose own bounds, at their classification `corners` grown by `margin`, overlap
-/// the sweep's. A tet meeting the sweep has a corner within its longest edge of it, so `reach`
-/// must be at least the longest current edge near the blade; the cutter uses twice the longest
-/// rest edge. Scanning nodes rather than tets reads one position per node; `visited` (stamped
-/// with `epoch`, which must differ from every earlier call's) tests each tet once.
-#[allow(clippy::too_many_arguments)]
-pub fn candidates(
+/// The tets at the `nodes` (with their current positions; others may come too) within `reach`
+/// of the sweep's bounds, each once, in no order: where the candidates of the exact tests are
+/// looked for ([`overlapping`] keeps them). A tet meeting the sweep has a corner within its
+/// longest edge of it, so `reach` must be at least the longest current edge near the blade;
+/// the cutter uses twice the longest rest edge. Scanning nodes rather than tets reads one
+/// position per node; `visited` (stamped with `epoch`, which must differ from every earlier
+/// call's) lists each tet once.
+pub fn tets_near(
     faces: &FaceIndex,
     nodes: impl Iterator<Item = (NodeKey, [f64; 3])>,
     reach: f64,
     sweep: &Sweep,
-    corners: &impl Fn(TetKey) -> Corners,
-    margin: f64,
     visited: &mut SecondaryMap<TetKey, u32>,
     epoch: u32,
 ) -> Vec<TetKey> {
@@ -41,27 +38,41 @@ pub fn candidates(
         b.min.coords.add_scalar(-reach),
         b.max.coords.add_scalar(reach),
     );
-    let overlaps = |tk: TetKey| {
-        let p = corners(tk);
-        (0..3).all(|c| {
-            let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
-            let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
-            lo <= b.max[c] + margin && hi >= b.min[c] - margin
-        })
-    };
     let mut out: Vec<TetKey> = Vec::new();
     for (k, p) in nodes {
         if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
             continue;
         }
         for &tk in faces.tets_at(k) {
-            if visited.insert(tk, epoch) != Some(epoch) && overlaps(tk) {
+            if visited.insert(tk, epoch) != Some(epoch) {
                 out.push(tk);
             }
         }
     }
-    out.sort();
     out
+}
+
+/// The candidates of the exact tests, in key order: the `tets` whose bounds, at their
+/// classification `corners` grown by `margin`, overlap the sweep's.
+pub fn overlapping(
+    mut tets: Vec<TetKey>,
+    corners: &impl Fn(TetKey) -> Corners,
+    sweep: &Sweep,
+    margin: f64,
+) -> Vec<TetKey> {
+    let Some(b) = sweep.aabb() else {
+        return Vec::new();
+    };
+    tets.retain(|&tk| {
+        let p = corners(tk);
+        (0..3).all(|c| {
+            let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
+            let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
+            lo <= b.max[c] + margin && hi >= b.min[c] - margin
+        })
+    });
+    tets.sort();
+    tets
 }
 
 /// The candidate tets that the sweep meets (exact test), in key order.

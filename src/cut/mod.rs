@@ -296,11 +296,23 @@ impl Cutter {
             let lo = b.min.coords.add_scalar(-pad);
             let hi = b.max.coords.add_scalar(pad);
             read.take_near(source.near([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])?)?;
+            self.settle(&mut read);
         }
         let read_near_s = start.elapsed().as_secs_f64();
         let result = self.cut_reading(sweep, source, &mut read, start, read_near_s);
         self.read = read;
         result
+    }
+
+    /// Dense indices of the corners of `tets` (repeats included).
+    fn corners_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
+        tets.iter().flat_map(|&t| {
+            self.mesh
+                .tet(t)
+                .expect("a tet near the sweep")
+                .nodes
+                .map(|k| self.dense[k])
+        })
     }
 
     /// Dense indices of the corners of every tet at a corner of `tets`, and of the tets a cut
@@ -330,6 +342,13 @@ impl Cutter {
         k
     }
 
+    /// Work out where the cut classifies the nodes `read` has read since the last call: at
+    /// rest within the snap distance of it, else where they are.
+    fn settle(&self, read: &mut ReadPositions) {
+        let (mesh, keys) = (&self.mesh, &self.keys);
+        read.settle(|i| mesh.rest(keys[i as usize]), self.snap * self.snap);
+    }
+
     /// The positions the last cut read: valid at the nodes it read, stale elsewhere.
     pub fn positions_read(&self) -> &ReadPositions {
         &self.read
@@ -349,38 +368,39 @@ impl Cutter {
             self.visited.clear();
             self.epoch = 1;
         }
-        let (snap2, keys) = (self.snap * self.snap, &self.keys);
-        let candidates = {
-            let (mesh, dense, at) = (&self.mesh, &self.dense, read.positions());
-            let corners = |tk: TetKey| corners_at(mesh, dense, at, snap2, tk);
-            let near = read
+        let keys = &self.keys;
+        let near = {
+            let at = read.positions();
+            let nodes = read
                 .near
                 .iter()
                 .map(|&i| (keys[i as usize], at[i as usize]));
-            classify::candidates(
+            classify::tets_near(
                 &self.faces,
-                near,
+                nodes,
                 self.reach,
                 sweep,
-                &corners,
-                self.snap,
                 &mut self.visited,
                 self.epoch,
             )
+        };
+        // Their corners, where the box missed some (stretched tissue).
+        read.complete(self.corners_of(&near), source)?;
+        self.settle(read);
+        let candidates = {
+            let (mesh, dense, known) = (&self.mesh, &self.dense, &*read);
+            let corners = |tk: TetKey| corners_at(mesh, dense, known, tk);
+            classify::overlapping(near, &corners, sweep, self.snap)
         };
         // Every classification reads corners of candidates, of their face neighbours and of the
         // tets around their nodes (a subdivision's trial splits): read what the box missed.
         let before = Instant::now();
         read.complete(self.ring_of(&candidates), source)?;
+        self.settle(read);
         let read_s = read_near_s + before.elapsed().as_secs_f64();
-        let (mesh, dense, positions) = (&self.mesh, &self.dense, read.positions());
+        let (mesh, dense) = (&self.mesh, &self.dense);
         let known = &*read;
-        let corners = |tk: TetKey| {
-            debug_assert!(mesh
-                .tet(tk)
-                .is_some_and(|t| t.nodes.iter().all(|&k| known.knows(dense[k]))));
-            corners_at(mesh, dense, positions, snap2, tk)
-        };
+        let corners = |tk: TetKey| corners_at(mesh, dense, known, tk);
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {
@@ -411,7 +431,7 @@ impl Cutter {
             }
             CutMethod::Subdivide => {
                 outcome.classify_s = start.elapsed().as_secs_f64();
-                let classify = subdivide::Classify { read: known, snap2 };
+                let classify = subdivide::Classify { read: known };
                 self.subdivide(sweep, &classify, &candidates, &mut outcome)?;
             }
         }
@@ -434,26 +454,17 @@ impl Cutter {
     }
 }
 
-/// The classification corners of tet `tk`: each at its position in `at` (dense order), or at
-/// rest within the snap distance (squared, `snap2`) of it.
+/// The classification corners of tet `tk`, as the cut `read` them.
 fn corners_at(
     mesh: &TetMesh,
     dense: &SecondaryMap<NodeKey, u32>,
-    at: &[[f64; 3]],
-    snap2: f64,
+    read: &ReadPositions,
     tk: TetKey,
 ) -> classify::Corners {
     mesh.tet(tk)
         .expect("candidates are tets of the mesh")
         .nodes
-        .map(|k| {
-            let (x, rest) = (Point3::from(at[dense[k] as usize]), mesh.rest(k));
-            if (x - rest).norm_squared() <= snap2 {
-                rest
-            } else {
-                x
-            }
-        })
+        .map(|k| read.class(dense[k]))
 }
 
 fn centroid_of(p: [Point3<f64>; 4]) -> Point3<f64> {

@@ -5,6 +5,8 @@
 //! edges). What it read sits in a [`ReadPositions`]: an array over every node, valid only where
 //! this cut read, which is all the cut and [`crate::Simulation::apply_at`] look at.
 
+use nalgebra::Point3;
+
 use crate::error::{Error, Result};
 
 /// Where a cut reads current node positions (m, dense model indices).
@@ -55,6 +57,14 @@ pub fn inside(p: &[f64; 3], lo: &[f64; 3], hi: &[f64; 3]) -> bool {
 #[derive(Debug, Clone, Default)]
 pub struct ReadPositions {
     at: Vec<[f64; 3]>,
+    /// Where the cut classifies each node read: its position, or its rest position when it is
+    /// within the snap distance of it (see [`super::SNAP_RELATIVE`]); worked out once per node
+    /// read, not at every corner of every tet looked at.
+    class: Vec<Point3<f64>>,
+    /// Every node read, in the order read (the box, then what the box missed).
+    read: Vec<u32>,
+    /// How many of `read` have their classification position.
+    settled: usize,
     known: Vec<u32>,
     stamp: u32,
     /// Nodes read in the box around the sweep.
@@ -68,6 +78,11 @@ impl ReadPositions {
     pub(super) fn begin(&mut self, nodes: usize) {
         self.at.resize(nodes, [f64::NAN; 3]);
         self.at.truncate(nodes);
+        self.class
+            .resize(nodes, Point3::new(f64::NAN, f64::NAN, f64::NAN));
+        self.class.truncate(nodes);
+        self.read.clear();
+        self.settled = 0;
         self.known.resize(nodes, 0);
         self.known.truncate(nodes);
         self.stamp = self.stamp.wrapping_add(1);
@@ -126,7 +141,28 @@ impl ReadPositions {
         };
         *slot = p;
         *k = self.stamp;
+        self.read.push(i);
         Ok(())
+    }
+
+    /// Work out the classification position of every node read since the last call: its
+    /// position, or `rest(i)` where that lies within `sqrt(snap2)` of it.
+    pub(super) fn settle(&mut self, rest: impl Fn(u32) -> Point3<f64>, snap2: f64) {
+        for &i in &self.read[self.settled..] {
+            let (x, r) = (Point3::from(self.at[i as usize]), rest(i));
+            self.class[i as usize] = if (x - r).norm_squared() <= snap2 {
+                r
+            } else {
+                x
+            };
+        }
+        self.settled = self.read.len();
+    }
+
+    /// The classification position of node `i` (read and settled by this cut).
+    pub(super) fn class(&self, i: u32) -> Point3<f64> {
+        debug_assert!(self.knows(i), "node {i} was not read");
+        self.class[i as usize]
     }
 
     /// Whether this cut read node `i`.
