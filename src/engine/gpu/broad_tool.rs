@@ -2,7 +2,7 @@
 //! program asks for culling (no tool, no pass). The surface (triangles in layout order and the
 //! rest positions) is uploaded once, then only what a cut or patch changed is written; each
 //! cull uploads the tool boxes, runs one dispatch over the triangles and reads back the counter
-//! and the candidates, nothing else.
+//! and the candidates, nothing else, in the same submission.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -52,6 +52,9 @@ pub struct ToolCuller {
     boxes: wgpu::Buffer,
     candidates: wgpu::Buffer,
     count: wgpu::Buffer,
+    /// Where the counter (first 16 bytes) and the candidates are copied for the host to read:
+    /// one submission and one map per cull, kept from one cull to the next.
+    staging: wgpu::Buffer,
     /// One bind group per rotation phase (the displacement buffer differs).
     bind_groups: Vec<wgpu::BindGroup>,
 }
@@ -94,6 +97,7 @@ impl ToolCuller {
         let candidates =
             buffers::storage_buffer(ctx, "candidates", &[0u8; 8 * 1024], Sizing::Exact)?;
         let count = buffers::storage_buffer(ctx, "candidate count", &[0u8; 4], Sizing::Exact)?;
+        let staging = buffers::staging_buffer(ctx, 16 + candidates.size());
         let mut culler = ToolCuller {
             pipeline,
             layout,
@@ -106,6 +110,7 @@ impl ToolCuller {
             boxes,
             candidates,
             count,
+            staging,
             bind_groups: Vec::new(),
         };
         culler.rebind(ctx, state);
@@ -252,22 +257,26 @@ impl ToolCuller {
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             ctx.queue.write_buffer(&self.count, 0, &0u32.to_le_bytes());
-            buffers::dispatch_once(
+            // The pass and the copies of its counter and output in one submission.
+            let mut enc = buffers::encode_dispatch(
                 ctx,
                 "broad_tool",
                 &self.pipeline,
                 &self.bind_groups[phase],
                 groups,
             );
+            let size = self.candidates.size();
+            enc.copy_buffer_to_buffer(&self.count, 0, &self.staging, 0, 4);
+            enc.copy_buffer_to_buffer(&self.candidates, 0, &self.staging, 16, size);
+            let raw = buffers::submit_and_read(ctx, enc, &self.staging, 16 + size)?;
             let n = u32::from_le_bytes(
-                buffers::read_bytes(ctx, &self.count, 4)?
+                raw[..4]
                     .try_into()
                     .map_err(|_| Error::Gpu("candidate count readback".into()))?,
             );
             if n <= capacity {
-                let raw = buffers::read_bytes(ctx, &self.candidates, (n.max(1) as u64) * 8)?;
-                let mut candidates: Vec<Candidate> = bytemuck::pod_collect_to_vec(&raw);
-                candidates.truncate(n as usize);
+                let mut candidates: Vec<Candidate> =
+                    bytemuck::pod_collect_to_vec(&raw[16..16 + 8 * n as usize]);
                 candidates.sort_unstable();
                 return Ok(CullResult {
                     candidates,
@@ -281,6 +290,7 @@ impl ToolCuller {
                 &vec![0u8; n as usize * 8],
                 Sizing::SizeClass,
             )?;
+            self.staging = buffers::staging_buffer(ctx, 16 + self.candidates.size());
             self.rebind(ctx, state);
             regrown += 1;
         }
