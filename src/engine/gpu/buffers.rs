@@ -354,21 +354,9 @@ pub fn read_vec4(ctx: &GpuContext, src: &wgpu::Buffer) -> Result<Vec<[f32; 4]>> 
     )?))
 }
 
-/// Submit one dispatch of `pipeline` over `groups` workgroups (x, y) with `bind_group`: the
-/// passes that run alone between steps (culling, the health probe).
-pub fn dispatch_once(
-    ctx: &GpuContext,
-    label: &str,
-    pipeline: &wgpu::ComputePipeline,
-    bind_group: &wgpu::BindGroup,
-    groups: (u32, u32),
-) {
-    let enc = encode_dispatch(ctx, label, pipeline, bind_group, groups);
-    ctx.queue.submit([enc.finish()]);
-}
-
-/// An encoder holding one dispatch of `pipeline` (see [`dispatch_once`]), for more commands
-/// (a readback copy) to follow in the same submission.
+/// An encoder holding one dispatch of `pipeline` over `groups` workgroups (x, y) with
+/// `bind_group`, for the passes that run alone between steps (culling, finding nodes, the
+/// health probe): the copies that read their output back follow in the same submission.
 pub fn encode_dispatch(
     ctx: &GpuContext,
     label: &str,

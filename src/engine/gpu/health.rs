@@ -84,6 +84,9 @@ pub struct HealthPass {
     bind_groups: Vec<wgpu::BindGroup>,
     partials: wgpu::Buffer,
     first_bad: wgpu::Buffer,
+    /// Where the first bad node (first 16 bytes) and the partials are copied for the host to
+    /// read: one submission and one map per probe.
+    staging: wgpu::Buffer,
 }
 
 impl HealthPass {
@@ -103,6 +106,7 @@ impl HealthPass {
             Sizing::Headroom,
         )?;
         let first_bad = buffers::storage_buffer(ctx, "first bad node", &[0u8; 4], Sizing::Exact)?;
+        let staging = buffers::staging_buffer(ctx, 16 + partials.size());
         let layout = buffers::pass_layout(ctx, "health", &[true, true, true, false, false]);
         let pipeline = buffers::compute_pipeline(ctx, "health", SOURCE, &[&layout])?;
         let mut pass = HealthPass {
@@ -111,6 +115,7 @@ impl HealthPass {
             bind_groups: Vec::new(),
             partials,
             first_bad,
+            staging,
         };
         pass.rebind(ctx, inv_mass, uniform, state);
         Ok(pass)
@@ -166,17 +171,19 @@ impl HealthPass {
         }
         ctx.queue
             .write_buffer(&self.first_bad, 0, &u32::MAX.to_le_bytes());
-        buffers::dispatch_once(
+        // The probe and the copies of its outputs in one submission.
+        let mut enc = buffers::encode_dispatch(
             ctx,
             "health",
             &self.pipeline,
             &self.bind_groups[phase],
             groups,
         );
-        let raw = buffers::read_bytes(ctx, &self.partials, count * 16)?;
-        let bad = buffers::read_bytes(ctx, &self.first_bad, 4)?;
-        let floats: Vec<f32> = bytemuck::pod_collect_to_vec(&raw);
-        let first = u32::from_le_bytes([bad[0], bad[1], bad[2], bad[3]]);
+        enc.copy_buffer_to_buffer(&self.first_bad, 0, &self.staging, 0, 4);
+        enc.copy_buffer_to_buffer(&self.partials, 0, &self.staging, 16, count * 16);
+        let raw = buffers::submit_and_read(ctx, enc, &self.staging, 16 + count * 16)?;
+        let floats: Vec<f32> = bytemuck::pod_collect_to_vec(&raw[16..]);
+        let first = u32::from_le_bytes([raw[0], raw[1], raw[2], raw[3]]);
         Ok(HealthPartials {
             partials: floats.chunks_exact(4).map(|c| [c[0], c[1]]).collect(),
             first_bad: (first != u32::MAX).then_some(first),
