@@ -21,8 +21,9 @@ struct Found {
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
-    // xyz: the displacement; w: the slot index, bit for bit.
-    entries: array<vec4<f32>>,
+    // xyz: the displacement's bits; w: the slot index. Kept as integers: a slot index carried
+    // in a float would be a subnormal, which a device may flush to zero.
+    entries: array<vec4<u32>>,
 }
 
 @group(0) @binding(0) var<uniform> np: NearParams;
@@ -41,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (all(np.lo.xyz <= x) && all(x <= np.hi.xyz)) {
         let slot = atomicAdd(&found.count, 1u);
         if (slot < np.capacity) {
-            found.entries[slot] = vec4<f32>(u, bitcast<f32>(i));
+            found.entries[slot] = vec4<u32>(bitcast<vec3<u32>>(u), i);
         }
     }
 }

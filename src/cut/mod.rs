@@ -285,21 +285,10 @@ impl Cutter {
         sweep: &Sweep,
         source: &mut dyn PositionSource,
     ) -> Result<CutOutcome> {
-        let start = Instant::now();
         let mut read = std::mem::take(&mut self.read);
         read.begin(self.mesh.node_count());
-        if let Some(b) = sweep.aabb() {
-            // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around
-            // them within two edges more: as much again while edges are at rest length, with
-            // room for stretching by half (past that, what the box missed is fetched below).
-            let pad = 1.5 * self.reach;
-            let lo = b.min.coords.add_scalar(-pad);
-            let hi = b.max.coords.add_scalar(pad);
-            read.take_near(source.near([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])?)?;
-            self.settle(&mut read);
-        }
-        let read_near_s = start.elapsed().as_secs_f64();
-        let result = self.cut_reading(sweep, source, &mut read, start, read_near_s);
+        // Put back whatever happens, so that the next cut reuses the arrays.
+        let result = self.cut_reading(sweep, source, &mut read);
         self.read = read;
         result
     }
@@ -359,9 +348,19 @@ impl Cutter {
         sweep: &Sweep,
         source: &mut dyn PositionSource,
         read: &mut ReadPositions,
-        start: Instant,
-        read_near_s: f64,
     ) -> Result<CutOutcome> {
+        let start = Instant::now();
+        if let Some(b) = sweep.aabb() {
+            // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around
+            // them within two edges more: as much again while edges are at rest length, with
+            // room for stretching by half (past that, what the box missed is fetched below).
+            let pad = 1.5 * self.reach;
+            let lo = b.min.coords.add_scalar(-pad);
+            let hi = b.max.coords.add_scalar(pad);
+            read.take_near(source.near([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])?)?;
+            self.settle(read);
+        }
+        let read_near_s = start.elapsed().as_secs_f64();
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             // Wrapped: stale stamps could equal the new epoch.

@@ -76,10 +76,17 @@ pub struct ReadPositions {
 impl ReadPositions {
     /// Start a new cut over `nodes` nodes: nothing is known.
     pub(super) fn begin(&mut self, nodes: usize) {
+        // What the last cut read is forgotten, not left stale: a node this cut did not read
+        // holds NaN, so a use of it shows (a non-finite energy, a failed comparison) instead of
+        // giving a plausible wrong answer.
+        let nan = Point3::new(f64::NAN, f64::NAN, f64::NAN);
+        for &i in &self.read {
+            self.at[i as usize] = [f64::NAN; 3];
+            self.class[i as usize] = nan;
+        }
         self.at.resize(nodes, [f64::NAN; 3]);
         self.at.truncate(nodes);
-        self.class
-            .resize(nodes, Point3::new(f64::NAN, f64::NAN, f64::NAN));
+        self.class.resize(nodes, nan);
         self.class.truncate(nodes);
         self.read.clear();
         self.settled = 0;
@@ -171,7 +178,7 @@ impl ReadPositions {
     }
 
     /// Positions of every node the mesh had when the cut began, valid only at the nodes this
-    /// cut read (the others hold stale values): what the cut classified with, to hand to
+    /// cut read (the others hold NaN): what the cut classified with, to hand to
     /// [`crate::Simulation::apply_at`].
     pub fn positions(&self) -> &[[f64; 3]] {
         &self.at

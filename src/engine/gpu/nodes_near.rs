@@ -138,11 +138,12 @@ impl NodesNear {
                     .map_err(|_| Error::Gpu("nodes near: counter readback".into()))?,
             ) as u64;
             if count <= capacity {
-                let entries: &[[f32; 4]] =
-                    bytemuck::cast_slice(&raw[HEADER as usize..(HEADER + 16 * count) as usize]);
+                let entries: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(
+                    &raw[HEADER as usize..(HEADER + 16 * count) as usize],
+                );
                 let mut out: Vec<Found> = entries
                     .iter()
-                    .map(|e| (e[3].to_bits(), [e[0], e[1], e[2]]))
+                    .map(|e| (e[3], [0, 1, 2].map(|c| f32::from_bits(e[c]))))
                     .collect();
                 out.sort_unstable_by_key(|f| f.0);
                 return Ok(out);
