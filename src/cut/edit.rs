@@ -51,9 +51,6 @@ impl Cutter {
         outcome: &mut CutOutcome,
     ) -> Result<()> {
         outcome.faces_cut = crossed.len();
-        for &(a, b) in crossed {
-            self.partners.record(a, b);
-        }
         let plan = self.plan_split(crossed);
         if plan.copies.is_empty() {
             return Ok(());

@@ -316,7 +316,7 @@ impl Cutter {
         corners.into_iter().flat_map(move |n| {
             self.faces.tets_at(n).iter().flat_map(move |&t| {
                 std::iter::once(t)
-                    .chain(self.partners.of(t).iter().copied())
+                    .chain(self.partners.of(t).iter().map(|p| p.0))
                     .filter_map(|t| self.mesh.tet(t))
                     .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
             })
@@ -413,17 +413,23 @@ impl Cutter {
                 let crossed =
                     classify::faces_crossed(mesh, &self.faces, &candidates, &corners, sweep);
                 outcome.classify_s = start.elapsed().as_secs_f64();
-                let centroids = resweep::Centroids {
-                    now: |t: TetKey| centroid_of(corners(t)),
-                    rest: |t: TetKey| {
-                        centroid_of(mesh.tet(t).expect("a tet").nodes.map(|k| mesh.rest(k)))
-                    },
+                let tets = resweep::TetGeometry {
+                    now: &corners,
+                    rest: |t: TetKey| mesh.tet(t).expect("a tet").nodes.map(|k| mesh.rest(k)),
                 };
                 let new: Vec<(TetKey, TetKey)> = crossed
                     .into_iter()
                     .filter(|p| !self.crack.contains(p))
-                    .filter(|&p| !resweep::along_old_cut(p, &self.partners, sweep, &centroids))
+                    .filter(|&p| !resweep::along_old_cut(p, &self.partners, sweep, &tets))
                     .collect();
+                // Each tet of a separated pair remembers the blade's plane in its rest frame.
+                for &(a, b) in &new {
+                    let t = tets.separating((a, b), sweep);
+                    let at = |k: TetKey| t.and_then(|t| tets.pulled_back(k, t));
+                    let (pa, pb) = (at(a), at(b));
+                    self.partners.record(a, b, pa);
+                    self.partners.record(b, a, pb);
+                }
                 if !new.is_empty() {
                     self.separate(&new, &mut outcome)?;
                 }
@@ -464,8 +470,4 @@ fn corners_at(
         .expect("candidates are tets of the mesh")
         .nodes
         .map(|k| read.class(dense[k]))
-}
-
-fn centroid_of(p: [Point3<f64>; 4]) -> Point3<f64> {
-    Point3::from((p[0].coords + p[1].coords + p[2].coords + p[3].coords) * 0.25)
 }
