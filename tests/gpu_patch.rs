@@ -59,6 +59,38 @@ fn rebuilt_steps(
     rebuilt.raw_state().unwrap()
 }
 
+/// Step the patched `engine` 13 times from the state its patch left: bit for bit what its CPU
+/// twin does, and (except in fixed point, whose constants a rebuild may choose anew) what an
+/// engine built from scratch in the same arrangement does from that state.
+fn steps_like_twin_and_rebuild(
+    engine: &mut GpuEngine,
+    model: &lancet::model::PackedModel,
+    config: SimConfig,
+    accumulation: Accumulation,
+    round: impl std::fmt::Display,
+) {
+    // The state the device must now hold, from the layout's own moves.
+    let want = engine.raw_state().unwrap();
+    let expect_twin = twin(engine, accumulation, want.clone(), 13);
+    engine.step(13);
+    let got = engine.raw_state().unwrap();
+    assert_eq!(
+        bits(&got.0),
+        bits(&expect_twin.0),
+        "round {round}: device and CPU twin of the patched layout differ"
+    );
+    assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
+    if accumulation != Accumulation::AtomicFixed {
+        let r = rebuilt_steps(engine, model, config, &want, 13);
+        assert_eq!(
+            bits(&r.0),
+            bits(&got.0),
+            "round {round}: patched != rebuilt"
+        );
+    }
+    assert!(got.0.iter().flatten().all(|x| x.is_finite()));
+}
+
 #[rstest]
 #[case::connectivity(LayoutKind::Connectivity, Accumulation::Gather, Integrator::Verlet)]
 #[case::connectivity_euler(
@@ -93,27 +125,7 @@ fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
         model = next;
         partial |= !report.reallocated && report.uploaded_bytes < report.layout_bytes;
         assert!(report.uploaded_bytes <= report.layout_bytes);
-        // The state the device must now hold, from the layout's own moves.
-        let want = engine.raw_state().unwrap();
-        let expect_twin = twin(&engine, accumulation, want.clone(), 13);
-        engine.step(13);
-        let got = engine.raw_state().unwrap();
-        assert_eq!(
-            bits(&got.0),
-            bits(&expect_twin.0),
-            "round {round}: device and CPU twin of the patched layout differ"
-        );
-        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}");
-        // An engine built from scratch in the same arrangement, from the same state.
-        if accumulation != Accumulation::AtomicFixed {
-            let r = rebuilt_steps(&engine, &model, config, &want, 13);
-            assert_eq!(
-                bits(&r.0),
-                bits(&got.0),
-                "round {round}: patched != rebuilt"
-            );
-        }
-        assert!(got.0.iter().flatten().all(|x| x.is_finite()));
+        steps_like_twin_and_rebuild(&mut engine, &model, config, accumulation, round);
     }
     assert!(
         partial,
@@ -426,20 +438,6 @@ fn buffers_outgrown_by_a_patch_grow_alone_and_the_passes_are_kept(
             );
         }
         assert_eq!(engine.device_differences().unwrap(), Vec::<String>::new());
-        let want = engine.raw_state().unwrap();
-        let expect_twin = twin(&engine, accumulation, want.clone(), 13);
-        engine.step(13);
-        let got = engine.raw_state().unwrap();
-        assert_eq!(bits(&got.0), bits(&expect_twin.0), "round {round}: twin");
-        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
-        if accumulation != Accumulation::AtomicFixed {
-            let r = rebuilt_steps(&engine, &model, config, &want, 13);
-            assert_eq!(
-                bits(&r.0),
-                bits(&got.0),
-                "round {round}: patched != rebuilt"
-            );
-        }
-        assert!(got.0.iter().flatten().all(|x| x.is_finite()));
+        steps_like_twin_and_rebuild(&mut engine, &model, config, accumulation, round);
     }
 }
