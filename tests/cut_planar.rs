@@ -274,3 +274,25 @@ fn a_partial_incision_keeps_its_front_and_re_sweeping_it_makes_nothing_new() {
         assert_invariants(&cutter, volume);
     }
 }
+
+/// Known limit (`docs/ROADMAP.md`, Issue 5 item 9): under the default quality floor, the
+/// upright blade through the box in 1 step and in 30 adds different numbers of nodes (85
+/// against 45 at y = 1.7 cm), because splitting edges one at a time makes sub-tets that depend
+/// on the order and the floor's trial splits see different ones. Run with `--ignored` to see it.
+#[test]
+#[ignore = "known limit: under the quality floor a fast blade subdivides unlike a slow one"]
+fn a_fast_blade_subdivides_like_a_slow_one_at_the_floor() {
+    let nodes = |steps: usize| {
+        let mesh = box_mesh();
+        let model = SpringModel::build(&mesh, &config()).unwrap();
+        let mut cutter = Cutter::new(mesh, model, CutMethod::Subdivide).unwrap();
+        let (top, bottom) = (0.05, -0.01);
+        for k in 0..steps {
+            let z0 = top + (bottom - top) * k as f64 / steps as f64;
+            let z1 = top + (bottom - top) * (k + 1) as f64 / steps as f64;
+            cut_at_rest(&mut cutter, 1.7 * H, z0, z1);
+        }
+        cutter.mesh().node_count()
+    };
+    assert_eq!(nodes(1), nodes(30));
+}
