@@ -371,7 +371,7 @@ impl Cutter {
         let near = {
             let at = read.positions();
             let nodes = read
-                .near
+                .near()
                 .iter()
                 .map(|&i| (keys[i as usize], at[i as usize]));
             classify::tets_near(
@@ -451,7 +451,7 @@ impl Cutter {
         };
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;
         outcome.read_s = read_s;
-        outcome.nodes_read = read.near.len() + read.fetched;
+        outcome.nodes_read = read.near().len() + read.fetched();
         let d = &outcome.diff;
         outcome.springs_touched =
             d.removed_springs.len() + d.added_springs.len() + d.changed_springs.len();

@@ -52,6 +52,17 @@ pub fn inside(p: &[f64; 3], lo: &[f64; 3], hi: &[f64; 3]) -> bool {
     (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c])
 }
 
+/// The box `lo..=hi` in float32, grown by the rounding of float32 positions (rest plus
+/// displacement) and of the box itself: every point inside in float64 is inside this one when
+/// formed in float32. For engines that test positions in float32 first.
+pub fn float32_box(lo: [f64; 3], hi: [f64; 3]) -> ([f32; 3], [f32; 3]) {
+    let scale = (0..3)
+        .map(|c| lo[c].abs().max(hi[c].abs()) + (hi[c] - lo[c]).abs())
+        .fold(0.0, f64::max);
+    let pad = 1e-6 * scale;
+    (lo.map(|v| (v - pad) as f32), hi.map(|v| (v + pad) as f32))
+}
+
 /// The positions one cut read: `at` has an entry per node (dense order, as many as the mesh
 /// had when the cut began), valid where `known` carries the cut's stamp.
 #[derive(Debug, Clone, Default)]
@@ -67,10 +78,8 @@ pub struct ReadPositions {
     settled: usize,
     known: Vec<u32>,
     stamp: u32,
-    /// Nodes read in the box around the sweep.
-    pub near: Vec<u32>,
-    /// Nodes read afterwards because the box missed them.
-    pub fetched: usize,
+    /// How many of `read` came from the box around the sweep (the first ones).
+    near: usize,
 }
 
 impl ReadPositions {
@@ -98,16 +107,15 @@ impl ReadPositions {
             self.known.fill(0);
             self.stamp = 1;
         }
-        self.near.clear();
-        self.fetched = 0;
+        self.near = 0;
     }
 
     /// Take what the source gave for the box.
     pub(super) fn take_near(&mut self, read: Vec<(u32, [f64; 3])>) -> Result<()> {
         for (i, p) in read {
             self.set(i, p)?;
-            self.near.push(i);
         }
+        self.near = self.read.len();
         Ok(())
     }
 
@@ -134,7 +142,6 @@ impl ReadPositions {
         for (&i, p) in missing.iter().zip(got) {
             self.set(i, p)?;
         }
-        self.fetched += missing.len();
         Ok(())
     }
 
@@ -172,6 +179,16 @@ impl ReadPositions {
         self.class[i as usize]
     }
 
+    /// The nodes read in the box around the sweep.
+    pub fn near(&self) -> &[u32] {
+        &self.read[..self.near]
+    }
+
+    /// How many nodes were read afterwards because the box missed them.
+    pub fn fetched(&self) -> usize {
+        self.read.len() - self.near
+    }
+
     /// Whether this cut read node `i`.
     pub fn knows(&self, i: u32) -> bool {
         self.known.get(i as usize) == Some(&self.stamp)
@@ -207,7 +224,7 @@ mod tests {
         r.take_near(vec![(0, x[0])]).unwrap();
         r.complete([0, 1], &mut AllPositions(&x)).unwrap();
         assert!(r.knows(0) && r.knows(1));
-        assert_eq!(r.fetched, 1);
+        assert_eq!(r.fetched(), 1);
         r.begin(3);
         assert!(!r.knows(0) && !r.knows(1) && !r.knows(2));
         assert!(r.take_near(vec![(3, x[0])]).is_err());

@@ -358,11 +358,7 @@ impl Engine for FastEngine {
         // A scan of the engine's own arrays, in their order: no copy of every position. The box
         // is first tested in float32 (rest and displacement side by side), grown by the
         // rounding of that sum, which rejects most nodes without gathering their float64 rest.
-        let scale = (0..3)
-            .map(|c| lo[c].abs().max(hi[c].abs()) + (hi[c] - lo[c]).abs())
-            .fold(0.0, f64::max);
-        let pad = 1e-6 * scale;
-        let (lo32, hi32) = (lo.map(|v| (v - pad) as f32), hi.map(|v| (v + pad) as f32));
+        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
         let mut out = Vec::new();
         for (i, (r, u)) in self.rest_inner.iter().zip(&self.x).enumerate() {
             if (0..3).any(|c| {

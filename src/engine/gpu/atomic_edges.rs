@@ -258,34 +258,22 @@ impl LayoutBuffers for AtomicEdgePasses {
         self.passes.bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
-                let (a, i) = if self.fixed {
-                    (
-                        vec![uniform, springs, b.second_in, b.cur, acc, fx, overflow],
-                        vec![
-                            uniform,
-                            fx,
-                            acc,
-                            inv_mass,
-                            b.second_in,
-                            b.cur,
-                            b.next,
-                            b.second_out,
-                        ],
-                    )
-                } else {
-                    (
-                        vec![uniform, springs, b.second_in, b.cur, acc],
-                        vec![
-                            uniform,
-                            acc,
-                            inv_mass,
-                            b.second_in,
-                            b.cur,
-                            b.next,
-                            b.second_out,
-                        ],
-                    )
-                };
+                // Fixed point adds the scale and the overflow flag to accumulating, and the
+                // scale (second) to integrating.
+                let mut a = vec![uniform, springs, b.second_in, b.cur, acc];
+                let mut i = vec![
+                    uniform,
+                    acc,
+                    inv_mass,
+                    b.second_in,
+                    b.cur,
+                    b.next,
+                    b.second_out,
+                ];
+                if self.fixed {
+                    a.extend([fx, overflow]);
+                    i.insert(1, fx);
+                }
                 let accumulate = d.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("accumulate_edges"),
                     layout: accumulate_layout,

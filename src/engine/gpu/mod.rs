@@ -772,16 +772,19 @@ impl GpuEngine {
             )));
         }
         let order = &self.layout.order();
+        // The model node at a layout slot (none at a hole).
+        let node_at = |slot: u32| {
+            order
+                .order
+                .get(slot as usize)
+                .copied()
+                .filter(|&o| o != crate::layout::NodeOrder::HOLE)
+        };
         if !moved.is_empty() {
             // Triangles at a node whose layout index changed hold stale indices.
             let mut at_moved = vec![false; n];
-            for &slot in &moved {
-                match order.order.get(slot as usize) {
-                    Some(&old) if old != crate::layout::NodeOrder::HOLE => {
-                        at_moved[old as usize] = true
-                    }
-                    _ => {}
-                }
+            for node in moved.iter().filter_map(|&slot| node_at(slot)) {
+                at_moved[node as usize] = true;
             }
             slots.extend(
                 (0..triangles.len() as u32)
@@ -797,13 +800,10 @@ impl GpuEngine {
         let rest: Vec<(u32, [f32; 4])> = moved
             .iter()
             .map(|&slot| {
-                let r = match order.order.get(slot as usize) {
-                    Some(&old) if old != crate::layout::NodeOrder::HOLE => {
-                        let r = self.rest[old as usize];
-                        [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]
-                    }
-                    _ => [0.0; 4],
-                };
+                let r = node_at(slot).map_or([0.0; 4], |old| {
+                    let r = self.rest[old as usize];
+                    [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]
+                });
                 (slot, r)
             })
             .collect();
@@ -902,20 +902,15 @@ impl GpuEngine {
             let x = self.state_f64().0;
             return crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&x), lo, hi);
         };
-        // Grown by float32 rounding of the positions and the box, so that every node inside
-        // in float64 is inside in float32 too.
-        let scale = (0..3)
-            .map(|c| lo[c].abs().max(hi[c].abs()) + (hi[c] - lo[c]).abs())
-            .fold(0.0, f64::max);
-        let pad = 1e-6 * scale;
+        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
         let found = surface.near.find(
             &self.ctx,
             surface.tool.rest(),
             &self.state,
             self.phase,
             self.layout.node_slots() as u32,
-            lo.map(|v| (v - pad) as f32),
-            hi.map(|v| (v + pad) as f32),
+            lo32,
+            hi32,
         )?;
         let order = &self.layout.order().order;
         let mut out: Vec<(u32, [f64; 3])> = found
