@@ -358,7 +358,7 @@ fn bench_cut_reports_each_quality_floor_of_subdividing() {
         "--method",
         "separate,subdivide",
         "--quality-floor",
-        "0,0.25",
+        "0,0.3",
         "--json",
     ]);
     let v = ok_json(&out);
@@ -369,10 +369,10 @@ fn bench_cut_reports_each_quality_floor_of_subdividing() {
             .unwrap_or_else(|| panic!("no {method} row at floor {floor}: {v:#}"))
     };
     assert_eq!(rows.len(), 3, "{v:#}");
-    let (without, with) = (of("subdivide", 0.0), of("subdivide", 0.25));
+    let (without, with) = (of("subdivide", 0.0), of("subdivide", 0.3));
     let q = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
-    assert!(q(with, "min_quality") >= 0.25, "{with:#}");
-    assert!(q(without, "min_quality") < 0.25, "{without:#}");
+    assert!(q(with, "min_quality") >= 0.3, "{with:#}");
+    assert!(q(without, "min_quality") < 0.3, "{without:#}");
     assert!(q(with, "dt_after") >= q(without, "dt_after"));
     assert!(q(without, "dt_after") < q(without, "dt_before"));
     for r in rows {

@@ -12,6 +12,8 @@
 //! - `faces.rs`: face adjacency, node-to-tet incidence and the boundary, updated per touched
 //!   tet.
 //! - `edit.rs`: the topology edits ([`CutMethod`]) on the mesh and the spring model.
+//! - `subdivide.rs`, `template.rs`: splitting tets along the sweep, each tet by one template
+//!   of its marked edges whatever order the blade marked them in.
 //! - `snapshot.rs`: what the edit changed, as a [`ModelDiff`].
 //! - `invariants.rs`: the checks a cut mesh must pass (volume, mass, closed fragment
 //!   surfaces, quality, agreement with a rebuild).
@@ -30,6 +32,7 @@ mod resweep;
 mod snapshot;
 pub mod subdivide;
 pub mod sweep;
+mod template;
 
 use std::collections::BTreeSet;
 use std::time::Instant;
@@ -150,6 +153,11 @@ pub struct Cutter {
     read: ReadPositions,
     /// Smallest rest volume-length ratio a subdividing split may make (0: no floor).
     quality_floor: f64,
+    /// Subdivided tets whose sub-tets a later mark on their edges re-makes (`template.rs`).
+    families: template::Families,
+    /// Crossings whose split waits for the blade to finish the tets around them (a split of
+    /// part of a tet would fall below the quality floor).
+    pending: std::collections::BTreeMap<[NodeKey; 2], subdivide::Crossing>,
 }
 
 impl Cutter {
@@ -184,18 +192,20 @@ impl Cutter {
             epoch: 0,
             read: ReadPositions::default(),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
+            families: template::Families::default(),
+            pending: Default::default(),
         })
     }
 
     /// Subdivide without making any tet whose rest volume-length ratio is below `floor`: a
-    /// crossing whose split would make one snaps to the nearer end of its edge instead, and a
-    /// node closer to the sweep than [`subdivide::NODE_SNAP`] of its shortest edge joins the
-    /// cut; a tet left with every corner on a cut goes with its centroid's side of the sweep
-    /// (see [`subdivide`]). [`Cutter::new`] starts at [`subdivide::DEFAULT_QUALITY_FLOOR`]. A
-    /// floor of 0, a negative or a NaN one subdivides without a floor: only the parameter rule
-    /// ([`subdivide::EDGE_SNAP`]), at the price of slivers that lower the stable time step.
-    /// Tets already below the floor are left as they are; the other methods make no new tets
-    /// and ignore the floor.
+    /// crossing whose split would make one snaps to the nearer end of its edge instead, a node
+    /// closer to the sweep's plane than [`subdivide::NODE_SNAP`] of its shortest edge joins the
+    /// cut, and a crossing whose split would make one only because the blade has not finished
+    /// the tet waits for it (see [`subdivide`]). [`Cutter::new`] starts at
+    /// [`subdivide::DEFAULT_QUALITY_FLOOR`]. A floor of 0, a negative or a NaN one subdivides
+    /// without a floor: only the parameter rule ([`subdivide::EDGE_SNAP`]), at the price of
+    /// slivers that lower the stable time step. Tets already below the floor are left as they
+    /// are; the other methods make no new tets and ignore the floor.
     pub fn with_quality_floor(mut self, floor: f64) -> Self {
         self.quality_floor = floor;
         self
@@ -304,8 +314,8 @@ impl Cutter {
         })
     }
 
-    /// Dense indices of the corners of every tet at a corner of `tets`, and of the tets a cut
-    /// separated from those (repeats included).
+    /// Dense indices of the corners of every tet at a corner of `tets`, of the tets a cut
+    /// separated from those and of the tets subdivided into those (repeats included).
     fn ring_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
         let mut corners: Vec<NodeKey> = tets
             .iter()
@@ -319,6 +329,13 @@ impl Cutter {
                     .chain(self.partners.of(t).iter().map(|p| p.0))
                     .filter_map(|t| self.mesh.tet(t))
                     .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
+                    // A subdivision's trial looks at the corners of the tet a sub-tet came from.
+                    .chain(
+                        self.families
+                            .of(t)
+                            .into_iter()
+                            .flat_map(|(_, f)| f.corners.map(|k| self.dense[k])),
+                    )
             })
         })
     }

@@ -1,12 +1,15 @@
 //! Subdividing: the tets the blade crosses are split along its sweep, with new nodes where it
 //! crosses their edges, and the faces on the sweep then open as in splitting along faces.
 //!
-//! Every crossed edge is split at its crossing point, one edge at a time: splitting an edge
-//! splits every tet around it in two (one keeps each end), which keeps the mesh conforming.
-//! Once every crossed edge is split, no edge joins the two sides of the sweep any more, so each
-//! tet lies on one side and the sweep is a union of faces whose corners are all on the cut;
-//! those faces open (the node splitting of [`super::CutMethod::Separate`]). Where the sweep
-//! ends inside the tissue, the edges it has not reached are not split and the cut stops there.
+//! Every crossed edge gets a node at its crossing point, and every tet around it is subdivided
+//! by a template of its marked edges (`template.rs`): the marked edges of the tet as it was
+//! before any cut split it (its parent) are bisected in one global order, which keeps the mesh
+//! conforming and gives the same sub-tets whatever order the blade marked the edges in. So a
+//! blade through a tet in one step and one through it in many make the same tets. Once every
+//! crossed edge is split, no edge joins the two sides of the sweep any more, so each tet lies on
+//! one side and the sweep is a union of faces whose corners are all on the cut; those faces open
+//! (the node splitting of [`super::CutMethod::Separate`]). Where the sweep ends inside the
+//! tissue, the edges it has not reached are not split and the cut stops there.
 //!
 //! A crossing within [`EDGE_SNAP`] of an edge's end is snapped to that node instead (the node
 //! joins the cut, and the edges at it are not split): no sliver thinner than that fraction of an
@@ -14,31 +17,38 @@
 //! along the rest edge.
 //!
 //! A fraction of one edge says little about the tets around it, so with a quality floor
-//! ([`Cutter::with_quality_floor`]) two more rules hold:
+//! ([`Cutter::with_quality_floor`]) more rules hold:
 //!
-//! - A node closer to the sweep than [`NODE_SNAP`] of its shortest edge joins the cut. Along an
-//!   edge nearly parallel to the sweep the crossing can be anywhere though both ends are close
-//!   to it, and splitting there would leave flat tets between the sweep and those nodes. With
-//!   this rule a sweep passing close to an existing edge or face puts all its corners on the
-//!   cut, and that edge or face opens as it is, with no new node.
-//! - A split that would make a tet whose rest volume-length ratio (what the invariants check)
-//!   is below the floor is not made: the crossing snaps to the nearer end of its edge. Snapping
-//!   moves no node and makes no tet, so no tet below the floor is ever made; the price is a cut
-//!   surface up to half an edge off the sweep there.
+//! - A node closer to the plane of the sweep than [`NODE_SNAP`] of its shortest rest edge joins
+//!   the cut. Along an edge nearly parallel to the sweep the crossing can be anywhere though both
+//!   ends are close to it, and splitting there would leave flat tets between the sweep and those
+//!   nodes. With this rule a sweep passing close to an existing edge or face puts all its
+//!   corners on the cut, and that edge or face opens as it is, with no new node. The plane, not
+//!   the swept triangle, so that a blade in steps snaps the nodes a blade in one step does.
+//! - A subdivision that would make a tet whose rest volume-length ratio (what the invariants
+//!   check) is below the floor is not made: the crossings at that tet snap to the nearer ends of
+//!   their edges. Snapping moves no node and makes no tet, so no tet below the floor is ever
+//!   made; the price is a cut surface up to half an edge off the sweep there.
+//! - Each parent is judged whole: subdivided by the marks the blade will have made once through
+//!   it, going on in the plane of its crossing. A blade in steps marks a tet's edges one cut at a
+//!   time, and the part made so far can fall below the floor where the whole does not; snapping
+//!   then would make it cut unlike a blade in one step. So a crossing whose split now would make
+//!   such a part waits (`Cutter::pending`) until the blade crosses the parent's other edges,
+//!   and a blade that stops inside a tet leaves it whole.
 //!
-//! All snaps are decided before any edge is split: the splits are played on a copy of the tets
-//! around them, and each time a split fails the floor its nearer end joins the cut and the play
-//! starts again, until one play passes; the edit then repeats that play. A node that joined the
-//! cut after edges at it were split could leave a tet with every corner on the cut, on neither
-//! side of the sweep; deciding first keeps a corner off the cut in every tet a split makes, so
-//! each tet still lies on one side and the faces that open are exactly those between the sides.
+//! All snaps are decided before any edge is split, on copies of the parents' subdivisions,
+//! until every one passes; the edit then makes those subdivisions. A node that joined the cut
+//! after edges at it were split could leave a tet with every corner on the cut, on neither side
+//! of the sweep; deciding first keeps a corner off the cut in every tet a split makes, so each
+//! tet still lies on one side and the faces that open are exactly those between the sides.
 //!
 //! Nodes stay on the cut from one cut to the next, so where a later cut snaps next to an
 //! earlier one a tet can still end with every corner on a cut. Its fourth corner then says
-//! nothing about its side of the new sweep, so with a floor it goes with its centroid's side:
-//! taking the corner's side instead opens faces across such tets and leaves them as loose pieces
-//! where two cuts cross, which snapping far from the sweep makes common. Two snapped surfaces
-//! crossing can still pinch off a few tets near the line where they meet.
+//! nothing about its side of the new sweep (it lies on a cut plane, where rounding picks the
+//! side), so it goes with its centroid's side: taking the corner's side instead opens faces
+//! across such tets and leaves them as loose pieces where two cuts cross, which snapping far from
+//! the sweep makes common. Two snapped surfaces crossing can still pinch off a few tets near the
+//! line where they meet.
 //!
 //! A new node starts with the state interpolated along its edge (displacement and velocity, at
 //! the crossing's parameter), so the deformed tissue does not jump when the cut is applied: its
@@ -52,6 +62,7 @@ use nalgebra::Point3;
 use super::exact::segment_crosses_triangle;
 use super::snapshot::{Snapshot, StateSource};
 use super::sweep::Sweep;
+use super::template::{self, FamilyKey};
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
 use crate::mesh::quality::tet_quality;
@@ -82,95 +93,137 @@ impl Cutter {
         outcome: &mut CutOutcome,
     ) -> Result<()> {
         let nodes_before = self.dense.len() as u32;
-        // 1. Crossed edges and where (parameter from the smaller key).
-        let mut crossed: BTreeMap<[NodeKey; 2], f64> = BTreeMap::new();
+        // 1. Crossed edges, where (parameter from the smaller key) and which sweep triangle.
+        let mut crossed: BTreeMap<[NodeKey; 2], Crossing> = BTreeMap::new();
+        // Waiting crossings on the candidates' edges: those around the tets the blade is in.
+        let mut waiting_here: BTreeMap<[NodeKey; 2], Crossing> = BTreeMap::new();
         for &tk in candidates {
             let t = self.mesh.tet(tk).expect("a candidate tet").nodes;
             for [i, j] in TET_EDGES {
-                let (p, q) = if t[i] < t[j] {
-                    (t[i], t[j])
-                } else {
-                    (t[j], t[i])
-                };
-                if crossed.contains_key(&[p, q]) {
+                let key = edge_key(t[i], t[j]);
+                if let Some(c) = self.pending.get(&key) {
+                    waiting_here.insert(key, *c);
+                }
+                if crossed.contains_key(&key) {
                     continue;
                 }
+                let [p, q] = key;
                 let (xp, xq) = (self.classified(classify, p), self.classified(classify, q));
                 if let Some(s) = sweep
                     .triangles
                     .iter()
                     .find(|s| segment_crosses_triangle(&xp, &xq, s))
                 {
-                    let n = (s[1] - s[0]).cross(&(s[2] - s[0]));
-                    let (dp, dq) = (n.dot(&(xp - s[0])), n.dot(&(xq - s[0])));
+                    let (dp, dq) = (signed_plane(&xp, s), signed_plane(&xq, s));
                     let t = if dp == dq {
                         0.5
                     } else {
                         (dp / (dp - dq)).clamp(0.0, 1.0)
                     };
-                    crossed.insert([p, q], t);
+                    crossed.insert(key, Crossing { t, plane: *s });
                 }
             }
         }
         // An edge that meets the sweep at an end already on a cut (a node an earlier sweep made
         // or snapped) crosses nothing new; counting it would pull its other end onto the cut
         // when the same sweep comes again.
-        crossed.retain(|&[p, q], t| {
-            !((*t < EDGE_SNAP && self.on_cut.contains(&p))
-                || (*t > 1.0 - EDGE_SNAP && self.on_cut.contains(&q)))
+        let old_cut = |[p, q]: [NodeKey; 2], c: &Crossing| {
+            (c.t < EDGE_SNAP && self.on_cut.contains(&p))
+                || (c.t > 1.0 - EDGE_SNAP && self.on_cut.contains(&q))
+        };
+        crossed.retain(|&e, c| !old_cut(e, c));
+        // Crossings an earlier cut left waiting for the blade to finish the tets around them
+        // join in where it is (on the candidates' edges, whose nodes the cut has read), when it
+        // crosses a new edge (one off every cut that is not waiting already); else they go on
+        // waiting, and a blade moved along its cut changes nothing.
+        let fresh = crossed.keys().any(|e| {
+            !self.on_cut.contains(&e[0])
+                && !self.on_cut.contains(&e[1])
+                && !self.pending.contains_key(e)
         });
+        if fresh {
+            for (e, c) in waiting_here {
+                self.pending.remove(&e);
+                if !old_cut(e, &c) {
+                    crossed.insert(e, c);
+                }
+            }
+        } else {
+            crossed.retain(|e, _| !self.pending.contains_key(e));
+        }
         if crossed.is_empty() {
             return Ok(());
         }
-        // 2. Snap crossings near an end (and, with a floor, nodes near the sweep and the ends
-        //    of splits that would make a tet below it); split the others.
+        // 2. Snap crossings near an end (and, with a floor, nodes near the sweep's plane and the
+        //    ends of splits that would make a tet below it); split the others, but those whose
+        //    tets the blade has not finished and whose split now would make a tet below the
+        //    floor: those wait for the next cut.
         let mut snapped: BTreeSet<NodeKey> = BTreeSet::new();
-        for (&[p, q], &t) in &crossed {
-            if t < EDGE_SNAP {
+        for (&[p, q], c) in &crossed {
+            if c.t < EDGE_SNAP {
                 snapped.insert(p);
-            } else if t > 1.0 - EDGE_SNAP {
+            } else if c.t > 1.0 - EDGE_SNAP {
                 snapped.insert(q);
             }
         }
+        let mut waiting: BTreeSet<[NodeKey; 2]> = BTreeSet::new();
         let floor = self.quality_floor;
         let guarded = floor > 0.0;
         if guarded {
-            let ends: BTreeSet<NodeKey> = crossed
-                .keys()
-                .flatten()
-                .copied()
-                .filter(|n| !snapped.contains(n) && !self.on_cut.contains(n))
-                .collect();
-            for n in ends {
-                let x = self.classified(classify, n);
-                let distance = sweep
-                    .triangles
-                    .iter()
-                    .map(|s| distance_to_triangle(&x, s))
-                    .fold(f64::INFINITY, f64::min);
-                if distance < NODE_SNAP * self.shortest_edge_at(n, classify) {
+            // Each end's distance to the plane of the sweep triangle its edge crosses: the plane,
+            // not the triangle, so that a blade in steps, whose triangle of the moment may end
+            // short of a node the whole sweep passes, snaps the same nodes as one in one step.
+            let mut distance: BTreeMap<NodeKey, f64> = BTreeMap::new();
+            for (&[p, q], c) in &crossed {
+                for n in [p, q] {
+                    if snapped.contains(&n) || self.on_cut.contains(&n) {
+                        continue;
+                    }
+                    let d = signed_plane(&self.classified(classify, n), &c.plane).abs();
+                    let e = distance.entry(n).or_insert(f64::INFINITY);
+                    *e = e.min(d);
+                }
+            }
+            for (n, d) in distance {
+                if d < NODE_SNAP * self.shortest_rest_edge_at(n) {
                     snapped.insert(n);
                 }
             }
             loop {
                 let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
-                let more = self.sliver_snaps(&crossed, &on_cut, floor);
-                if more.is_empty() {
+                let (waits, splits): (BTreeMap<_, _>, BTreeMap<_, _>) = crossed
+                    .iter()
+                    .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
+                    .map(|(e, c)| (*e, *c))
+                    .partition(|(e, _)| waiting.contains(e));
+                let verdict = self.floor_verdict(&splits, &waits, &on_cut, classify, floor);
+                if verdict.snap.is_empty() && verdict.wait.is_empty() {
                     break;
                 }
-                snapped.extend(more);
+                snapped.extend(verdict.snap);
+                waiting.extend(verdict.wait);
             }
         }
         let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
+        self.pending.extend(
+            crossed
+                .iter()
+                .filter(|(e, _)| waiting.contains(*e) && !on_cut(e[0]) && !on_cut(e[1]))
+                .map(|(e, c)| (*e, *c)),
+        );
+        // A crossing at a node now on the cut has nothing left to wait for.
+        self.pending.retain(|e, _| !on_cut(e[0]) && !on_cut(e[1]));
         let splits: Vec<([NodeKey; 2], f64)> = crossed
             .iter()
-            .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
-            .map(|(e, t)| (*e, *t))
+            .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]) && !waiting.contains(*e))
+            .map(|(e, c)| (*e, c.t))
             .collect();
-        // 3. Record what the edit may change, before it.
+        // 3. Record what the edit may change, before it: every sub-tet of the tets whose
+        //    subdivision changes, and the tets at snapped nodes.
+        let parents = self.parents_of(splits.iter().map(|s| s.0));
         let mut touched: BTreeSet<TetKey> = BTreeSet::new();
-        for (e, _) in &splits {
-            touched.extend(self.tets_with_edge(e[0], e[1]));
+        for plan in parents.list.values() {
+            touched.extend(plan.children.iter().copied());
         }
         for &n in &snapped {
             touched.extend(self.faces.tets_at(n).iter().copied());
@@ -182,12 +235,12 @@ impl Cutter {
         let mut snapshot = Snapshot::take(&self.model, &before);
         self.on_cut.extend(snapped.iter().copied());
 
-        // 4. Split the edges, one at a time.
+        // 4. A node on each split edge, then each parent's sub-tets from all its marks.
         let mut extra: HashMap<NodeKey, Point3<f64>> = HashMap::new();
         let mut source: HashMap<NodeKey, StateSource> = HashMap::new();
         let mut added: Vec<(NodeKey, StateSource)> = Vec::new();
-        let mut children: BTreeSet<TetKey> = BTreeSet::new();
-        for ([a, b], t) in splits {
+        let mut made: BTreeMap<[NodeKey; 2], NodeKey> = BTreeMap::new();
+        for &([a, b], t) in &splits {
             let rest = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
             let k = self.add_node(rest);
             self.on_cut.insert(k);
@@ -197,35 +250,24 @@ impl Cutter {
             let from = StateSource::Between(a, b, t);
             source.insert(k, from);
             added.push((k, from));
-            for tk in self.tets_with_edge(a, b) {
-                let tet = *self.mesh.tet(tk).expect("a tet");
-                let one = tet.nodes.map(|n| if n == b { k } else { n });
-                let two = tet.nodes.map(|n| if n == a { k } else { n });
-                debug_assert!(
-                    !guarded
-                        || [one, two].iter().all(|c| {
-                            tet_quality(&c.map(|n| self.mesh.rest(n))).volume_length_ratio >= floor
-                        }),
-                    "a split below the quality floor: the edit left the checked play"
-                );
-                self.faces.remove(tk, &tet, &self.mesh);
-                self.model.remove_tet(&self.mesh, tk)?;
-                self.mesh.set_tet_nodes(tk, one)?;
-                self.model.add_tet(&self.mesh, tk)?;
-                self.faces.insert(tk, self.mesh.tet(tk).expect("a tet"))?;
-                let other = self.mesh.add_tet(two, tet.region)?;
-                self.model.add_tet(&self.mesh, other)?;
-                self.faces
-                    .insert(other, self.mesh.tet(other).expect("a tet"))?;
-                children.extend([tk, other]);
-            }
+            made.insert([a, b], k);
+        }
+        let children = self.subdivide_parents(parents, &made)?;
+        if guarded {
+            debug_assert!(
+                children.iter().all(|&t| {
+                    let points = self.mesh.tet_points(self.mesh.tet(t).expect("a tet"));
+                    tet_quality(&points).volume_length_ratio >= floor
+                }),
+                "a sub-tet below the quality floor: the edit left the checked trial"
+            );
         }
 
         // 5. Open the faces on the cut: all three corners on it, the two tets' other corners on
         //    either side of the sweep (the plane of the sweep triangle nearest the face). Such a
         //    face lies in the cut surface whichever step made its corners, so a cut made in many
-        //    steps opens the same faces as one made in one. With a floor, a tet whose other
-        //    corner is on a cut too lies on its centroid's side.
+        //    steps opens the same faces as one made in one. A tet whose other corner is on a cut
+        //    too lies on its centroid's side.
         let at = |n: NodeKey| {
             extra
                 .get(&n)
@@ -269,7 +311,7 @@ impl Cutter {
                         .iter()
                         .find(|n| !face.contains(n))
                         .expect("a tet has four");
-                    if guarded && self.on_cut.contains(&k) {
+                    if self.on_cut.contains(&k) {
                         centroid(nodes.map(at))
                     } else {
                         at(k)
@@ -300,6 +342,15 @@ impl Cutter {
         let source_of = |n: NodeKey| source.get(&n).copied().unwrap_or(StateSource::Node(n));
         let (copies, _) = self.apply_split(&plan, &source_of)?;
         added.extend(copies);
+        // Sub-tets whose corners were renamed, or whose face is cut, no longer follow their
+        // parent's template: those families end.
+        for &t in plan.replace.keys() {
+            self.families.end_family_of(t);
+        }
+        for &(a, b) in &pairs {
+            self.families.end_family_of(a);
+            self.families.end_family_of(b);
+        }
 
         let all: BTreeSet<TetKey> = children
             .iter()
@@ -317,98 +368,260 @@ impl Cutter {
         Ok(())
     }
 
-    /// The nodes to put on the cut so that splitting the crossings of `crossed` whose ends are
-    /// not `on_cut` makes no tet below `floor` (rest volume-length ratio). The splits are played
-    /// in order on a copy of the tets around them; one that would make such a tet is not made,
-    /// the nearer end of its edge is returned and the play goes on without the splits at that
-    /// node. Empty when every split keeps to the floor.
-    fn sliver_snaps(
+    /// What keeps splitting `splits` from making a tet below `floor` (rest volume-length
+    /// ratio), now or once the blade has gone on through the tets it is in.
+    ///
+    /// Every parent whose subdivision the splits change is subdivided on a copy by its template,
+    /// twice: with the marks the blade will have made once through it, if it goes on in the
+    /// plane of a crossing (the parent's edges across that plane, but at nodes that snap), and
+    /// with the marks it has and the new ones (what this cut would make). Where a sub-tet of
+    /// the whole subdivision falls below the floor, each crossing at a corner of such a sub-tet
+    /// (each new one of the parent, if none is) snaps to the nearer end of its edge, crossings
+    /// still ahead of the blade included. Where only the part made so far would, its new
+    /// crossings at such sub-tets wait: the blade has not finished the parent, and splitting
+    /// part of it now would force a snap that a blade through it in one step does not make.
+    /// All parents are judged on the same splits, so the answer does not depend on an order.
+    fn floor_verdict(
         &self,
-        crossed: &BTreeMap<[NodeKey; 2], f64>,
+        splits: &BTreeMap<[NodeKey; 2], Crossing>,
+        waiting: &BTreeMap<[NodeKey; 2], Crossing>,
         on_cut: &dyn Fn(NodeKey) -> bool,
+        classify: &Classify,
         floor: f64,
-    ) -> BTreeSet<NodeKey> {
-        let splits: Vec<([NodeKey; 2], f64)> = crossed
-            .iter()
-            .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
-            .map(|(e, t)| (*e, *t))
-            .collect();
-        // The copy: corners as indices into `at` (rest positions), with each node's tets.
-        let mut index: HashMap<NodeKey, usize> = HashMap::new();
-        let mut at: Vec<Point3<f64>> = Vec::new();
-        let mut around: Vec<Vec<usize>> = Vec::new();
-        let mut tets: Vec<[usize; 4]> = Vec::new();
-        let mut copied: BTreeSet<TetKey> = BTreeSet::new();
-        for ([a, b], _) in &splits {
-            for tk in self.tets_with_edge(*a, *b) {
-                if !copied.insert(tk) {
-                    continue;
-                }
-                let mut local = [0; 4];
-                for (l, &n) in local
-                    .iter_mut()
-                    .zip(&self.mesh.tet(tk).expect("a tet").nodes)
-                {
-                    *l = *index.entry(n).or_insert_with(|| {
-                        at.push(self.mesh.rest(n));
-                        around.push(Vec::new());
-                        at.len() - 1
-                    });
-                    around[*l].push(tets.len());
-                }
-                tets.push(local);
+    ) -> FloorVerdict {
+        let parents = self.parents_of(splits.keys().chain(waiting.keys()).copied());
+        let mut verdict = FloorVerdict::default();
+        for plan in parents.list.values() {
+            let corners = plan.corners;
+            let rest = corners.map(|n| self.mesh.rest(n));
+            // Corners 0..4, then one point per mark.
+            let mut at: Vec<Point3<f64>> = rest.to_vec();
+            let mut now: Vec<(usize, usize)> = Vec::with_capacity(6);
+            for &(e, k) in &plan.marks {
+                now.push((e, at.len()));
+                at.push(self.mesh.rest(k));
             }
-        }
-        let mut snaps = BTreeSet::new();
-        for ([a, b], t) in splits {
-            if snaps.contains(&a) || snaps.contains(&b) {
-                continue;
-            }
-            let (la, lb) = (index[&a], index[&b]);
-            // As the edit places it.
-            let x = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
-            let shared: Vec<usize> = around[la]
-                .iter()
-                .copied()
-                .filter(|i| around[lb].contains(i))
-                .collect();
-            let quality = |c: &[usize; 4], moved: usize| {
-                tet_quality(&c.map(|l| if l == moved { x } else { at[l] })).volume_length_ratio
+            let point = |key: [NodeKey; 2], t: f64| {
+                let (a, b) = (self.mesh.rest(key[0]), self.mesh.rest(key[1]));
+                a + (b - a) * t
             };
-            if shared
-                .iter()
-                .any(|&i| quality(&tets[i], lb) < floor || quality(&tets[i], la) < floor)
-            {
-                snaps.insert(if t < 0.5 { a } else { b });
-                continue;
-            }
-            let k = at.len();
-            at.push(x);
-            around.push(Vec::new());
-            for i in shared {
-                let tet = tets[i];
-                tets[i] = tet.map(|l| if l == lb { k } else { l });
-                around[lb].retain(|&j| j != i);
-                around[k].push(i);
-                let two = tet.map(|l| if l == la { k } else { l });
-                for &l in &two {
-                    around[l].push(tets.len());
+            // (point, edge, parameter) of each crossing this cut would split, and of each
+            // crossing waiting (known to be ahead).
+            let mut new: Vec<(usize, [NodeKey; 2], f64)> = Vec::new();
+            let mut known: Vec<(usize, usize, [NodeKey; 2], f64)> = Vec::new();
+            let mut plane = None;
+            for (e, [i, j]) in TET_EDGES.iter().enumerate() {
+                let key = edge_key(corners[*i], corners[*j]);
+                if let Some(c) = splits.get(&key) {
+                    new.push((at.len(), key, c.t));
+                    now.push((e, at.len()));
+                    at.push(point(key, c.t));
+                    plane.get_or_insert(c.plane);
+                } else if let Some(c) = waiting.get(&key) {
+                    known.push((e, at.len(), key, c.t));
+                    at.push(point(key, c.t));
+                    plane.get_or_insert(c.plane);
                 }
-                tets.push(two);
+            }
+            let Some(plane) = plane else {
+                continue;
+            };
+            // The crossings still ahead: the parent's other edges across the plane, but where
+            // an end is on a cut or snaps (near the plane, or a crossing near it).
+            let d = corners.map(|n| signed_plane(&self.classified(classify, n), &plane));
+            let mut off = [0, 1, 2, 3].map(|i| {
+                !on_cut(corners[i])
+                    && d[i].abs() >= NODE_SNAP * self.shortest_rest_edge_at(corners[i])
+            });
+            let marked =
+                |e: usize| now.iter().any(|&(m, _)| m == e) || known.iter().any(|&(m, ..)| m == e);
+            let across = |i: usize, j: usize| (d[i] < 0.0) != (d[j] < 0.0);
+            for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
+                if !marked(e) && across(i, j) && off[i] && off[j] {
+                    let t = d[i] / (d[i] - d[j]);
+                    if t < EDGE_SNAP {
+                        off[i] = false;
+                    } else if t > 1.0 - EDGE_SNAP {
+                        off[j] = false;
+                    }
+                }
+            }
+            let mut whole = now.clone();
+            let mut ahead = new.clone();
+            for &(e, l, key, t) in &known {
+                whole.push((e, l));
+                ahead.push((l, key, t));
+            }
+            for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
+                if !marked(e) && across(i, j) && off[i] && off[j] {
+                    let key = edge_key(corners[i], corners[j]);
+                    let t = d[i] / (d[i] - d[j]);
+                    let t = if key[0] == corners[i] { t } else { 1.0 - t };
+                    ahead.push((at.len(), key, t));
+                    whole.push((e, at.len()));
+                    at.push(point(key, t));
+                }
+            }
+            let order = template::edge_order(&rest);
+            // The crossings of `blamable` at a sub-tet of `marks` below the floor (the new ones
+            // where no such crossing is at one); empty when every sub-tet keeps to it.
+            let blame = |marks: &[(usize, usize)], blamable: &[(usize, [NodeKey; 2], f64)]| {
+                let tets = template::subdivide([0, 1, 2, 3], marks, &order);
+                let failing: Vec<&[usize; 4]> = tets
+                    .iter()
+                    .filter(|c| tet_quality(&c.map(|l| at[l])).volume_length_ratio < floor)
+                    .collect();
+                if failing.is_empty() {
+                    return Vec::new();
+                }
+                let at_failing: Vec<([NodeKey; 2], f64)> = blamable
+                    .iter()
+                    .filter(|(l, _, _)| failing.iter().any(|c| c.contains(l)))
+                    .map(|&(_, e, t)| (e, t))
+                    .collect();
+                if at_failing.is_empty() {
+                    new.iter().map(|&(_, e, t)| (e, t)).collect()
+                } else {
+                    at_failing
+                }
+            };
+            let snap = blame(&whole, &ahead);
+            if !snap.is_empty() {
+                for (key, t) in snap {
+                    verdict.snap.insert(if t < 0.5 { key[0] } else { key[1] });
+                }
+            } else if new.is_empty() {
+                // Nothing new for this parent: it was judged with its waiting crossings only.
+            } else if whole.len() > now.len() {
+                verdict
+                    .wait
+                    .extend(blame(&now, &new).into_iter().map(|(e, _)| e));
+            } else {
+                // The blade has finished the parent, so the two are the same and keep to it.
+                debug_assert!(blame(&now, &new).is_empty());
             }
         }
-        snaps
+        verdict
     }
 
-    /// The length of the shortest edge at `n`, at the classification positions `classify`.
-    fn shortest_edge_at(&self, n: NodeKey, classify: &Classify) -> f64 {
-        let x = self.classified(classify, n);
+    /// The parents whose subdivision splitting `edges` changes: for each tet around a split
+    /// edge, its family where the edge is one of the family parent's edges, else the tet itself
+    /// (a family split along an edge that is not its parent's ends: [`Parents::ended`]).
+    fn parents_of(&self, edges: impl Iterator<Item = [NodeKey; 2]> + Clone) -> Parents {
+        let mut parents = Parents::default();
+        for [a, b] in edges.clone() {
+            for t in self.tets_with_edge(a, b) {
+                if let Some((f, family)) = self.families.of(t) {
+                    if !(family.corners.contains(&a) && family.corners.contains(&b)) {
+                        parents.ended.insert(f);
+                    }
+                }
+            }
+        }
+        for [a, b] in edges {
+            for t in self.tets_with_edge(a, b) {
+                match self.families.of(t) {
+                    Some((f, family)) if !parents.ended.contains(&f) => {
+                        parents
+                            .list
+                            .entry(Parent::Family(f))
+                            .or_insert_with(|| ParentPlan {
+                                corners: family.corners,
+                                region: family.region,
+                                marks: family.marks.clone(),
+                                children: family.children.clone(),
+                            });
+                    }
+                    _ => {
+                        let tet = self.mesh.tet(t).expect("a tet");
+                        parents.list.entry(Parent::Tet(t)).or_insert(ParentPlan {
+                            corners: tet.nodes,
+                            region: tet.region,
+                            marks: Vec::new(),
+                            children: vec![t],
+                        });
+                    }
+                }
+            }
+        }
+        parents
+    }
+
+    /// Mark the new nodes `made` (per split edge) on `parents` and replace each parent's
+    /// sub-tets with its template's (mesh, model and face index). Returns the new sub-tets.
+    fn subdivide_parents(
+        &mut self,
+        parents: Parents,
+        made: &BTreeMap<[NodeKey; 2], NodeKey>,
+    ) -> Result<BTreeSet<TetKey>> {
+        for &f in &parents.ended {
+            self.families.end(f);
+        }
+        let mut work: Vec<(FamilyKey, Vec<TetKey>)> = Vec::with_capacity(parents.list.len());
+        for (parent, plan) in parents.list {
+            let f = match parent {
+                Parent::Family(f) => f,
+                Parent::Tet(t) => self.families.adopt(t, plan.corners, plan.region),
+            };
+            for (e, [i, j]) in TET_EDGES.iter().enumerate() {
+                if let Some(&k) = made.get(&edge_key(plan.corners[*i], plan.corners[*j])) {
+                    self.families.mark(f, e, k);
+                }
+            }
+            work.push((f, plan.children));
+        }
+        // Out with every old sub-tet first, so that faces between two parents are not matched
+        // against a sub-tet about to go.
+        for (_, old) in &work {
+            for &t in old {
+                let tet = *self.mesh.tet(t).expect("a sub-tet");
+                self.faces.remove(t, &tet, &self.mesh);
+                self.model.remove_tet(&self.mesh, t)?;
+            }
+        }
+        let mut children = BTreeSet::new();
+        for (f, old) in work {
+            let family = self.families.get(f);
+            let rest = family.corners.map(|n| self.mesh.rest(n));
+            let tets =
+                template::subdivide(family.corners, &family.marks, &template::edge_order(&rest));
+            let region = family.region;
+            // Marks only grow, so there are at least as many sub-tets as before: the old keys
+            // are reused.
+            let mut keys = Vec::with_capacity(tets.len());
+            for (i, nodes) in tets.into_iter().enumerate() {
+                keys.push(match old.get(i) {
+                    Some(&t) => {
+                        self.mesh.set_tet_nodes(t, nodes)?;
+                        t
+                    }
+                    None => self.mesh.add_tet(nodes, region)?,
+                });
+            }
+            for &t in old.iter().skip(keys.len()) {
+                self.mesh.remove_tet(t);
+            }
+            children.extend(keys.iter().copied());
+            self.families.set_children(f, keys);
+        }
+        for &t in &children {
+            self.model.add_tet(&self.mesh, t)?;
+            let tet = *self.mesh.tet(t).expect("a sub-tet");
+            self.faces.insert(t, &tet)?;
+        }
+        Ok(children)
+    }
+
+    /// The length at rest of the shortest edge at `n` (at rest, so that whether a node snaps
+    /// does not depend on when the blade reaches it).
+    fn shortest_rest_edge_at(&self, n: NodeKey) -> f64 {
+        let x = self.mesh.rest(n);
         self.faces
             .tets_at(n)
             .iter()
             .flat_map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .filter(|&m| m != n)
-            .map(|m| (self.classified(classify, m) - x).norm())
+            .map(|m| (self.mesh.rest(m) - x).norm())
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -442,50 +655,85 @@ fn centroid(p: [Point3<f64>; 4]) -> Point3<f64> {
     Point3::from((p[0].coords + p[1].coords + p[2].coords + p[3].coords) / 4.0)
 }
 
-/// The distance from `p` to the triangle `t`: to its plane where `p` projects inside it, else to
-/// the nearest side.
-fn distance_to_triangle(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
-    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
-    let inside = (0..3).all(|i| (t[(i + 1) % 3] - t[i]).cross(&(p - t[i])).dot(&n) >= 0.0);
-    if inside && n.norm_squared() > 0.0 {
-        return (p - t[0]).dot(&n).abs() / n.norm();
+/// The edge `(a, b)` as its ends in key order.
+fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
+    if a < b {
+        [a, b]
+    } else {
+        [b, a]
     }
-    (0..3)
-        .map(|i| {
-            let (a, ab) = (t[i], t[(i + 1) % 3] - t[i]);
-            let len2 = ab.norm_squared();
-            let s = if len2 > 0.0 {
-                ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (p - (a + ab * s)).norm()
-        })
-        .fold(f64::INFINITY, f64::min)
+}
+
+/// `p`'s signed distance from the plane of triangle `t` (positive on its normal's side).
+fn signed_plane(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
+    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let len = n.norm();
+    if len == 0.0 {
+        return 0.0;
+    }
+    n.dot(&(p - t[0])) / len
+}
+
+/// Where the blade crosses an edge: the parameter from the edge's smaller key, and the sweep
+/// triangle it crosses (whose plane says where the blade goes on).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Crossing {
+    t: f64,
+    plane: [Point3<f64>; 3],
+}
+
+/// What the quality floor asks of a cut's splits: nodes to put on the cut, and crossings to
+/// leave for a later cut.
+#[derive(Debug, Default)]
+struct FloorVerdict {
+    snap: BTreeSet<NodeKey>,
+    wait: BTreeSet<[NodeKey; 2]>,
+}
+
+/// A parent whose subdivision a cut changes: an open family, or a tet in none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Parent {
+    Family(FamilyKey),
+    Tet(TetKey),
+}
+
+/// A parent's corners, region and marks so far, and its sub-tets now in the mesh.
+#[derive(Debug)]
+struct ParentPlan {
+    corners: [NodeKey; 4],
+    region: i32,
+    marks: Vec<(usize, NodeKey)>,
+    children: Vec<TetKey>,
+}
+
+/// The parents a cut subdivides anew, and the families it ends.
+#[derive(Debug, Default)]
+struct Parents {
+    list: BTreeMap<Parent, ParentPlan>,
+    ended: BTreeSet<FamilyKey>,
 }
 
 #[cfg(test)]
 mod tests {
-    use super::distance_to_triangle;
+    use super::signed_plane;
     use nalgebra::Point3;
 
     #[test]
-    fn distance_to_a_triangle_is_to_its_plane_side_or_corner() {
+    fn the_signed_distance_from_a_plane_follows_the_normal_and_ignores_the_sides() {
         let t = [
             Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(2.0, 0.0, 0.0),
+            Point3::new(0.0, 2.0, 0.0),
         ];
-        let d = |x: f64, y: f64, z: f64| distance_to_triangle(&Point3::new(x, y, z), &t);
-        // Above the inside, either way round.
-        assert_eq!(d(0.25, 0.25, 0.5), 0.5);
+        assert_eq!(signed_plane(&Point3::new(0.25, 0.25, 0.5), &t), 0.5);
+        assert_eq!(signed_plane(&Point3::new(9.0, -7.0, -0.5), &t), -0.5);
         assert_eq!(
-            distance_to_triangle(&Point3::new(0.25, 0.25, -0.5), &[t[0], t[2], t[1]]),
-            0.5
+            signed_plane(&Point3::new(0.25, 0.25, 0.5), &[t[0], t[2], t[1]]),
+            -0.5
         );
-        // Beside a side, beyond a corner.
-        assert!((d(0.5, -0.3, 0.4) - 0.5).abs() < 1e-15);
-        assert!((d(-3.0, -4.0, 0.0) - 5.0).abs() < 1e-15);
-        assert!((d(1.0, 1.0, 0.0) - 0.5f64.sqrt()).abs() < 1e-15);
+        assert_eq!(
+            signed_plane(&Point3::new(1.0, 1.0, 1.0), &[t[0], t[0], t[1]]),
+            0.0
+        );
     }
 }
