@@ -65,7 +65,7 @@ use super::sweep::Sweep;
 use super::template::{self, FamilyKey};
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
-use crate::mesh::quality::tet_quality;
+use crate::mesh::quality::volume_length_ratio;
 use crate::mesh::{NodeKey, TetKey, TET_EDGES, TET_FACES};
 
 /// Crossings closer than this fraction of an edge to one of its ends snap to that end.
@@ -257,7 +257,7 @@ impl Cutter {
             debug_assert!(
                 children.iter().all(|&t| {
                     let points = self.mesh.tet_points(self.mesh.tet(t).expect("a tet"));
-                    tet_quality(&points).volume_length_ratio >= floor
+                    volume_length_ratio(&points) >= floor
                 }),
                 "a sub-tet below the quality floor: the edit left the checked trial"
             );
@@ -391,6 +391,7 @@ impl Cutter {
     ) -> FloorVerdict {
         let parents = self.parents_of(splits.keys().chain(waiting.keys()).copied());
         let mut verdict = FloorVerdict::default();
+        let mut shortest: HashMap<NodeKey, f64> = HashMap::new();
         for plan in parents.list.values() {
             let corners = plan.corners;
             let rest = corners.map(|n| self.mesh.rest(n));
@@ -430,8 +431,13 @@ impl Cutter {
             // an end is on a cut or snaps (near the plane, or a crossing near it).
             let d = corners.map(|n| signed_plane(&self.classified(classify, n), &plane));
             let mut off = [0, 1, 2, 3].map(|i| {
-                !on_cut(corners[i])
-                    && d[i].abs() >= NODE_SNAP * self.shortest_rest_edge_at(corners[i])
+                let n = corners[i];
+                !on_cut(n)
+                    && d[i].abs()
+                        >= NODE_SNAP
+                            * *shortest
+                                .entry(n)
+                                .or_insert_with(|| self.shortest_rest_edge_at(n))
             });
             let marked =
                 |e: usize| now.iter().any(|&(m, _)| m == e) || known.iter().any(|&(m, ..)| m == e);
@@ -469,7 +475,7 @@ impl Cutter {
                 let tets = template::subdivide([0, 1, 2, 3], marks, &order);
                 let failing: Vec<&[usize; 4]> = tets
                     .iter()
-                    .filter(|c| tet_quality(&c.map(|l| at[l])).volume_length_ratio < floor)
+                    .filter(|c| volume_length_ratio(&c.map(|l| at[l])) < floor)
                     .collect();
                 if failing.is_empty() {
                     return Vec::new();
@@ -548,7 +554,8 @@ impl Cutter {
     }
 
     /// Mark the new nodes `made` (per split edge) on `parents` and replace each parent's
-    /// sub-tets with its template's (mesh, model and face index). Returns the new sub-tets.
+    /// sub-tets with its template's (mesh, model and face index; a sub-tet the template keeps
+    /// is left alone). Returns every sub-tet of those parents.
     fn subdivide_parents(
         &mut self,
         parents: Parents,
@@ -570,41 +577,83 @@ impl Cutter {
             }
             work.push((f, plan.children));
         }
-        // Out with every old sub-tet first, so that faces between two parents are not matched
-        // against a sub-tet about to go.
-        for (_, old) in &work {
-            for &t in old {
+        // Each family's new sub-tets; those it already has (same corners) stay as they are.
+        let sorted = |mut n: [NodeKey; 4]| {
+            n.sort_unstable();
+            n
+        };
+        let mut plans: Vec<Resubdivision> = Vec::with_capacity(work.len());
+        for (f, old) in work {
+            let family = self.families.get(f);
+            let rest = family.corners.map(|n| self.mesh.rest(n));
+            let tets =
+                template::subdivide(family.corners, &family.marks, &template::edge_order(&rest));
+            let had: Vec<[NodeKey; 4]> = old
+                .iter()
+                .map(|&t| sorted(self.mesh.tet(t).expect("a sub-tet").nodes))
+                .collect();
+            let wanted: Vec<[NodeKey; 4]> = tets.iter().map(|&n| sorted(n)).collect();
+            let (mut kept, mut gone) = (Vec::new(), Vec::new());
+            for (&t, h) in old.iter().zip(&had) {
+                if wanted.contains(h) {
+                    kept.push(t);
+                } else {
+                    gone.push(t);
+                }
+            }
+            let fresh: Vec<[NodeKey; 4]> = tets
+                .into_iter()
+                .zip(&wanted)
+                .filter(|(_, w)| !had.contains(w))
+                .map(|(n, _)| n)
+                .collect();
+            plans.push(Resubdivision {
+                family: f,
+                kept,
+                gone,
+                fresh,
+            });
+        }
+        // Out with every sub-tet that goes first, so that faces between two parents are not
+        // matched against a sub-tet about to go.
+        for plan in &plans {
+            for &t in &plan.gone {
                 let tet = *self.mesh.tet(t).expect("a sub-tet");
                 self.faces.remove(t, &tet, &self.mesh);
                 self.model.remove_tet(&self.mesh, t)?;
             }
         }
         let mut children = BTreeSet::new();
-        for (f, old) in work {
-            let family = self.families.get(f);
-            let rest = family.corners.map(|n| self.mesh.rest(n));
-            let tets =
-                template::subdivide(family.corners, &family.marks, &template::edge_order(&rest));
-            let region = family.region;
-            // Marks only grow, so there are at least as many sub-tets as before: the old keys
-            // are reused.
-            let mut keys = Vec::with_capacity(tets.len());
-            for (i, nodes) in tets.into_iter().enumerate() {
-                keys.push(match old.get(i) {
+        let mut made = Vec::new();
+        for Resubdivision {
+            family: f,
+            kept,
+            gone,
+            fresh,
+        } in plans
+        {
+            let region = self.families.get(f).region;
+            // The keys of the sub-tets that go are reused for the new ones.
+            let mut keys = kept;
+            let count = fresh.len();
+            for (i, nodes) in fresh.into_iter().enumerate() {
+                let t = match gone.get(i) {
                     Some(&t) => {
                         self.mesh.set_tet_nodes(t, nodes)?;
                         t
                     }
                     None => self.mesh.add_tet(nodes, region)?,
-                });
+                };
+                keys.push(t);
+                made.push(t);
             }
-            for &t in old.iter().skip(keys.len()) {
+            for &t in gone.iter().skip(count) {
                 self.mesh.remove_tet(t);
             }
             children.extend(keys.iter().copied());
             self.families.set_children(f, keys);
         }
-        for &t in &children {
+        for &t in &made {
             self.model.add_tet(&self.mesh, t)?;
             let tet = *self.mesh.tet(t).expect("a sub-tet");
             self.faces.insert(t, &tet)?;
@@ -704,6 +753,15 @@ struct ParentPlan {
     region: i32,
     marks: Vec<(usize, NodeKey)>,
     children: Vec<TetKey>,
+}
+
+/// A family's sub-tets before and after a new mark: those the template keeps, those it drops
+/// (their keys go to new ones) and the new ones' corners.
+struct Resubdivision {
+    family: FamilyKey,
+    kept: Vec<TetKey>,
+    gone: Vec<TetKey>,
+    fresh: Vec<[NodeKey; 4]>,
 }
 
 /// The parents a cut subdivides anew, and the families it ends.

@@ -20,8 +20,9 @@ pub struct TetQuality {
     pub max_dihedral_deg: f64,
 }
 
-/// Quality of a tet given its four corners.
-pub fn tet_quality(p: &[Point3<f64>; 4]) -> TetQuality {
+/// `6 sqrt(2) V / l_rms^3` of a tet given its four corners (what [`TetQuality`] reports), alone:
+/// cheaper than [`tet_quality`], which also measures the dihedral angles.
+pub fn volume_length_ratio(p: &[Point3<f64>; 4]) -> f64 {
     let volume = signed_volume6(&p[0], &p[1], &p[2], &p[3]) / 6.0;
     let l2: f64 = TET_EDGES
         .iter()
@@ -29,11 +30,17 @@ pub fn tet_quality(p: &[Point3<f64>; 4]) -> TetQuality {
         .sum::<f64>()
         / 6.0;
     let l_rms = l2.sqrt();
-    let volume_length_ratio = if l_rms > 0.0 {
+    if l_rms > 0.0 {
         6.0 * std::f64::consts::SQRT_2 * volume / (l_rms * l_rms * l_rms)
     } else {
         0.0
-    };
+    }
+}
+
+/// Quality of a tet given its four corners.
+pub fn tet_quality(p: &[Point3<f64>; 4]) -> TetQuality {
+    let volume = signed_volume6(&p[0], &p[1], &p[2], &p[3]) / 6.0;
+    let volume_length_ratio = volume_length_ratio(p);
     // Outward face normals; face i is opposite node i.
     let normals = TET_FACES.map(|[a, b, c]| {
         let n = (p[b] - p[a]).cross(&(p[c] - p[a]));
