@@ -319,3 +319,45 @@ fn a_fast_blade_subdivides_like_a_slow_one_at_the_floor() {
         }
     }
 }
+
+/// A blade turned out of the grid's planes and moved out of its own plane, in steps: its sweep
+/// is curved, so later steps mark edges of tets an earlier step finished. Faces shared by a tet
+/// split earlier and one split now must still be split alike on both sides (the invariants
+/// count boundary triangles without a twin), with and without the quality floor, whatever the
+/// number of steps.
+#[test]
+fn a_turned_blade_moved_out_of_its_plane_keeps_the_mesh_conforming() {
+    let axis = nalgebra::Unit::new_normalize(nalgebra::Vector3::new(0.72787, 0.06216, -0.68290));
+    let turn = nalgebra::UnitQuaternion::from_axis_angle(&axis, 0.4862);
+    let from = nalgebra::Vector3::new(0.020466, 0.016936, 0.052835);
+    let to = nalgebra::Vector3::new(0.022180, 0.037638, -0.003454);
+    for floor in [0.0, lancet::cut::subdivide::DEFAULT_QUALITY_FLOOR] {
+        for steps in [1, 3, 7] {
+            let mesh = box_mesh();
+            let volume = mesh.volume();
+            let model = SpringModel::build(&mesh, &config()).unwrap();
+            let mut cutter = Cutter::new(mesh, model, CutMethod::Subdivide)
+                .unwrap()
+                .with_quality_floor(floor);
+            let pose = |s: f64| {
+                Isometry3::from_parts(nalgebra::Translation3::from(from + (to - from) * s), turn)
+            };
+            for k in 0..steps {
+                let (s0, s1) = (k as f64 / steps as f64, (k + 1) as f64 / steps as f64);
+                let sweep = Sweep::of_blade(&BLADE, &pose(s0), &pose(s1)).unwrap();
+                let rest: Vec<[f64; 3]> = cutter
+                    .mesh()
+                    .nodes()
+                    .map(|(_, n)| n.rest.coords.into())
+                    .collect();
+                cutter.cut(&sweep, &rest).unwrap();
+                let report = cutter.check_invariants(volume, floor);
+                assert!(
+                    report.passed(),
+                    "floor {floor}, step {k} of {steps}: {report:#?}"
+                );
+            }
+            assert!(cutter.mesh().node_count() > box_mesh().node_count());
+        }
+    }
+}

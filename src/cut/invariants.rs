@@ -5,6 +5,9 @@
 //!   `rho V / 4` summed over its tets (so the total is density times volume);
 //! - every fragment's boundary is closed and consistently outward oriented (each directed
 //!   boundary edge meets its reverse), and encloses its tet volume;
+//! - the mesh is conforming: every boundary triangle is on the uncut surface or has a twin at
+//!   the same rest corners (the other lip of a cut), so the triangles without a twin add up to
+//!   the uncut surface's area (checked where nothing was carved);
 //! - no tet is inverted or below the quality floor;
 //! - copies of a fixed node are fixed;
 //! - the spring model equals one built from scratch on the cut mesh (material stiffness and
@@ -37,6 +40,12 @@ pub struct InvariantReport {
     pub open_edges: usize,
     /// Largest relative difference between a fragment's enclosed volume and its tet volume.
     pub worst_enclosed_volume_error: f64,
+    /// Rest area of the boundary triangles with no twin at the same rest corners (the cut's
+    /// two lips are twins), m^2; with nothing carved it is the uncut surface's.
+    pub untwinned_area: f64,
+    /// The uncut surface's rest area, m^2, where nothing was carved (`None` after carving,
+    /// which exposes new surface).
+    pub untwinned_area_expected: Option<f64>,
     /// Smallest volume-length ratio of any tet (1 regular, 0 flat, negative inverted).
     pub min_quality: f64,
     /// Springs whose parameters differ from a model rebuilt from scratch (`None` where the
@@ -136,6 +145,33 @@ impl Cutter {
                 }
             }
         }
+        // Faces split differently on their two sides leave triangles inside the tissue that
+        // close up with each other (so the checks above pass) but have no twin.
+        let mut twins: HashMap<[[u64; 3]; 3], usize> = HashMap::new();
+        let mut areas: Vec<([[u64; 3]; 3], f64)> = Vec::with_capacity(self.faces.boundary_len());
+        for (tk, local) in self.faces.boundary() {
+            let t = mesh.tet(tk).expect("boundary faces belong to tets");
+            let p = TET_FACES[local as usize].map(|i| mesh.rest(t.nodes[i]));
+            let mut key = p.map(|x| [x.x, x.y, x.z].map(f64::to_bits));
+            key.sort_unstable();
+            *twins.entry(key).or_insert(0) += 1;
+            areas.push((key, 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm()));
+        }
+        let untwinned_area: f64 = areas
+            .iter()
+            .filter(|(k, _)| twins[k] == 1)
+            .map(|(_, a)| a)
+            .sum();
+        let untwinned_area_expected = (self.volume_removed == 0.0).then_some(self.surface_area);
+        if let Some(expected) = untwinned_area_expected {
+            if !close(untwinned_area, expected) {
+                violations.push(format!(
+                    "the boundary triangles without a twin cover {untwinned_area:e} m^2, not the \
+                     uncut surface's {expected:e} m^2: a face is split differently on its two \
+                     sides (the mesh is not conforming)"
+                ));
+            }
+        }
         let open_edges = half_edges.values().filter(|&&c| c != 0).count();
         if open_edges > 0 {
             violations.push(format!(
@@ -194,6 +230,8 @@ impl Cutter {
             mass,
             open_edges,
             worst_enclosed_volume_error: worst,
+            untwinned_area,
+            untwinned_area_expected,
             min_quality,
             springs_differing_from_rebuild,
             violations,

@@ -155,6 +155,8 @@ pub struct Cutter {
     quality_floor: f64,
     /// Subdivided tets whose sub-tets a later mark on their edges re-makes (`template.rs`).
     families: template::Families,
+    /// Rest area of the uncut mesh's boundary, m^2 (the conformity invariant).
+    surface_area: f64,
     /// Crossings whose split waits for the blade to finish the tets around them (a split of
     /// part of a tet would fall below the quality floor).
     pending: std::collections::BTreeMap<[NodeKey; 2], subdivide::Crossing>,
@@ -175,7 +177,16 @@ impl Cutter {
                 .springs()
                 .map(|(_, s)| s.rest_length)
                 .fold(0.0, f64::max);
+        let surface_area = faces
+            .boundary()
+            .map(|(tk, local)| {
+                let t = mesh.tet(tk).expect("boundary faces belong to tets");
+                let p = TET_FACES[local as usize].map(|i| mesh.rest(t.nodes[i]));
+                0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm()
+            })
+            .sum();
         Ok(Cutter {
+            surface_area,
             reach,
             mesh,
             model,
@@ -315,7 +326,8 @@ impl Cutter {
     }
 
     /// Dense indices of the corners of every tet at a corner of `tets`, of the tets a cut
-    /// separated from those and of the tets subdivided into those (repeats included).
+    /// separated from those, and of the parents of those subdivided and their sub-tets (repeats
+    /// included).
     fn ring_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
         let mut corners: Vec<NodeKey> = tets
             .iter()
@@ -329,12 +341,20 @@ impl Cutter {
                     .chain(self.partners.of(t).iter().map(|p| p.0))
                     .filter_map(|t| self.mesh.tet(t))
                     .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
-                    // A subdivision's trial looks at the corners of the tet a sub-tet came from.
+                    // A subdivision's trial looks at the corners of the tet a sub-tet came from,
+                    // and re-making it opens faces among all of its sub-tets.
                     .chain(
                         self.families
                             .of(t)
                             .into_iter()
-                            .flat_map(|(_, f)| f.corners.map(|k| self.dense[k])),
+                            .flat_map(|(_, f)| {
+                                f.corners.into_iter().chain(
+                                    f.children
+                                        .iter()
+                                        .flat_map(|&c| self.mesh.tet(c).expect("a sub-tet").nodes),
+                                )
+                            })
+                            .map(|k| self.dense[k]),
                     )
             })
         })

@@ -5,7 +5,10 @@
 //! by a template of its marked edges (`template.rs`): the marked edges of the tet as it was
 //! before any cut split it (its parent) are bisected in one global order, which keeps the mesh
 //! conforming and gives the same sub-tets whatever order the blade marked the edges in. So a
-//! blade through a tet in one step and one through it in many make the same tets. Once every
+//! blade moving in its own plane makes the same tets in one step as in many (a blade moving out
+//! of its plane sweeps a curved surface, whose steps can snap differently; and where a tet split
+//! by an earlier cut meets one re-made now, both are split edge by edge, see
+//! `Cutter::parents_of`). Once every
 //! crossed edge is split, no edge joins the two sides of the sweep any more, so each tet lies on
 //! one side and the sweep is a union of faces whose corners are all on the cut; those faces open
 //! (the node splitting of [`super::CutMethod::Separate`]). Where the sweep ends inside the
@@ -33,8 +36,9 @@
 //!   it, going on in the plane of its crossing. A blade in steps marks a tet's edges one cut at a
 //!   time, and the part made so far can fall below the floor where the whole does not; snapping
 //!   then would make it cut unlike a blade in one step. So a crossing whose split now would make
-//!   such a part waits (`Cutter::pending`) until the blade crosses the parent's other edges,
-//!   and a blade that stops inside a tet leaves it whole.
+//!   such a part waits (`Cutter::pending`) until the blade crosses the parent's other edges;
+//!   where the blade stops inside a tet, those crossings stay waiting and the cut ends before
+//!   it.
 //!
 //! All snaps are decided before any edge is split, on copies of the parents' subdivisions,
 //! until every one passes; the edit then makes those subdivisions. A node that joined the cut
@@ -77,9 +81,10 @@ pub const EDGE_SNAP: f64 = 0.2;
 /// at 0.2 the lowest was 0.206 and half as many nodes were made.
 pub const DEFAULT_QUALITY_FLOOR: f64 = 0.2;
 
-/// With a quality floor, a node at the end of a crossed edge that is closer to the sweep than
-/// this fraction of its shortest edge joins the cut. No larger than [`EDGE_SNAP`], so it moves
-/// the cut no further from the sweep than the parameter rule can.
+/// With a quality floor, a node at the end of a crossed edge that is closer to the plane of the
+/// sweep triangle it crosses than this fraction of its shortest rest edge joins the cut. No
+/// larger than [`EDGE_SNAP`], so it moves the cut no further from the sweep than the parameter
+/// rule can.
 pub const NODE_SNAP: f64 = 0.2;
 
 impl Cutter {
@@ -511,17 +516,43 @@ impl Cutter {
     }
 
     /// The parents whose subdivision splitting `edges` changes: for each tet around a split
-    /// edge, its family where the edge is one of the family parent's edges, else the tet itself
-    /// (a family split along an edge that is not its parent's ends: [`Parents::ended`]).
+    /// edge, its family (re-made from the template with the new marks), else the tet itself.
+    ///
+    /// A family is re-made only where every tet around the edge is in a family that has it as
+    /// a parent edge and whose parent no cut had split, or is a tet no cut has split: a sub-tet
+    /// of an ended family (or a family made from one) triangulates its part of a parent face as
+    /// it was, and re-making a neighbouring family in the template's order could triangulate that
+    /// face another way. Elsewhere every family around the edge
+    /// ends ([`Parents::ended`]) and each tet around it is split as a parent of its own, alike on
+    /// both sides of every face, until no edge is left with a mix.
     fn parents_of(&self, edges: impl Iterator<Item = [NodeKey; 2]> + Clone) -> Parents {
         let mut parents = Parents::default();
-        for [a, b] in edges.clone() {
-            for t in self.tets_with_edge(a, b) {
-                if let Some((f, family)) = self.families.of(t) {
-                    if !(family.corners.contains(&a) && family.corners.contains(&b)) {
-                        parents.ended.insert(f);
+        let around: Vec<([NodeKey; 2], Vec<TetKey>)> = edges
+            .clone()
+            .map(|[a, b]| ([a, b], self.tets_with_edge(a, b)))
+            .collect();
+        loop {
+            let ended = parents.ended.len();
+            for ([a, b], tets) in &around {
+                let remade = |t: &TetKey| match self.families.of(*t) {
+                    Some((f, family)) => {
+                        family.whole
+                            && !parents.ended.contains(&f)
+                            && family.corners.contains(a)
+                            && family.corners.contains(b)
+                    }
+                    None => !self.families.is_loose(*t),
+                };
+                if !tets.iter().all(remade) {
+                    for &t in tets {
+                        if let Some((f, _)) = self.families.of(t) {
+                            parents.ended.insert(f);
+                        }
                     }
                 }
+            }
+            if parents.ended.len() == ended {
+                break;
             }
         }
         for [a, b] in edges {

@@ -8,11 +8,14 @@
 //! then by the rest positions of their ends), and when a later step marks another edge of the
 //! parent, its sub-tets are replaced by those of the larger set. Two tets sharing a face bisect
 //! that face's marked edges in the same relative order, so their triangulations of it agree and
-//! the mesh stays conforming.
+//! the mesh stays conforming. So a blade moving in its own plane makes the same tets in one step
+//! or many; a blade moving out of its plane sweeps a curved surface, whose steps can snap and
+//! end families differently.
 //!
 //! A family (a parent and its current sub-tets) lasts while its sub-tets are exactly the
 //! template's: a cut that renames their corners (opening faces), or a split along an edge that
-//! is not one of the parent's, ends it, and its sub-tets become parents of their own.
+//! is not one of the parent's, ends it, and its sub-tets become parents of their own (see
+//! `Cutter::parents_of` for keeping faces conforming around them).
 
 use std::cmp::Ordering;
 
@@ -36,13 +39,18 @@ pub(super) struct Family {
     pub marks: Vec<(usize, NodeKey)>,
     /// The sub-tets now in the mesh.
     pub children: Vec<TetKey>,
+    /// Whether the parent is a tet no cut had split (not a sub-tet of an ended family, whose
+    /// faces may be parts of another parent's face).
+    pub whole: bool,
 }
 
-/// The families of subdivided tets, and which one each sub-tet belongs to.
+/// The families of subdivided tets, which one each sub-tet belongs to, and the sub-tets of
+/// ended families (loose).
 #[derive(Debug, Clone, Default)]
 pub(super) struct Families {
     families: SlotMap<FamilyKey, Family>,
     of: SecondaryMap<TetKey, FamilyKey>,
+    loose: SecondaryMap<TetKey, ()>,
 }
 
 impl Families {
@@ -50,6 +58,11 @@ impl Families {
     pub fn of(&self, t: TetKey) -> Option<(FamilyKey, &Family)> {
         let f = *self.of.get(t)?;
         Some((f, &self.families[f]))
+    }
+
+    /// Whether `t` is a sub-tet of an ended family: its faces may be parts of a parent's face.
+    pub fn is_loose(&self, t: TetKey) -> bool {
+        self.loose.contains_key(t)
     }
 
     pub fn get(&self, f: FamilyKey) -> &Family {
@@ -63,8 +76,10 @@ impl Families {
             region,
             marks: Vec::new(),
             children: vec![t],
+            whole: !self.is_loose(t),
         });
         self.of.insert(t, f);
+        self.loose.remove(t);
         f
     }
 
@@ -83,6 +98,7 @@ impl Families {
         }
         for &t in &children {
             self.of.insert(t, f);
+            self.loose.remove(t);
         }
         self.families[f].children = children;
     }
@@ -99,6 +115,11 @@ impl Families {
         if let Some(family) = self.families.remove(f) {
             for t in family.children {
                 self.of.remove(t);
+                // A sub-tet that is its parent whole is no part of another's face.
+                if family.marks.is_empty() && family.whole {
+                    continue;
+                }
+                self.loose.insert(t, ());
             }
         }
     }
