@@ -12,8 +12,9 @@
 //! - `faces.rs`: face adjacency, node-to-tet incidence and the boundary, updated per touched
 //!   tet.
 //! - `edit.rs`: the topology edits ([`CutMethod`]) on the mesh and the spring model.
-//! - `subdivide.rs`, `template.rs`: splitting tets along the sweep, each tet by one template
-//!   of its marked edges whatever order the blade marked them in.
+//! - `subdivide.rs`, `template.rs`, `resubdivide.rs`, `floor.rs`: splitting tets along the
+//!   sweep, each tet by one template of its marked edges whatever order the blade marked them
+//!   in, families of sub-tets re-made as marks come, and the quality floor's trial.
 //! - `snapshot.rs`: what the edit changed, as a [`ModelDiff`].
 //! - `invariants.rs`: the checks a cut mesh must pass (volume, mass, closed fragment
 //!   surfaces, quality, agreement with a rebuild).
@@ -26,8 +27,10 @@ mod classify;
 mod edit;
 pub mod exact;
 pub mod faces;
+mod floor;
 pub mod invariants;
 pub mod reading;
+mod resubdivide;
 mod resweep;
 mod snapshot;
 pub mod subdivide;

@@ -66,7 +66,6 @@ use nalgebra::Point3;
 use super::exact::segment_crosses_triangle;
 use super::snapshot::{Snapshot, StateSource};
 use super::sweep::Sweep;
-use super::template::{self, FamilyKey};
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
 use crate::mesh::quality::volume_length_ratio;
@@ -373,340 +372,8 @@ impl Cutter {
         Ok(())
     }
 
-    /// What keeps splitting `splits` from making a tet below `floor` (rest volume-length
-    /// ratio), now or once the blade has gone on through the tets it is in.
-    ///
-    /// Every parent whose subdivision the splits change is subdivided on a copy by its template,
-    /// twice: with the marks the blade will have made once through it, if it goes on in the
-    /// plane of a crossing (the parent's edges across that plane, but at nodes that snap), and
-    /// with the marks it has and the new ones (what this cut would make). Where a sub-tet of
-    /// the whole subdivision falls below the floor, each crossing at a corner of such a sub-tet
-    /// (each new one of the parent, if none is) snaps to the nearer end of its edge, crossings
-    /// still ahead of the blade included. Where only the part made so far would, its new
-    /// crossings at such sub-tets wait: the blade has not finished the parent, and splitting
-    /// part of it now would force a snap that a blade through it in one step does not make.
-    /// All parents are judged on the same splits, so the answer does not depend on an order.
-    fn floor_verdict(
-        &self,
-        splits: &BTreeMap<[NodeKey; 2], Crossing>,
-        waiting: &BTreeMap<[NodeKey; 2], Crossing>,
-        on_cut: &dyn Fn(NodeKey) -> bool,
-        classify: &Classify,
-        floor: f64,
-    ) -> FloorVerdict {
-        let parents = self.parents_of(splits.keys().chain(waiting.keys()).copied());
-        let mut verdict = FloorVerdict::default();
-        let mut shortest: HashMap<NodeKey, f64> = HashMap::new();
-        for plan in parents.list.values() {
-            let corners = plan.corners;
-            let rest = corners.map(|n| self.mesh.rest(n));
-            // Corners 0..4, then one point per mark.
-            let mut at: Vec<Point3<f64>> = rest.to_vec();
-            let mut now: Vec<(usize, usize)> = Vec::with_capacity(6);
-            for &(e, k) in &plan.marks {
-                now.push((e, at.len()));
-                at.push(self.mesh.rest(k));
-            }
-            let point = |key: [NodeKey; 2], t: f64| {
-                let (a, b) = (self.mesh.rest(key[0]), self.mesh.rest(key[1]));
-                a + (b - a) * t
-            };
-            // (point, edge, parameter) of each crossing this cut would split, and of each
-            // crossing waiting (known to be ahead).
-            let mut new: Vec<(usize, [NodeKey; 2], f64)> = Vec::new();
-            let mut known: Vec<(usize, usize, [NodeKey; 2], f64)> = Vec::new();
-            let mut plane = None;
-            for (e, [i, j]) in TET_EDGES.iter().enumerate() {
-                let key = edge_key(corners[*i], corners[*j]);
-                if let Some(c) = splits.get(&key) {
-                    new.push((at.len(), key, c.t));
-                    now.push((e, at.len()));
-                    at.push(point(key, c.t));
-                    plane.get_or_insert(c.plane);
-                } else if let Some(c) = waiting.get(&key) {
-                    known.push((e, at.len(), key, c.t));
-                    at.push(point(key, c.t));
-                    plane.get_or_insert(c.plane);
-                }
-            }
-            let Some(plane) = plane else {
-                continue;
-            };
-            // The crossings still ahead: the parent's other edges across the plane, but where
-            // an end is on a cut or snaps (near the plane, or a crossing near it).
-            let d = corners.map(|n| signed_plane(&self.classified(classify, n), &plane));
-            let mut off = [0, 1, 2, 3].map(|i| {
-                let n = corners[i];
-                !on_cut(n)
-                    && d[i].abs()
-                        >= NODE_SNAP
-                            * *shortest
-                                .entry(n)
-                                .or_insert_with(|| self.shortest_rest_edge_at(n))
-            });
-            let marked =
-                |e: usize| now.iter().any(|&(m, _)| m == e) || known.iter().any(|&(m, ..)| m == e);
-            let across = |i: usize, j: usize| (d[i] < 0.0) != (d[j] < 0.0);
-            for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
-                if !marked(e) && across(i, j) && off[i] && off[j] {
-                    let t = d[i] / (d[i] - d[j]);
-                    if t < EDGE_SNAP {
-                        off[i] = false;
-                    } else if t > 1.0 - EDGE_SNAP {
-                        off[j] = false;
-                    }
-                }
-            }
-            let mut whole = now.clone();
-            let mut ahead = new.clone();
-            for &(e, l, key, t) in &known {
-                whole.push((e, l));
-                ahead.push((l, key, t));
-            }
-            for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
-                if !marked(e) && across(i, j) && off[i] && off[j] {
-                    let key = edge_key(corners[i], corners[j]);
-                    let t = d[i] / (d[i] - d[j]);
-                    let t = if key[0] == corners[i] { t } else { 1.0 - t };
-                    ahead.push((at.len(), key, t));
-                    whole.push((e, at.len()));
-                    at.push(point(key, t));
-                }
-            }
-            let order = template::edge_order(&rest);
-            // The crossings of `blamable` at a sub-tet of `marks` below the floor (the new ones
-            // where no such crossing is at one); empty when every sub-tet keeps to it.
-            let blame = |marks: &[(usize, usize)], blamable: &[(usize, [NodeKey; 2], f64)]| {
-                let tets = template::subdivide([0, 1, 2, 3], marks, &order);
-                let failing: Vec<&[usize; 4]> = tets
-                    .iter()
-                    .filter(|c| volume_length_ratio(&c.map(|l| at[l])) < floor)
-                    .collect();
-                if failing.is_empty() {
-                    return Vec::new();
-                }
-                let at_failing: Vec<([NodeKey; 2], f64)> = blamable
-                    .iter()
-                    .filter(|(l, _, _)| failing.iter().any(|c| c.contains(l)))
-                    .map(|&(_, e, t)| (e, t))
-                    .collect();
-                if at_failing.is_empty() {
-                    new.iter().map(|&(_, e, t)| (e, t)).collect()
-                } else {
-                    at_failing
-                }
-            };
-            let snap = blame(&whole, &ahead);
-            if !snap.is_empty() {
-                for (key, t) in snap {
-                    verdict.snap.insert(if t < 0.5 { key[0] } else { key[1] });
-                }
-            } else if new.is_empty() {
-                // Nothing new for this parent: it was judged with its waiting crossings only.
-            } else if whole.len() > now.len() {
-                verdict
-                    .wait
-                    .extend(blame(&now, &new).into_iter().map(|(e, _)| e));
-            } else {
-                // The blade has finished the parent, so the two are the same and keep to it.
-                debug_assert!(blame(&now, &new).is_empty());
-            }
-        }
-        verdict
-    }
-
-    /// The parents whose subdivision splitting `edges` changes: for each tet around a split
-    /// edge, its family (re-made from the template with the new marks), else the tet itself.
-    ///
-    /// A family is re-made only where every tet around the edge is in a family that has it as
-    /// a parent edge and whose parent no cut had split, or is a tet no cut has split: a sub-tet
-    /// of an ended family (or a family made from one) triangulates its part of a parent face as
-    /// it was, and re-making a neighbouring family in the template's order could triangulate that
-    /// face another way. Elsewhere every family around the edge
-    /// ends ([`Parents::ended`]) and each tet around it is split as a parent of its own, alike on
-    /// both sides of every face, until no edge is left with a mix.
-    fn parents_of(&self, edges: impl Iterator<Item = [NodeKey; 2]> + Clone) -> Parents {
-        let mut parents = Parents::default();
-        let around: Vec<([NodeKey; 2], Vec<TetKey>)> = edges
-            .clone()
-            .map(|[a, b]| ([a, b], self.tets_with_edge(a, b)))
-            .collect();
-        loop {
-            let ended = parents.ended.len();
-            for ([a, b], tets) in &around {
-                let remade = |t: &TetKey| match self.families.of(*t) {
-                    Some((f, family)) => {
-                        family.whole
-                            && !parents.ended.contains(&f)
-                            && family.corners.contains(a)
-                            && family.corners.contains(b)
-                    }
-                    None => !self.families.is_loose(*t),
-                };
-                if !tets.iter().all(remade) {
-                    for &t in tets {
-                        if let Some((f, _)) = self.families.of(t) {
-                            parents.ended.insert(f);
-                        }
-                    }
-                }
-            }
-            if parents.ended.len() == ended {
-                break;
-            }
-        }
-        for [a, b] in edges {
-            for t in self.tets_with_edge(a, b) {
-                match self.families.of(t) {
-                    Some((f, family)) if !parents.ended.contains(&f) => {
-                        parents
-                            .list
-                            .entry(Parent::Family(f))
-                            .or_insert_with(|| ParentPlan {
-                                corners: family.corners,
-                                region: family.region,
-                                marks: family.marks.clone(),
-                                children: family.children.clone(),
-                            });
-                    }
-                    _ => {
-                        let tet = self.mesh.tet(t).expect("a tet");
-                        parents.list.entry(Parent::Tet(t)).or_insert(ParentPlan {
-                            corners: tet.nodes,
-                            region: tet.region,
-                            marks: Vec::new(),
-                            children: vec![t],
-                        });
-                    }
-                }
-            }
-        }
-        parents
-    }
-
-    /// Mark the new nodes `made` (per split edge) on `parents` and replace each parent's
-    /// sub-tets with its template's (mesh, model and face index; a sub-tet the template keeps
-    /// is left alone). Returns every sub-tet of those parents.
-    fn subdivide_parents(
-        &mut self,
-        parents: Parents,
-        made: &BTreeMap<[NodeKey; 2], NodeKey>,
-    ) -> Result<BTreeSet<TetKey>> {
-        for &f in &parents.ended {
-            self.families.end(f);
-        }
-        let mut work: Vec<(FamilyKey, Vec<TetKey>)> = Vec::with_capacity(parents.list.len());
-        for (parent, plan) in parents.list {
-            let f = match parent {
-                Parent::Family(f) => f,
-                Parent::Tet(t) => self.families.adopt(t, plan.corners, plan.region),
-            };
-            for (e, [i, j]) in TET_EDGES.iter().enumerate() {
-                if let Some(&k) = made.get(&edge_key(plan.corners[*i], plan.corners[*j])) {
-                    self.families.mark(f, e, k);
-                }
-            }
-            work.push((f, plan.children));
-        }
-        // Each family's new sub-tets; those it already has (same corners) stay as they are.
-        let sorted = |mut n: [NodeKey; 4]| {
-            n.sort_unstable();
-            n
-        };
-        let mut plans: Vec<Resubdivision> = Vec::with_capacity(work.len());
-        for (f, old) in work {
-            let family = self.families.get(f);
-            let rest = family.corners.map(|n| self.mesh.rest(n));
-            let tets =
-                template::subdivide(family.corners, &family.marks, &template::edge_order(&rest));
-            let had: Vec<[NodeKey; 4]> = old
-                .iter()
-                .map(|&t| sorted(self.mesh.tet(t).expect("a sub-tet").nodes))
-                .collect();
-            let wanted: Vec<[NodeKey; 4]> = tets.iter().map(|&n| sorted(n)).collect();
-            let (mut kept, mut gone) = (Vec::new(), Vec::new());
-            for (&t, h) in old.iter().zip(&had) {
-                if wanted.contains(h) {
-                    kept.push(t);
-                } else {
-                    gone.push(t);
-                }
-            }
-            let fresh: Vec<[NodeKey; 4]> = tets
-                .into_iter()
-                .zip(&wanted)
-                .filter(|(_, w)| !had.contains(w))
-                .map(|(n, _)| n)
-                .collect();
-            plans.push(Resubdivision {
-                family: f,
-                kept,
-                gone,
-                fresh,
-            });
-        }
-        // Out with every sub-tet that goes first, so that faces between two parents are not
-        // matched against a sub-tet about to go.
-        for plan in &plans {
-            for &t in &plan.gone {
-                let tet = *self.mesh.tet(t).expect("a sub-tet");
-                self.faces.remove(t, &tet, &self.mesh);
-                self.model.remove_tet(&self.mesh, t)?;
-            }
-        }
-        let mut children = BTreeSet::new();
-        let mut made = Vec::new();
-        for Resubdivision {
-            family: f,
-            kept,
-            gone,
-            fresh,
-        } in plans
-        {
-            let region = self.families.get(f).region;
-            // The keys of the sub-tets that go are reused for the new ones.
-            let mut keys = kept;
-            let count = fresh.len();
-            for (i, nodes) in fresh.into_iter().enumerate() {
-                let t = match gone.get(i) {
-                    Some(&t) => {
-                        self.mesh.set_tet_nodes(t, nodes)?;
-                        t
-                    }
-                    None => self.mesh.add_tet(nodes, region)?,
-                };
-                keys.push(t);
-                made.push(t);
-            }
-            for &t in gone.iter().skip(count) {
-                self.mesh.remove_tet(t);
-            }
-            children.extend(keys.iter().copied());
-            self.families.set_children(f, keys);
-        }
-        for &t in &made {
-            self.model.add_tet(&self.mesh, t)?;
-            let tet = *self.mesh.tet(t).expect("a sub-tet");
-            self.faces.insert(t, &tet)?;
-        }
-        Ok(children)
-    }
-
-    /// The length at rest of the shortest edge at `n` (at rest, so that whether a node snaps
-    /// does not depend on when the blade reaches it).
-    fn shortest_rest_edge_at(&self, n: NodeKey) -> f64 {
-        let x = self.mesh.rest(n);
-        self.faces
-            .tets_at(n)
-            .iter()
-            .flat_map(|&t| self.mesh.tet(t).expect("a tet").nodes)
-            .filter(|&m| m != n)
-            .map(|m| (self.mesh.rest(m) - x).norm())
-            .fold(f64::INFINITY, f64::min)
-    }
-
     /// The tets holding both `a` and `b`, in key order.
-    fn tets_with_edge(&self, a: NodeKey, b: NodeKey) -> Vec<TetKey> {
+    pub(super) fn tets_with_edge(&self, a: NodeKey, b: NodeKey) -> Vec<TetKey> {
         let tb = self.faces.tets_at(b);
         self.faces
             .tets_at(a)
@@ -726,7 +393,7 @@ pub(super) struct Classify<'a> {
 
 impl Cutter {
     /// The classification position of existing node `k`.
-    fn classified(&self, at: &Classify, k: NodeKey) -> Point3<f64> {
+    pub(super) fn classified(&self, at: &Classify, k: NodeKey) -> Point3<f64> {
         at.read.class(self.dense[k])
     }
 }
@@ -736,7 +403,7 @@ fn centroid(p: [Point3<f64>; 4]) -> Point3<f64> {
 }
 
 /// The edge `(a, b)` as its ends in key order.
-fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
+pub(super) fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
     if a < b {
         [a, b]
     } else {
@@ -745,7 +412,7 @@ fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
 }
 
 /// `p`'s signed distance from the plane of triangle `t` (positive on its normal's side).
-fn signed_plane(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
+pub(super) fn signed_plane(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
     let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
     let len = n.norm();
     if len == 0.0 {
@@ -758,48 +425,8 @@ fn signed_plane(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
 /// triangle it crosses (whose plane says where the blade goes on).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Crossing {
-    t: f64,
-    plane: [Point3<f64>; 3],
-}
-
-/// What the quality floor asks of a cut's splits: nodes to put on the cut, and crossings to
-/// leave for a later cut.
-#[derive(Debug, Default)]
-struct FloorVerdict {
-    snap: BTreeSet<NodeKey>,
-    wait: BTreeSet<[NodeKey; 2]>,
-}
-
-/// A parent whose subdivision a cut changes: an open family, or a tet in none.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-enum Parent {
-    Family(FamilyKey),
-    Tet(TetKey),
-}
-
-/// A parent's corners, region and marks so far, and its sub-tets now in the mesh.
-#[derive(Debug)]
-struct ParentPlan {
-    corners: [NodeKey; 4],
-    region: i32,
-    marks: Vec<(usize, NodeKey)>,
-    children: Vec<TetKey>,
-}
-
-/// A family's sub-tets before and after a new mark: those the template keeps, those it drops
-/// (their keys go to new ones) and the new ones' corners.
-struct Resubdivision {
-    family: FamilyKey,
-    kept: Vec<TetKey>,
-    gone: Vec<TetKey>,
-    fresh: Vec<[NodeKey; 4]>,
-}
-
-/// The parents a cut subdivides anew, and the families it ends.
-#[derive(Debug, Default)]
-struct Parents {
-    list: BTreeMap<Parent, ParentPlan>,
-    ended: BTreeSet<FamilyKey>,
+    pub t: f64,
+    pub plane: [Point3<f64>; 3],
 }
 
 #[cfg(test)]
