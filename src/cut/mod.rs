@@ -330,7 +330,7 @@ impl Cutter {
 
     /// Dense indices of the corners of every tet at a corner of `tets`, of the tets a cut
     /// separated from those, and of the parents of those subdivided and their sub-tets (repeats
-    /// included).
+    /// included; each family once).
     fn ring_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
         let mut corners: Vec<NodeKey> = tets
             .iter()
@@ -338,29 +338,37 @@ impl Cutter {
             .collect();
         corners.sort_unstable();
         corners.dedup();
-        corners.into_iter().flat_map(move |n| {
+        // A subdivision's trial looks at the corners of the tet a sub-tet came from, and
+        // re-making it opens faces among all of its sub-tets.
+        let mut families: Vec<_> = corners
+            .iter()
+            .flat_map(|&n| self.faces.tets_at(n))
+            .filter_map(|&t| self.families.of(t).map(|(f, _)| f))
+            .collect();
+        families.sort_unstable();
+        families.dedup();
+        let around = corners.into_iter().flat_map(move |n| {
             self.faces.tets_at(n).iter().flat_map(move |&t| {
                 std::iter::once(t)
                     .chain(self.partners.of(t).iter().map(|p| p.0))
                     .filter_map(|t| self.mesh.tet(t))
                     .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
-                    // A subdivision's trial looks at the corners of the tet a sub-tet came from,
-                    // and re-making it opens faces among all of its sub-tets.
-                    .chain(
-                        self.families
-                            .of(t)
-                            .into_iter()
-                            .flat_map(|(_, f)| {
-                                f.corners.into_iter().chain(
-                                    f.children
-                                        .iter()
-                                        .flat_map(|&c| self.mesh.tet(c).expect("a sub-tet").nodes),
-                                )
-                            })
-                            .map(|k| self.dense[k]),
-                    )
             })
-        })
+        });
+        let subdivided = families.into_iter().flat_map(move |f| {
+            let family = self.families.get(f);
+            family
+                .corners
+                .into_iter()
+                .chain(
+                    family
+                        .children
+                        .iter()
+                        .flat_map(|&c| self.mesh.tet(c).expect("a sub-tet").nodes),
+                )
+                .map(|k| self.dense[k])
+        });
+        around.chain(subdivided)
     }
 
     /// Add a node at `rest` to the mesh, with the next dense index.

@@ -97,7 +97,7 @@ impl TetMesh {
     /// builds.
     pub fn min_volume_length_ratio(&self) -> f64 {
         self.tets()
-            .map(|(_, t)| tet_quality(&self.tet_points(t)).volume_length_ratio)
+            .map(|(_, t)| volume_length_ratio(&self.tet_points(t)))
             .fold(f64::INFINITY, f64::min)
     }
 
