@@ -2,14 +2,15 @@
 //! at each node, and the boundary surface. A cut touches a few tets; only their faces are
 //! re-examined, so the boundary is updated incrementally instead of recomputed.
 //!
-//! Ordered maps keep every iteration in key order, so the same history of edits gives the same
-//! boundary in the same order (bit-identical runs).
+//! The maps are hashed (a cut looks faces up many times per tet it edits); whatever is iterated
+//! is sorted by face id first, so the same history of edits gives the same boundary in the same
+//! order (bit-identical runs).
 //!
 //! Boundary changes are journaled: [`FaceIndex::take_boundary_changes`] says which boundary
 //! triangles a cut removed and added, so the simulation's copy of the surface (and the device's)
 //! is edited in place rather than rebuilt.
 
-use std::collections::BTreeMap;
+use rustc_hash::FxHashMap;
 
 use slotmap::SecondaryMap;
 
@@ -21,9 +22,19 @@ pub type FaceId = [NodeKey; 3];
 
 /// The face id of local face `local` of `tet`.
 pub fn face_id(tet: &Tet, local: usize) -> FaceId {
-    let mut f = TET_FACES[local].map(|i| tet.nodes[i]);
-    f.sort();
-    f
+    let [mut a, mut b, mut c] = TET_FACES[local].map(|i| tet.nodes[i]);
+    // Three compare-exchanges: `slice::sort` on three keys costs more than the lookups it
+    // serves, and every face of every tet a cut touches is named this way.
+    if a > b {
+        std::mem::swap(&mut a, &mut b);
+    }
+    if b > c {
+        std::mem::swap(&mut b, &mut c);
+    }
+    if a > b {
+        std::mem::swap(&mut a, &mut b);
+    }
+    [a, b, c]
 }
 
 /// The tets using one face (one on the boundary, two inside).
@@ -65,12 +76,12 @@ pub struct BoundaryChanges {
 /// Face adjacency, node-to-tet incidence and the boundary of a mesh.
 #[derive(Debug, Clone, Default)]
 pub struct FaceIndex {
-    faces: BTreeMap<FaceId, FaceUse>,
-    boundary: BTreeMap<FaceId, BoundaryFace>,
+    faces: FxHashMap<FaceId, FaceUse>,
+    boundary: FxHashMap<FaceId, BoundaryFace>,
     node_tets: SecondaryMap<NodeKey, Vec<TetKey>>,
     /// Each face touched since the journal was last taken, with its boundary triangle before
     /// the first touch (`None`: it was not on the boundary).
-    journal: BTreeMap<FaceId, Option<[NodeKey; 3]>>,
+    journal: FxHashMap<FaceId, Option<[NodeKey; 3]>>,
 }
 
 impl FaceIndex {
@@ -188,24 +199,29 @@ impl FaceIndex {
         self.node_tets.get(n).map_or(&[], |v| v.as_slice())
     }
 
-    /// The boundary faces as (tet, local face), in face-id order.
-    pub fn boundary(&self) -> impl ExactSizeIterator<Item = (TetKey, u8)> + '_ {
-        self.boundary.values().map(|b| (b.tet, b.local))
+    /// The boundary faces as (tet, local face), in face-id order (sorted on each call: for
+    /// building a surface or checking one, not for every cut).
+    pub fn boundary(&self) -> Vec<(TetKey, u8)> {
+        let mut faces: Vec<(&FaceId, &BoundaryFace)> = self.boundary.iter().collect();
+        faces.sort_unstable_by_key(|(id, _)| **id);
+        faces.into_iter().map(|(_, b)| (b.tet, b.local)).collect()
     }
 
     /// Record the boundary state of `id` before its first change since the last take.
     fn note(&mut self, id: FaceId) {
-        if !self.journal.contains_key(&id) {
-            let before = self.boundary.get(&id).map(|b| b.corners);
-            self.journal.insert(id, before);
-        }
+        let boundary = &self.boundary;
+        self.journal
+            .entry(id)
+            .or_insert_with(|| boundary.get(&id).map(|b| b.corners));
     }
 
     /// The boundary triangles removed and added since the last call (or since the index was
     /// built), in face-id order; the journal is emptied.
     pub fn take_boundary_changes(&mut self) -> BoundaryChanges {
         let mut changes = BoundaryChanges::default();
-        for (id, before) in std::mem::take(&mut self.journal) {
+        let mut journal: Vec<_> = self.journal.drain().collect();
+        journal.sort_unstable_by_key(|(id, _)| *id);
+        for (id, before) in journal {
             let after = self.boundary.get(&id).map(|b| b.corners);
             if before != after {
                 changes.removed.extend(before);
@@ -223,5 +239,38 @@ impl FaceIndex {
     /// Number of faces.
     pub fn face_count(&self) -> usize {
         self.faces.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    /// Every ordering of a tet's corners names each face by the same sorted triple.
+    #[test]
+    fn a_face_id_is_its_corners_sorted_whatever_their_order() {
+        let mut mesh = TetMesh::default();
+        let keys: Vec<NodeKey> = (0..4)
+            .map(|i| mesh.add_node(Point3::new(i as f64, 0.0, 0.0)))
+            .collect();
+        let orders: Vec<[usize; 4]> = (0..256)
+            .map(|code: usize| [0, 2, 4, 6].map(|s| (code >> s) & 3))
+            .filter(|o| (0..4).all(|i| o.contains(&i)))
+            .collect();
+        assert_eq!(orders.len(), 24);
+        for order in orders {
+            let tet = Tet {
+                nodes: order.map(|i| keys[i]),
+                region: 0,
+            };
+            for (local, face) in TET_FACES.iter().enumerate() {
+                let mut want = face.map(|i| tet.nodes[i]);
+                want.sort();
+                let id = face_id(&tet, local);
+                assert_eq!(id, want, "order {order:?}, face {local}");
+                assert!(id[0] < id[1] && id[1] < id[2]);
+            }
+        }
     }
 }

@@ -1,7 +1,9 @@
 //! The quality floor's trial for subdividing: which crossings snap to a node and which wait
 //! for the blade, judged on copies of the parents' subdivisions (see `subdivide.rs`).
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
+
+use rustc_hash::FxHashMap;
 
 use nalgebra::Point3;
 
@@ -35,7 +37,7 @@ impl Cutter {
     ) -> FloorVerdict {
         let parents = self.parents_of(splits.keys().chain(waiting.keys()).copied());
         let mut verdict = FloorVerdict::default();
-        let mut shortest: HashMap<NodeKey, f64> = HashMap::new();
+        let mut shortest: FxHashMap<NodeKey, f64> = FxHashMap::default();
         for plan in parents.list.values() {
             let corners = plan.corners;
             let rest = corners.map(|n| self.mesh.rest(n));

@@ -182,6 +182,7 @@ impl Cutter {
                 .fold(0.0, f64::max);
         let surface_area = faces
             .boundary()
+            .into_iter()
             .map(|(tk, local)| {
                 let t = mesh.tet(tk).expect("boundary faces belong to tets");
                 let p = TET_FACES[local as usize].map(|i| mesh.rest(t.nodes[i]));
@@ -271,6 +272,7 @@ impl Cutter {
     pub fn surface(&self) -> Vec<[u32; 3]> {
         self.faces
             .boundary()
+            .into_iter()
             .map(|(tk, local)| {
                 let t = &self
                     .mesh

@@ -2,8 +2,7 @@
 //! recorded before it, compared with what the spring model holds after it, and only the
 //! differences are put in the diff (the layouts turn it into dirty byte ranges).
 
-use std::collections::BTreeMap;
-
+use rustc_hash::FxHashMap;
 use slotmap::SecondaryMap;
 
 use crate::mesh::{NodeKey, TetMesh};
@@ -23,11 +22,12 @@ pub enum StateSource {
 /// Rest length, stiffness, damping of a spring.
 type SpringParams = (f64, f64, f64);
 
-/// The state of some springs and nodes before an edit.
+/// The state of some springs and nodes before an edit. Hashed: the diff sorts what it finds,
+/// so the order of these maps never shows.
 #[derive(Debug, Default)]
 pub struct Snapshot {
-    springs: BTreeMap<[NodeKey; 2], Option<SpringParams>>,
-    nodes: BTreeMap<NodeKey, (Option<f64>, bool)>,
+    springs: FxHashMap<[NodeKey; 2], Option<SpringParams>>,
+    nodes: FxHashMap<NodeKey, (Option<f64>, bool)>,
 }
 
 fn edge(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {

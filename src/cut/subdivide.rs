@@ -59,7 +59,9 @@
 //! position is the point of the deformed edge, and the two halves of a split edge keep its
 //! strain.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
+
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use nalgebra::Point3;
 
@@ -101,15 +103,17 @@ impl Cutter {
         let mut crossed: BTreeMap<[NodeKey; 2], Crossing> = BTreeMap::new();
         // Waiting crossings on the candidates' edges: those around the tets the blade is in.
         let mut waiting_here: BTreeMap<[NodeKey; 2], Crossing> = BTreeMap::new();
+        // An edge is shared by about five candidates: test it against the sweep once.
+        let mut tested: FxHashSet<[NodeKey; 2]> = FxHashSet::default();
         for &tk in candidates {
             let t = self.mesh.tet(tk).expect("a candidate tet").nodes;
             for [i, j] in TET_EDGES {
                 let key = edge_key(t[i], t[j]);
+                if !tested.insert(key) {
+                    continue;
+                }
                 if let Some(c) = self.pending.get(&key) {
                     waiting_here.insert(key, *c);
-                }
-                if crossed.contains_key(&key) {
-                    continue;
                 }
                 let [p, q] = key;
                 let (xp, xq) = (self.classified(classify, p), self.classified(classify, q));
@@ -240,8 +244,8 @@ impl Cutter {
         self.on_cut.extend(snapped.iter().copied());
 
         // 4. A node on each split edge, then each parent's sub-tets from all its marks.
-        let mut extra: HashMap<NodeKey, Point3<f64>> = HashMap::new();
-        let mut source: HashMap<NodeKey, StateSource> = HashMap::new();
+        let mut extra: FxHashMap<NodeKey, Point3<f64>> = FxHashMap::default();
+        let mut source: FxHashMap<NodeKey, StateSource> = FxHashMap::default();
         let mut added: Vec<(NodeKey, StateSource)> = Vec::new();
         let mut made: BTreeMap<[NodeKey; 2], NodeKey> = BTreeMap::new();
         for &([a, b], t) in &splits {

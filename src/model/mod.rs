@@ -11,7 +11,9 @@ pub mod diff;
 pub mod material;
 pub mod stability;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap;
 
 use serde::{Deserialize, Serialize};
 use slotmap::{new_key_type, SecondaryMap, SlotMap};
@@ -98,7 +100,8 @@ pub struct TetShare {
 #[derive(Debug, Clone)]
 pub struct SpringModel {
     springs: SlotMap<SpringKey, Spring>,
-    by_edge: HashMap<[NodeKey; 2], SpringKey>,
+    /// Never iterated (its order is not deterministic), so a fast hash suits it.
+    by_edge: FxHashMap<[NodeKey; 2], SpringKey>,
     mass: SecondaryMap<NodeKey, f64>,
     tets_at_node: SecondaryMap<NodeKey, u32>,
     fixed: SecondaryMap<NodeKey, ()>,
@@ -136,7 +139,7 @@ impl SpringModel {
         }
         let mut model = SpringModel {
             springs: SlotMap::with_key(),
-            by_edge: HashMap::new(),
+            by_edge: FxHashMap::default(),
             mass: SecondaryMap::new(),
             tets_at_node: SecondaryMap::new(),
             fixed: SecondaryMap::new(),
@@ -146,7 +149,7 @@ impl SpringModel {
         // Per-node and per-edge incidence counts, needed only by the "per node" and "per
         // spring" parameterisations, which split a given value equally among tets.
         let mut tets_at_node: SecondaryMap<NodeKey, u32> = SecondaryMap::new();
-        let mut tets_at_edge: HashMap<[NodeKey; 2], u32> = HashMap::new();
+        let mut tets_at_edge: FxHashMap<[NodeKey; 2], u32> = FxHashMap::default();
         for (_, t) in mesh.tets() {
             for &n in &t.nodes {
                 if let Some(e) = tets_at_node.entry(n) {
@@ -159,8 +162,10 @@ impl SpringModel {
                     .or_insert(0) += 1;
             }
         }
-        for (tk, _) in mesh.tets() {
-            let share = model.tet_share(mesh, tk, &tets_at_node, &tets_at_edge)?;
+        for (tk, t) in mesh.tets() {
+            let at_node = t.nodes.map(|n| tets_at_node.get(n).copied().unwrap_or(1));
+            let at_edge = TET_EDGES.map(|[a, b]| tets_at_edge[&edge_key(t.nodes[a], t.nodes[b])]);
+            let share = model.tet_share(mesh, tk, at_node, at_edge)?;
             model.apply_share(mesh, tk, share, 1.0);
         }
         for sel in &config.fixed {
@@ -169,13 +174,17 @@ impl SpringModel {
         Ok(model)
     }
 
-    /// Compute what tet `tk` contributes (springs are created if missing).
+    /// Compute what tet `tk` contributes (springs are created if missing), given how many tets
+    /// hold each of its corners (`at_node`, in corner order) and each of its edges (`at_edge`,
+    /// in [`TET_EDGES`] order), counting this one: the "per node" and "per spring" values are
+    /// split equally among them. Arrays rather than maps, because adding one tet to a large
+    /// model must not cost a map sized to the model.
     fn tet_share(
         &mut self,
         mesh: &TetMesh,
         tk: TetKey,
-        tets_at_node: &SecondaryMap<NodeKey, u32>,
-        tets_at_edge: &HashMap<[NodeKey; 2], u32>,
+        at_node: [u32; 4],
+        at_edge: [u32; 6],
     ) -> Result<TetShare> {
         let t = *mesh
             .tet(tk)
@@ -192,7 +201,7 @@ impl SpringModel {
         for (e, [a, b]) in TET_EDGES.iter().enumerate() {
             let key = edge_key(t.nodes[*a], t.nodes[*b]);
             let l = (p[*a] - p[*b]).norm();
-            let n_e = tets_at_edge.get(&key).copied().unwrap_or(1) as f64;
+            let n_e = at_edge[e].max(1) as f64;
             let k = match (mat.stiffness, mat.stiffness_constant()) {
                 (Stiffness::Spring(k), _) => k / n_e,
                 (_, Some(c)) => c * volume / (l * l),
@@ -221,10 +230,10 @@ impl SpringModel {
             share.stiffness[e] = k;
             share.damping[e] = c;
         }
-        for (i, n) in t.nodes.iter().enumerate() {
+        for (i, held) in at_node.iter().enumerate() {
             share.mass[i] = match mat.mass {
                 Mass::Density(rho) => rho * volume / 4.0,
-                Mass::PerNode(m) => m / tets_at_node.get(*n).copied().unwrap_or(1) as f64,
+                Mass::PerNode(m) => m / (*held).max(1) as f64,
             };
         }
         Ok(share)
@@ -388,17 +397,12 @@ impl SpringModel {
         let t = *mesh
             .tet(tk)
             .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
-        let mut at_node: SecondaryMap<NodeKey, u32> = SecondaryMap::new();
-        for &n in &t.nodes {
-            at_node.insert(n, self.tets_at_node(n) + 1);
-        }
-        let mut at_edge: HashMap<[NodeKey; 2], u32> = HashMap::new();
-        for [a, b] in TET_EDGES {
+        let at_node = t.nodes.map(|n| self.tets_at_node(n) + 1);
+        let at_edge = TET_EDGES.map(|[a, b]| {
             let key = edge_key(t.nodes[a], t.nodes[b]);
-            let held = self.by_edge.get(&key).map_or(0, |s| self.springs[*s].tets);
-            at_edge.insert(key, held + 1);
-        }
-        let share = self.tet_share(mesh, tk, &at_node, &at_edge)?;
+            self.by_edge.get(&key).map_or(0, |s| self.springs[*s].tets) + 1
+        });
+        let share = self.tet_share(mesh, tk, at_node, at_edge)?;
         self.apply_share(mesh, tk, share, 1.0);
         Ok(())
     }

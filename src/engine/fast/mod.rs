@@ -361,11 +361,15 @@ impl Engine for FastEngine {
         let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
         let mut out = Vec::new();
         for (i, (r, u)) in self.rest_inner.iter().zip(&self.x).enumerate() {
-            if (0..3).any(|c| {
-                let x = r[c] + u[c];
-                x < lo32[c] || x > hi32[c]
-            }) && !self.graph.fixed[i]
-            {
+            // Without short circuits: no branch per coordinate, and most nodes are outside.
+            let x = [r[0] + u[0], r[1] + u[1], r[2] + u[2]];
+            let maybe = (x[0] >= lo32[0])
+                & (x[0] <= hi32[0])
+                & (x[1] >= lo32[1])
+                & (x[1] <= hi32[1])
+                & (x[2] >= lo32[2])
+                & (x[2] <= hi32[2]);
+            if !maybe && !self.graph.fixed[i] {
                 continue;
             }
             let x = self.position_at(i);
