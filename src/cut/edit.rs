@@ -19,9 +19,8 @@ impl Cutter {
             .collect();
         let snapshot = Snapshot::take(&self.model, &before);
         for &tk in tets {
-            let tet = *self.mesh.tet(tk).expect("a tet");
             outcome.volume_removed += self.mesh.tet_volume(tk);
-            self.faces.remove(tk, &tet, &self.mesh);
+            self.faces.remove(tk);
             self.model.remove_tet(&self.mesh, tk)?;
             self.mesh.remove_tet(tk);
         }
@@ -153,8 +152,7 @@ impl Cutter {
             .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .collect();
         for &t in plan.replace.keys() {
-            self.faces
-                .remove(t, self.mesh.tet(t).expect("a tet"), &self.mesh);
+            self.faces.remove(t);
         }
         let mut after = Vec::with_capacity(before.len());
         for ((&t, subs), old) in plan.replace.iter().zip(&before) {

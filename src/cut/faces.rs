@@ -2,9 +2,8 @@
 //! at each node, and the boundary surface. A cut touches a few tets; only their faces are
 //! re-examined, so the boundary is updated incrementally instead of recomputed.
 //!
-//! The maps are hashed (a cut looks faces up many times per tet it edits); whatever is iterated
-//! is sorted by face id first, so the same history of edits gives the same boundary in the same
-//! order (bit-identical runs).
+//! Whatever is iterated is sorted by face id first, so the same history of edits gives the same
+//! boundary in the same order (bit-identical runs).
 //!
 //! Boundary changes are journaled: [`FaceIndex::take_boundary_changes`] says which boundary
 //! triangles a cut removed and added, so the simulation's copy of the surface (and the device's)
@@ -37,29 +36,29 @@ pub fn face_id(tet: &Tet, local: usize) -> FaceId {
     [a, b, c]
 }
 
-/// The tets using one face (one on the boundary, two inside).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct FaceUse {
-    tets: [(TetKey, u8); 2],
-    count: u8,
+/// The tets using one face, as the index finds them: none, one (a boundary face), two (an
+/// inner face) or, in a non-manifold mesh, three (it stops counting there).
+#[derive(Debug, Clone, Copy, Default)]
+struct Users {
+    tets: [Option<TetKey>; 3],
+    count: usize,
 }
 
-/// A boundary face: the tet it belongs to, its local face, and its corners as that tet
-/// orients them (outward).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct BoundaryFace {
-    tet: TetKey,
-    local: u8,
-    corners: [NodeKey; 3],
-}
-
-impl BoundaryFace {
-    fn of(tk: TetKey, tet: &Tet, local: usize) -> Self {
-        BoundaryFace {
-            tet: tk,
-            local: local as u8,
-            corners: TET_FACES[local].map(|i| tet.nodes[i]),
+impl Users {
+    fn push(&mut self, t: TetKey) {
+        if self.count < 3 {
+            self.tets[self.count] = Some(t);
         }
+        self.count += 1;
+    }
+
+    fn iter(&self) -> impl Iterator<Item = TetKey> + '_ {
+        self.tets.iter().flatten().copied()
+    }
+
+    /// The user other than `tk` of an inner face.
+    fn other_than(&self, tk: TetKey) -> Option<TetKey> {
+        (self.count == 2).then(|| self.iter().find(|&t| t != tk).unwrap_or(tk))
     }
 }
 
@@ -74,14 +73,37 @@ pub struct BoundaryChanges {
 }
 
 /// Face adjacency, node-to-tet incidence and the boundary of a mesh.
+///
+/// Each indexed tet keeps the tet across each of its faces, as tet meshes usually do; there is
+/// no table of faces. A face's tets are found from its corners' (sorted) tet lists when a tet
+/// is inserted, and linked both ways. A face table would cost tens of bytes per face of the
+/// whole mesh and, hashed, a pause of milliseconds whenever a cut grew it past its capacity
+/// (it rehashes every face).
 #[derive(Debug, Clone, Default)]
 pub struct FaceIndex {
-    faces: FxHashMap<FaceId, FaceUse>,
-    boundary: FxHashMap<FaceId, BoundaryFace>,
+    /// The tets at each node, in key order.
     node_tets: SecondaryMap<NodeKey, Vec<TetKey>>,
+    /// Each indexed tet: its corners as indexed and the tet across each local face.
+    tets: SecondaryMap<TetKey, Indexed>,
+    boundary_faces: usize,
     /// Each face touched since the journal was last taken, with its boundary triangle before
     /// the first touch (`None`: it was not on the boundary).
     journal: FxHashMap<FaceId, Option<[NodeKey; 3]>>,
+}
+
+/// An indexed tet.
+#[derive(Debug, Clone, Copy)]
+struct Indexed {
+    nodes: [NodeKey; 4],
+    /// The tet across local face `i` (opposite corner `i`), if the face is inside.
+    across: [Option<TetKey>; 4],
+}
+
+impl Indexed {
+    /// Local face `local` as an outward boundary triangle.
+    fn triangle(&self, local: usize) -> [NodeKey; 3] {
+        TET_FACES[local].map(|i| self.nodes[i])
+    }
 }
 
 impl FaceIndex {
@@ -96,34 +118,62 @@ impl FaceIndex {
         Ok(index)
     }
 
+    /// The tets indexed with all three corners of `id`.
+    fn users(&self, id: &FaceId) -> Users {
+        let mut users = Users::default();
+        let lists = id.map(|n| self.tets_at(n));
+        let Some(shortest) = (0..3).min_by_key(|&i| lists[i].len()) else {
+            return users;
+        };
+        for &t in lists[shortest] {
+            if (0..3).all(|i| i == shortest || lists[i].binary_search(&t).is_ok()) {
+                users.push(t);
+            }
+        }
+        users
+    }
+
+    /// The boundary triangle of face `id` (outward, as its one tet orients it), if it is on
+    /// the boundary.
+    fn boundary_triangle(&self, id: &FaceId) -> Option<[NodeKey; 3]> {
+        let users = self.users(id);
+        if users.count != 1 {
+            return None;
+        }
+        let t = self.tets.get(users.iter().next()?)?;
+        Some(t.triangle(local_face(&t.nodes, id)?))
+    }
+
     /// Add a tet's faces and incidences.
     pub fn insert(&mut self, tk: TetKey, tet: &Tet) -> Result<()> {
-        for local in 0..4 {
-            let id = face_id(tet, local);
-            self.note(id);
-            match self.faces.get_mut(&id) {
-                None => {
-                    self.faces.insert(
-                        id,
-                        FaceUse {
-                            tets: [(tk, local as u8), (tk, local as u8)],
-                            count: 1,
-                        },
-                    );
-                    self.boundary.insert(id, BoundaryFace::of(tk, tet, local));
+        let ids: [FaceId; 4] = std::array::from_fn(|local| face_id(tet, local));
+        let users = ids.map(|id| self.users(&id));
+        if users.iter().any(|u| u.count >= 2) {
+            return Err(Error::Mesh(
+                "a face is shared by more than two tets; a non-manifold mesh cannot be cut \
+                 (repair it, e.g. with TetGen -d)"
+                    .into(),
+            ));
+        }
+        let mut me = Indexed {
+            nodes: tet.nodes,
+            across: [None; 4],
+        };
+        for (local, (id, u)) in ids.iter().zip(&users).enumerate() {
+            let other = u.iter().next();
+            let link = other.and_then(|o| {
+                let t = self.tets.get(o)?;
+                Some((o, local_face(&t.nodes, id)?))
+            });
+            let before = link.map(|(o, l)| self.tets[o].triangle(l));
+            self.note(*id, before);
+            match link {
+                Some((o, l)) => {
+                    self.tets[o].across[l] = Some(tk);
+                    me.across[local] = Some(o);
+                    self.boundary_faces -= 1;
                 }
-                Some(u) if u.count == 1 => {
-                    u.tets[1] = (tk, local as u8);
-                    u.count = 2;
-                    self.boundary.remove(&id);
-                }
-                Some(_) => {
-                    return Err(Error::Mesh(
-                        "a face is shared by more than two tets; a non-manifold mesh cannot be \
-                         cut (repair it, e.g. with TetGen -d)"
-                            .into(),
-                    ))
-                }
+                None => self.boundary_faces += 1,
             }
         }
         for &n in &tet.nodes {
@@ -133,38 +183,38 @@ impl FaceIndex {
                 v.insert(at, tk);
             }
         }
+        self.tets.insert(tk, me);
         Ok(())
     }
 
-    /// Remove a tet's faces and incidences (`tet` as it was when inserted). The faces it
-    /// shared come back on the boundary, oriented by the tet left holding them; `mesh` gives
-    /// that tet's corners.
-    pub fn remove(&mut self, tk: TetKey, tet: &Tet, mesh: &TetMesh) {
+    /// Remove a tet's faces and incidences (as they were indexed; a tet not indexed changes
+    /// nothing). The faces it shared come back on the boundary, oriented by the tet left
+    /// holding them.
+    pub fn remove(&mut self, tk: TetKey) {
+        let Some(me) = self.tets.remove(tk) else {
+            return;
+        };
+        let tet = Tet {
+            nodes: me.nodes,
+            region: 0,
+        };
         for local in 0..4 {
-            let id = face_id(tet, local);
-            self.note(id);
-            let Some(u) = self.faces.get_mut(&id) else {
-                continue;
-            };
-            if u.count == 2 {
-                let keep = if u.tets[0].0 == tk {
-                    u.tets[1]
-                } else {
-                    u.tets[0]
-                };
-                *u = FaceUse {
-                    tets: [keep, keep],
-                    count: 1,
-                };
-                let other = mesh.tet(keep.0).expect("a face's tets are in the mesh");
-                self.boundary
-                    .insert(id, BoundaryFace::of(keep.0, other, keep.1 as usize));
-            } else {
-                self.faces.remove(&id);
-                self.boundary.remove(&id);
+            let id = face_id(&tet, local);
+            match me.across[local] {
+                Some(o) => {
+                    self.note(id, None);
+                    if let Some(l) = self.tets.get(o).and_then(|t| local_face(&t.nodes, &id)) {
+                        self.tets[o].across[l] = None;
+                    }
+                    self.boundary_faces += 1;
+                }
+                None => {
+                    self.note(id, Some(me.triangle(local)));
+                    self.boundary_faces -= 1;
+                }
             }
         }
-        for &n in &tet.nodes {
+        for &n in &me.nodes {
             if let Some(v) = self.node_tets.get_mut(n) {
                 v.retain(|t| *t != tk);
                 if v.is_empty() {
@@ -176,22 +226,16 @@ impl FaceIndex {
 
     /// The tet across local face `local` of `tk` (whose nodes are `tet`), if the face is inside.
     pub fn neighbour(&self, tk: TetKey, tet: &Tet, local: usize) -> Option<TetKey> {
-        let u = self.faces.get(&face_id(tet, local))?;
-        (u.count == 2).then(|| {
-            if u.tets[0].0 == tk {
-                u.tets[1].0
-            } else {
-                u.tets[0].0
-            }
-        })
+        match self.tets.get(tk) {
+            Some(t) if t.nodes == tet.nodes => t.across[local],
+            // Asked with other corners than indexed (mid-edit): find the face's tets.
+            _ => self.users(&face_id(tet, local)).other_than(tk),
+        }
     }
 
     /// The tets using `face` (none, one or two).
     pub fn tets_of_face(&self, face: &FaceId) -> Vec<TetKey> {
-        match self.faces.get(face) {
-            None => Vec::new(),
-            Some(u) => u.tets[..u.count as usize].iter().map(|t| t.0).collect(),
-        }
+        self.users(face).iter().collect()
     }
 
     /// The tets at a node, in key order (empty for a node no tet uses).
@@ -199,20 +243,27 @@ impl FaceIndex {
         self.node_tets.get(n).map_or(&[], |v| v.as_slice())
     }
 
-    /// The boundary faces as (tet, local face), in face-id order (sorted on each call: for
-    /// building a surface or checking one, not for every cut).
+    /// The boundary faces as (tet, local face), in face-id order (found and sorted on each
+    /// call: for building a surface or checking one, not for every cut).
     pub fn boundary(&self) -> Vec<(TetKey, u8)> {
-        let mut faces: Vec<(&FaceId, &BoundaryFace)> = self.boundary.iter().collect();
-        faces.sort_unstable_by_key(|(id, _)| **id);
-        faces.into_iter().map(|(_, b)| (b.tet, b.local)).collect()
+        let mut faces: Vec<(FaceId, TetKey, u8)> = Vec::with_capacity(self.boundary_faces);
+        for (tk, t) in &self.tets {
+            let tet = Tet {
+                nodes: t.nodes,
+                region: 0,
+            };
+            for local in (0..4).filter(|&l| t.across[l].is_none()) {
+                faces.push((face_id(&tet, local), tk, local as u8));
+            }
+        }
+        faces.sort_unstable_by_key(|f| f.0);
+        faces.into_iter().map(|(_, t, l)| (t, l)).collect()
     }
 
-    /// Record the boundary state of `id` before its first change since the last take.
-    fn note(&mut self, id: FaceId) {
-        let boundary = &self.boundary;
-        self.journal
-            .entry(id)
-            .or_insert_with(|| boundary.get(&id).map(|b| b.corners));
+    /// Record the boundary state of `id` (`before`) if it is its first change since the last
+    /// take.
+    fn note(&mut self, id: FaceId, before: Option<[NodeKey; 3]>) {
+        self.journal.entry(id).or_insert(before);
     }
 
     /// The boundary triangles removed and added since the last call (or since the index was
@@ -222,7 +273,7 @@ impl FaceIndex {
         let mut journal: Vec<_> = self.journal.drain().collect();
         journal.sort_unstable_by_key(|(id, _)| *id);
         for (id, before) in journal {
-            let after = self.boundary.get(&id).map(|b| b.corners);
+            let after = self.boundary_triangle(&id);
             if before != after {
                 changes.removed.extend(before);
                 changes.added.extend(after);
@@ -233,13 +284,22 @@ impl FaceIndex {
 
     /// Number of boundary faces.
     pub fn boundary_len(&self) -> usize {
-        self.boundary.len()
+        self.boundary_faces
     }
 
     /// Number of faces.
     pub fn face_count(&self) -> usize {
-        self.faces.len()
+        (4 * self.tets.len() + self.boundary_faces) / 2
     }
+}
+
+/// The local face of a tet with corners `nodes` whose corners are `id`: the one opposite the
+/// corner not in `id`.
+fn local_face(nodes: &[NodeKey; 4], id: &FaceId) -> Option<usize> {
+    let opposite = (0..4).filter(|&i| !id.contains(&nodes[i]));
+    let mut it = opposite;
+    let first = it.next()?;
+    it.next().is_none().then_some(first)
 }
 
 #[cfg(test)]
@@ -272,5 +332,124 @@ mod tests {
                 assert!(id[0] < id[1] && id[1] < id[2]);
             }
         }
+    }
+
+    /// Everything the index answers, worked out from scratch from the tets indexed.
+    fn check_against_brute_force(index: &FaceIndex, tets: &[(TetKey, Tet)]) {
+        let mut users: std::collections::BTreeMap<FaceId, Vec<(TetKey, usize)>> =
+            Default::default();
+        for (tk, tet) in tets {
+            for local in 0..4 {
+                users
+                    .entry(face_id(tet, local))
+                    .or_default()
+                    .push((*tk, local));
+            }
+        }
+        for (tk, tet) in tets {
+            for local in 0..4 {
+                let id = face_id(tet, local);
+                let want = users[&id].iter().find(|u| u.0 != *tk).map(|u| u.0);
+                assert_eq!(index.neighbour(*tk, tet, local), want);
+                let mut of_face = index.tets_of_face(&id);
+                of_face.sort();
+                let mut all: Vec<TetKey> = users[&id].iter().map(|u| u.0).collect();
+                all.sort();
+                assert_eq!(of_face, all);
+            }
+        }
+        let boundary: Vec<(TetKey, u8)> = users
+            .values()
+            .filter(|u| u.len() == 1)
+            .map(|u| (u[0].0, u[0].1 as u8))
+            .collect();
+        assert_eq!(index.boundary(), boundary, "boundary in face-id order");
+        assert_eq!(index.boundary_len(), boundary.len());
+        assert_eq!(index.face_count(), users.len());
+    }
+
+    /// Tets taken out and put back in a shuffled order: after every change the adjacency, the
+    /// boundary and its journal agree with a recomputation from the tets indexed.
+    #[test]
+    fn the_index_follows_removals_and_insertions_exactly() {
+        let mesh = crate::mesh::generate::BoxGrid::cube_cells([3, 3, 2], 1.0)
+            .build()
+            .expect("a box");
+        let mut index = FaceIndex::of(&mesh).expect("a manifold box");
+        let all: Vec<(TetKey, Tet)> = mesh.tets().map(|(k, t)| (k, *t)).collect();
+        let mut indexed = all.clone();
+        check_against_brute_force(&index, &indexed);
+        let triangles = |index: &FaceIndex, tets: &[(TetKey, Tet)]| {
+            let mut v: Vec<[NodeKey; 3]> = index
+                .boundary()
+                .into_iter()
+                .map(|(tk, l)| {
+                    let t = tets.iter().find(|(k, _)| *k == tk).expect("indexed").1;
+                    TET_FACES[l as usize].map(|i| t.nodes[i])
+                })
+                .collect();
+            v.sort();
+            v
+        };
+        let mut surface = triangles(&index, &indexed);
+        // A fixed pseudo-random order (a multiplicative step coprime to the count).
+        let n = all.len();
+        let order: Vec<usize> = (0..n).map(|i| (i * 37 + 11) % n).collect();
+        let mut out = Vec::new();
+        for (step, &i) in order.iter().enumerate() {
+            let (tk, _) = all[i];
+            index.remove(tk);
+            indexed.retain(|(k, _)| *k != tk);
+            out.push(all[i]);
+            if step % 3 == 2 {
+                // Put one back from the middle of what is out.
+                let back = out.remove(out.len() / 2);
+                index.insert(back.0, &back.1).expect("it fitted before");
+                indexed.push(back);
+            }
+            check_against_brute_force(&index, &indexed);
+            let changes = index.take_boundary_changes();
+            for r in &changes.removed {
+                let at = surface
+                    .iter()
+                    .position(|t| t == r)
+                    .expect("a removed triangle was there");
+                surface.remove(at);
+            }
+            surface.extend(changes.added.iter().copied());
+            surface.sort();
+            assert_eq!(
+                surface,
+                triangles(&index, &indexed),
+                "journal at step {step}"
+            );
+        }
+        assert!(indexed.is_empty() || index.boundary_len() > 0);
+    }
+
+    /// A third tet on a face is refused, and the index is left as it was.
+    #[test]
+    fn a_third_tet_on_a_face_is_refused_without_changing_the_index() {
+        let mesh = crate::mesh::generate::BoxGrid::cube_cells([1, 1, 1], 1.0)
+            .build()
+            .expect("a box");
+        let mut index = FaceIndex::of(&mesh).expect("a manifold box");
+        let tets: Vec<(TetKey, Tet)> = mesh.tets().map(|(k, t)| (k, *t)).collect();
+        // A key no tet of the mesh has: one past the mesh's slots.
+        let mut keys: slotmap::SlotMap<TetKey, ()> = slotmap::SlotMap::with_key();
+        let fake = (0..=tets.len())
+            .map(|_| keys.insert(()))
+            .last()
+            .expect("a key");
+        assert!(mesh.tet(fake).is_none());
+        let inner = tets
+            .iter()
+            .find(|(k, t)| (0..4).any(|l| index.neighbour(*k, t, l).is_some()))
+            .expect("the cube has inner faces");
+        let (boundary, faces) = (index.boundary_len(), index.face_count());
+        assert!(index.insert(fake, &inner.1).is_err());
+        assert_eq!(index.boundary_len(), boundary);
+        assert_eq!(index.face_count(), faces);
+        check_against_brute_force(&index, &tets);
     }
 }

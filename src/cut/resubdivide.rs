@@ -145,8 +145,7 @@ impl Cutter {
         // matched against a sub-tet about to go.
         for plan in &plans {
             for &t in &plan.gone {
-                let tet = *self.mesh.tet(t).expect("a sub-tet");
-                self.faces.remove(t, &tet, &self.mesh);
+                self.faces.remove(t);
                 self.model.remove_tet(&self.mesh, t)?;
             }
         }
