@@ -756,6 +756,13 @@ fn bench_cut_refuses_inputs_that_cannot_cut() {
             vec!["--cube", "4", "--length", "0.001"],
             "made no cut".into(),
         ),
+        (vec!["--incisions", "0"], "at least one incision".into()),
+        // A 12-cell box fits five planes two cells apart a cell from its sides, and one 3 cm
+        // incision across in x ((12 - 2 - 3) / (3 + 2) < 2).
+        (
+            vec!["--cube", "12", "--incisions", "6"],
+            "(5 do, two cells apart".into(),
+        ),
     ];
     for (args, says) in cases {
         let mut all = vec!["bench", "cut", "--engine", "fast"];
@@ -766,6 +773,46 @@ fn bench_cut_refuses_inputs_that_cannot_cut() {
         assert!(err.contains(&says), "{args:?}: {err}");
         assert!(out.stdout.is_empty(), "{args:?} printed rows");
     }
+}
+
+/// More incisions cut more: each is a separate incision of the same size (the cut area grows
+/// with their number and the growth per area stays that of one), placed at further planes and
+/// then further along the box.
+#[test]
+fn bench_cut_makes_as_many_incisions_as_asked() {
+    let row = |incisions: &str| {
+        let out = lancet(&[
+            "bench",
+            "cut",
+            "--cube",
+            "20",
+            "--engine",
+            "fast",
+            "--method",
+            "remove",
+            "--incisions",
+            incisions,
+            "--json",
+        ]);
+        ok_json(&out).as_array().unwrap()[0].clone()
+    };
+    // 20 cells: 9 planes (y = 1.3 ... 17.3 cells) at the middle, and centres 5 cells either
+    // side, so 12 incisions take a second column.
+    let (four, twelve) = (row("4"), row("12"));
+    let f = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    assert!((f(&twelve, "area_cm2") - 3.0 * f(&four, "area_cm2")).abs() < 1e-9);
+    // The same incision elsewhere takes about as many events (the tissue sags differently
+    // near the sides, so not exactly as many).
+    let cuts = |r: &serde_json::Value| r["cuts"].as_u64().unwrap() as f64;
+    assert!(
+        (cuts(&twelve) - 3.0 * cuts(&four)).abs() <= 0.1 * 3.0 * cuts(&four),
+        "{four:#} {twelve:#}"
+    );
+    let per_area = |r: &serde_json::Value| f(r, "tets_removed_per_cm2");
+    assert!(
+        (per_area(&twelve) - per_area(&four)).abs() < 0.2 * per_area(&four),
+        "{four:#} {twelve:#}"
+    );
 }
 
 /// The smallest box the refusal names does cut, with every method: a row there has cuts and a

@@ -67,6 +67,10 @@ enum BenchWhat {
         /// Quality floors for subdividing, comma-separated (one row each; 0: none).
         #[arg(long = "quality-floor", value_delimiter = ',', default_values = ["0.2"])]
         floors: Vec<f64>,
+        /// Incisions per row, two cells apart, each two cells deep in 11 cut events: more give
+        /// the percentiles more events and grow the mesh further.
+        #[arg(long, default_value_t = lancet::report::cut_bench::INCISIONS)]
+        incisions: usize,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -405,16 +409,20 @@ fn main() -> ExitCode {
                     engine,
                     layout,
                     floors,
+                    incisions,
                     json,
                 }),
             ..
         } => bench_cut(
-            &cubes,
-            &length,
-            &method.iter().map(|&m| m.into()).collect::<Vec<_>>(),
-            &engine.iter().map(|&e| e.into()).collect::<Vec<_>>(),
-            &layout.iter().map(|&l| l.into()).collect::<Vec<_>>(),
-            &floors,
+            &lancet::report::cut_bench::CutBench {
+                cubes,
+                lengths: length,
+                methods: method.iter().map(|&m| m.into()).collect(),
+                engines: engine.iter().map(|&e| e.into()).collect(),
+                layouts: layout.iter().map(|&l| l.into()).collect(),
+                floors,
+                incisions,
+            },
             json,
         ),
         Command::Bench {
@@ -885,16 +893,8 @@ fn bench_collide(
 }
 
 /// Run the cut benchmark and print it.
-fn bench_cut(
-    cubes: &[usize],
-    lengths: &[f64],
-    methods: &[lancet::cut::CutMethod],
-    engines: &[EngineKind],
-    layouts: &[lancet::layout::LayoutKind],
-    floors: &[f64],
-    json: bool,
-) -> lancet::Result<ExitCode> {
-    let rows = lancet::report::cut_bench::run(cubes, lengths, methods, engines, layouts, floors)?;
+fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet::Result<ExitCode> {
+    let rows = bench.run()?;
     if json {
         println!(
             "{}",

@@ -80,18 +80,47 @@ pub struct CutRow {
     pub min_quality: f64,
 }
 
-/// The rows for boxes of `cubes` (N x N x N/2 cells of 1 cm), `lengths` (m), `methods` and
-/// `engines` (GPU rows once per layout of `layouts`); subdividing once per quality floor of
-/// `floors` (the other methods make no tets: one row, at the first floor).
-pub fn run(
-    cubes: &[usize],
-    lengths: &[f64],
-    methods: &[CutMethod],
-    engines: &[EngineKind],
-    layouts: &[LayoutKind],
-    floors: &[f64],
-) -> Result<Vec<CutRow>> {
-    validate(cubes, lengths, floors)?;
+/// What `lancet bench cut` runs: one row per box, length, method, engine (GPU ones once per
+/// layout) and, for subdividing, quality floor (the other methods make no tets: one row, at
+/// the first floor).
+#[derive(Debug, Clone)]
+pub struct CutBench {
+    /// Boxes of N x N x N/2 cells of 1 cm.
+    pub cubes: Vec<usize>,
+    /// Cut lengths, m.
+    pub lengths: Vec<f64>,
+    /// Cut methods.
+    pub methods: Vec<CutMethod>,
+    /// Engines.
+    pub engines: Vec<EngineKind>,
+    /// GPU layouts.
+    pub layouts: Vec<LayoutKind>,
+    /// Quality floors for subdividing.
+    pub floors: Vec<f64>,
+    /// Incisions per row, each two cells deep in 11 events (default [`INCISIONS`]): more
+    /// give the percentiles more events to rest on and grow the mesh further, which is where
+    /// a growing array or table would show as a pause.
+    pub incisions: usize,
+}
+
+impl CutBench {
+    /// The rows.
+    pub fn run(&self) -> Result<Vec<CutRow>> {
+        run(self)
+    }
+}
+
+fn run(bench: &CutBench) -> Result<Vec<CutRow>> {
+    let CutBench {
+        cubes,
+        lengths,
+        methods,
+        engines,
+        layouts,
+        floors,
+        incisions,
+    } = bench;
+    validate(cubes, lengths, floors, *incisions)?;
     if methods.is_empty() || engines.is_empty() || layouts.is_empty() {
         return Err(Error::Options(
             "give at least one cut method, one engine and one layout".into(),
@@ -112,14 +141,23 @@ pub fn run(
                     } else {
                         &layouts[..1.min(layouts.len())]
                     };
-                    let floors = if method == CutMethod::Subdivide && !floors.is_empty() {
+                    let floors: &[f64] = if method == CutMethod::Subdivide && !floors.is_empty() {
                         floors
                     } else {
                         &first
                     };
                     for &layout in kinds {
                         for &floor in floors {
-                            rows.push(one(n, length, method, engine, layout, floor)?);
+                            let row = Row {
+                                n,
+                                length,
+                                method,
+                                engine,
+                                layout,
+                                floor,
+                                incisions: *incisions,
+                            };
+                            rows.push(one(&row)?);
                         }
                     }
                 }
@@ -129,15 +167,21 @@ pub fn run(
     Ok(rows)
 }
 
-/// Check the sizes of [`run`] before anything is built: every box must have room for an
-/// incision, every length must be positive and every quality floor a volume-length ratio in
-/// [0, 1). Left unchecked, a box with no room or a zero length cuts nothing and its row divides
-/// by a zero cut area; a floor of 1 or more would refuse every split but a regular tet's.
-pub fn validate(cubes: &[usize], lengths: &[f64], floors: &[f64]) -> Result<()> {
+/// Check the sizes of a [`CutBench`] before anything is built: every box must have room for
+/// an incision, every length must be positive, every quality floor a volume-length ratio in
+/// [0, 1) and the incisions at least one and as many as fit every box. Left unchecked, a box
+/// with no room or a zero length cuts nothing and its row divides by a zero cut area; a floor
+/// of 1 or more would refuse every split but a regular tet's.
+pub fn validate(cubes: &[usize], lengths: &[f64], floors: &[f64], incisions: usize) -> Result<()> {
     if cubes.is_empty() || lengths.is_empty() {
         return Err(Error::Options(
             "give at least one cube and one cut length".into(),
         ));
+    }
+    if incisions == 0 {
+        return Err(Error::Options(format!(
+            "give at least one incision per row (the default is {INCISIONS})"
+        )));
     }
     let smallest = smallest_cube();
     if let Some(&n) = cubes.iter().find(|&&n| n < smallest) {
@@ -160,7 +204,64 @@ pub fn validate(cubes: &[usize], lengths: &[f64], floors: &[f64]) -> Result<()> 
             crate::cut::subdivide::DEFAULT_QUALITY_FLOOR
         )));
     }
+    if incisions > INCISIONS {
+        for &n in cubes {
+            for &l in lengths {
+                let fit = incision_sites(n, l / CELL, usize::MAX).len();
+                if fit < incisions {
+                    return Err(Error::Options(format!(
+                        "{incisions} incisions of {l} m do not fit a box {n} cells across \
+                         ({fit} do, two cells apart and a cell from its sides); give fewer \
+                         incisions, a shorter cut or a larger box"
+                    )));
+                }
+            }
+        }
+    }
     Ok(())
+}
+
+/// Cell size of the benchmark boxes, m.
+const CELL: f64 = 0.01;
+
+/// Where `count` incisions of `length` cells go in a box `n` cells across, as (x, y) of the
+/// blade's centre in cells: first the planes of [`incision_planes`] at the middle of the box
+/// (the default [`INCISIONS`]), then planes further out, then the same planes at centres
+/// further along x (the length and two cells apart), each a cell from the box's sides.
+fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
+    let half = 0.5 * length.min(n as f64);
+    let fits_x = |x: f64| x - half >= 1.0 - 1e-9 && x + half <= n as f64 - 1.0 + 1e-9;
+    let middle = 0.5 * n as f64;
+    let mut xs = vec![middle];
+    let step = length + 2.0;
+    for k in 1.. {
+        let (a, b) = (middle - step * k as f64, middle + step * k as f64);
+        if !fits_x(a) && !fits_x(b) {
+            break;
+        }
+        xs.extend([a, b].into_iter().filter(|&x| fits_x(x)));
+    }
+    // Planes two cells apart: the default ones first, then outwards in turn.
+    let mut ys = incision_planes(n);
+    let (y_middle, first) = (0.5 * n as f64 + 0.3, 0.5 * (INCISIONS - 1) as f64);
+    for k in 0..n {
+        let reach = 2.0 * (first + 1.0 + k as f64);
+        ys.extend(
+            [y_middle - reach, y_middle + reach]
+                .into_iter()
+                .filter(|y| (1.0..=n as f64 - 1.0).contains(y)),
+        );
+    }
+    let mut sites = Vec::new();
+    for &x in &xs {
+        for &y in &ys {
+            if sites.len() == count {
+                return sites;
+            }
+            sites.push((x, y));
+        }
+    }
+    sites
 }
 
 /// Where the incisions go in a box `n` cells across: the `y` of each plane, in cells, that
@@ -204,15 +305,28 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// percentiles to mean something (one incision made two to five; four make 8-27).
 pub const INCISIONS: usize = 4;
 
-fn one(
+/// One row's settings.
+struct Row {
     n: usize,
     length: f64,
     method: CutMethod,
     engine: EngineKind,
     layout: LayoutKind,
     floor: f64,
-) -> Result<CutRow> {
-    let h = 0.01;
+    incisions: usize,
+}
+
+fn one(row: &Row) -> Result<CutRow> {
+    let &Row {
+        n,
+        length,
+        method,
+        engine,
+        layout,
+        floor,
+        incisions,
+    } = row;
+    let h = CELL;
     let nz = (n / 2).max(2);
     let mesh = BoxGrid::cube_cells([n, n, nz], h).build()?;
     let (tets, nodes) = (mesh.tet_count(), mesh.node_count());
@@ -238,9 +352,9 @@ fn one(
         length: 0.1,
         thickness: 2e-4,
     };
-    // Up to [`INCISIONS`] planes y = const (those that fit, see `incision_planes`), centred in
-    // x, edge from just above the top down two cells, a fifth of a cell per step.
-    let (x, top) = (0.5 * n as f64 * h, nz as f64 * h);
+    // `incisions` sites (those that fit, see `incision_sites`), each in a plane y = const,
+    // edge from just above the top down two cells, a fifth of a cell per step.
+    let top = nz as f64 * h;
     let steps = 11;
     let (mut total, mut read, mut cutting, mut apply, mut surface) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -248,8 +362,8 @@ fn one(
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
     let (mut passes_rebuilt, mut buffers_grown) = (0, 0);
-    let planes = incision_planes(n);
-    for y in planes.iter().map(|y| y * h) {
+    let sites = incision_sites(n, length / h, incisions);
+    for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
         for k in 0..steps {
             sim.run(1)?;
@@ -297,7 +411,7 @@ fn one(
     }
     let mut sorted = total.clone();
     sorted.sort_by(f64::total_cmp);
-    let area_cm2 = planes.len() as f64 * length.min(n as f64 * h) * 2.0 * h * 1e4;
+    let area_cm2 = sites.len() as f64 * length.min(n as f64 * h) * 2.0 * h * 1e4;
     Ok(CutRow {
         tets,
         nodes,
