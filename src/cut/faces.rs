@@ -146,6 +146,10 @@ impl FaceIndex {
 
     /// Add a tet's faces and incidences.
     pub fn insert(&mut self, tk: TetKey, tet: &Tet) -> Result<()> {
+        debug_assert!(
+            !self.tets.contains_key(tk),
+            "a tet is indexed twice; remove it first"
+        );
         let ids: [FaceId; 4] = std::array::from_fn(|local| face_id(tet, local));
         let users = ids.map(|id| self.users(&id));
         if users.iter().any(|u| u.count >= 2) {

@@ -223,12 +223,15 @@ pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) 
 /// What applying a model change cost an engine.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PatchCost {
-    /// Bytes of layout data written to the device (all of it for a rebuilt engine).
+    /// Bytes of layout data written to the device (all of it for a rebuilt engine); for the
+    /// fast CPU engine, written into its arrays.
     pub uploaded_bytes: u64,
     /// Bytes copied on the device from buffers that outgrew their room into their larger
-    /// successors: moved, not uploaded, so not in `uploaded_bytes`.
+    /// successors: moved, not uploaded, so not in `uploaded_bytes`. For the fast CPU engine,
+    /// the bytes its arrays' growth copied and those compaction slid over holes.
     pub copied_bytes: u64,
-    /// Layout buffers replaced by larger ones while the passes kept their pipelines.
+    /// Layout buffers replaced by larger ones while the passes kept their pipelines (for the
+    /// fast CPU engine, arrays that grew into a new allocation).
     pub buffers_grown: usize,
     /// Bytes of layout data in all (a full upload would write this much).
     pub layout_bytes: u64,

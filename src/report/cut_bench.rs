@@ -226,9 +226,19 @@ const CELL: f64 = 0.01;
 
 /// Where `count` incisions of `length` cells go in a box `n` cells across, as (x, y) of the
 /// blade's centre in cells: first the planes of [`incision_planes`] at the middle of the box
-/// (the default [`INCISIONS`]), then planes further out, then the same planes at centres
-/// further along x (the length and two cells apart), each a cell from the box's sides.
+/// (up to [`INCISIONS`] only those, as many as fit), then planes further out, then the same
+/// planes at centres further along x (the length and two cells apart). Planes lie a cell from
+/// the box's sides, and so do the incisions off the middle (one at the middle may be longer
+/// than the box).
 fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
+    if count <= INCISIONS {
+        let x = 0.5 * n as f64;
+        return incision_planes(n)
+            .into_iter()
+            .take(count)
+            .map(|y| (x, y))
+            .collect();
+    }
     let half = 0.5 * length.min(n as f64);
     let fits_x = |x: f64| x - half >= 1.0 - 1e-9 && x + half <= n as f64 - 1.0 + 1e-9;
     let middle = 0.5 * n as f64;
@@ -440,4 +450,54 @@ fn one(row: &Row) -> Result<CutRow> {
         quality_floor: floor,
         min_quality: cutter.mesh().min_volume_length_ratio(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LENGTHS: [f64; 6] = [0.1, 0.3, 0.5, 1.0, 3.0, 7.5];
+
+    /// Up to the default count, the incisions are the planes at the middle of the box, as
+    /// many as fit: more only come when asked for.
+    #[test]
+    fn the_default_incisions_are_the_planes_at_the_middle() {
+        for n in smallest_cube()..40 {
+            for length in LENGTHS {
+                let sites = incision_sites(n, length, INCISIONS);
+                let planes: Vec<(f64, f64)> = incision_planes(n)
+                    .into_iter()
+                    .map(|y| (0.5 * n as f64, y))
+                    .collect();
+                assert_eq!(sites, planes, "n {n}, length {length}");
+            }
+        }
+    }
+
+    /// However many are asked for, incisions do not overlap: those in one plane are two cells
+    /// apart along x, planes two cells apart; off the middle they stay a cell from the sides.
+    #[test]
+    fn incisions_keep_apart_and_off_the_sides() {
+        for n in smallest_cube()..40 {
+            for length in LENGTHS {
+                let sites = incision_sites(n, length, usize::MAX);
+                assert!(sites.len() >= incision_planes(n).len());
+                let half = 0.5 * length.min(n as f64);
+                for (i, &(x, y)) in sites.iter().enumerate() {
+                    assert!((1.0..=n as f64 - 1.0).contains(&y), "n {n}: plane {y}");
+                    if x != 0.5 * n as f64 {
+                        assert!(x - half >= 1.0 - 1e-9 && x + half <= n as f64 - 1.0 + 1e-9);
+                    }
+                    for &(x2, y2) in &sites[i + 1..] {
+                        let apart = if y == y2 {
+                            (x - x2).abs() - 2.0 * half >= 2.0 - 1e-9
+                        } else {
+                            (y - y2).abs() >= 2.0 - 1e-9
+                        };
+                        assert!(apart, "n {n}, length {length}: ({x}, {y}) and ({x2}, {y2})");
+                    }
+                }
+            }
+        }
+    }
 }

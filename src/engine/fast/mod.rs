@@ -299,7 +299,12 @@ impl Engine for FastEngine {
         let p = std::mem::size_of::<P>() as u64;
         let buffers = vec![
             ("adjacency".to_string(), slots * entry),
+            (
+                "adjacency damping".to_string(),
+                self.graph.damping.len() as u64 * 4,
+            ),
             ("row bounds".to_string(), n * 8),
+            ("order and rank".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
             ("fixed flags".to_string(), n),
             ("displacements (3 buffers)".to_string(), 3 * n * p),
@@ -321,7 +326,8 @@ impl Engine for FastEngine {
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
                 buffers,
-                self.graph.holes as u64 * entry,
+                self.graph.holes as u64
+                    * (entry + if self.graph.damping.is_empty() { 0 } else { 4 }),
                 n as usize,
                 (slots as usize - self.graph.holes) / 2,
             ),
@@ -436,11 +442,14 @@ impl Graph {
 
     /// Slide every row down over the holes, in the order the rows lie in (each moves to a
     /// place at or before its own, so nothing is overwritten before it is moved); nothing is
-    /// allocated but the list of row starts. Whether anything moved.
-    fn compact(&mut self) -> bool {
+    /// allocated but the list of row starts. Rows keep the order they lie in, so a row a cut
+    /// moved to the end stays there (a rebuild would put it back among its node's neighbours,
+    /// but allocates a new adjacency). The number of entries moved.
+    fn compact(&mut self) -> usize {
         if self.holes == 0 {
-            return false;
+            return 0;
         }
+        let mut moved = 0;
         let mut by_start: Vec<(u32, u32)> = self
             .rows
             .iter()
@@ -458,6 +467,7 @@ impl Graph {
                 if damped {
                     self.damping.copy_within(start..start + len, to);
                 }
+                moved += len;
             }
             self.rows[i as usize] = [to as u32, (to + len) as u32];
             to += len;
@@ -467,7 +477,7 @@ impl Graph {
             self.damping.truncate(to);
         }
         self.holes = 0;
-        true
+        moved
     }
 }
 

@@ -25,6 +25,29 @@ enum RowEdit {
 }
 
 impl FastEngine {
+    /// (capacity, length, bytes per entry) of every array a patch can grow.
+    fn capacities(&self) -> [(usize, usize, usize); 13] {
+        fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
+            (v.capacity(), v.len(), std::mem::size_of::<T>())
+        }
+        let g = &self.graph;
+        [
+            of(&g.adj),
+            of(&g.damping),
+            of(&g.rows),
+            of(&g.inv_mass),
+            of(&g.fixed),
+            of(&self.order),
+            of(&self.rank),
+            of(&self.rest),
+            of(&self.rest_inner),
+            of(&self.x),
+            of(&self.second),
+            of(&self.x_next),
+            of(&self.second_next),
+        ]
+    }
+
     /// How the patched graph differs from `model`'s built from scratch in the same internal
     /// order: each row's springs (in row order, bit for bit), their damping, the inverse masses
     /// and the fixed flags. Empty when they agree.
@@ -95,6 +118,9 @@ impl FastEngine {
             return None;
         }
         let n0 = self.order.len();
+        // What the arrays hold now, to report any that must grow (a copy into a new
+        // allocation: the pause the room they keep is there to avoid).
+        let before = self.capacities();
         let entry = std::mem::size_of::<Entry>() as u64;
         let p = std::mem::size_of::<P>() as u64;
         let mut written = 0u64;
@@ -162,7 +188,8 @@ impl FastEngine {
             edits.entry(b).or_default().push((a, RowEdit::Set(*s)));
         }
         let damped = !self.graph.damping.is_empty();
-        let mut compacted = false;
+        let mut moved = 0usize;
+        let edited = edits.len();
         for (node, list) in edits {
             let i = self.rank[node as usize] as usize;
             let mut row: BTreeMap<u32, (Entry, f32)> = {
@@ -199,7 +226,7 @@ impl FastEngine {
                 if full && self.graph.holes >= new_len.max(self.graph.adj.len() / 16) {
                     // This row's old place becomes a hole too.
                     self.graph.rows[i] = [start, start];
-                    compacted |= self.graph.compact();
+                    moved += self.graph.compact();
                 }
                 let at = self.graph.adj.len();
                 let filler = Entry {
@@ -226,19 +253,32 @@ impl FastEngine {
         self.damped = damped_now;
 
         if self.graph.holes * 4 > self.graph.adj.len() {
-            compacted |= self.graph.compact();
+            moved += self.graph.compact();
         }
-        let layout_bytes = self.graph.adj.len() as u64 * entry
-            + self.graph.rows.len() as u64 * 8
-            + self.order.len() as u64 * 5;
-        if compacted {
-            // Every row may have moved.
-            written = layout_bytes;
+        // What a rebuild writes: every array the engine holds (as `memory` counts them) but
+        // the holes.
+        let per_entry = entry + if damped { 4 } else { 0 };
+        let stats = crate::engine::Engine::memory(self).stats;
+        let layout_bytes = stats.total - stats.padding;
+        // Compaction moves entries within their arrays (and rewrites every row record);
+        // growth copies an array whole into its new allocation.
+        let mut copied = moved as u64 * per_entry;
+        if moved > 0 {
+            // The records of the rows not edited (the edited ones are counted above).
+            written += self.graph.rows.len().saturating_sub(edited) as u64 * 8;
+        }
+        let after = self.capacities();
+        let mut grown = 0;
+        for ((cap0, len0, size), (cap1, _, _)) in before.iter().zip(&after) {
+            if cap1 != cap0 {
+                grown += 1;
+                copied += (*len0 * *size) as u64;
+            }
         }
         Some(PatchCost {
             uploaded_bytes: written,
-            copied_bytes: 0,
-            buffers_grown: 0,
+            copied_bytes: copied,
+            buffers_grown: grown,
             layout_bytes,
             state_moves: diff.added_nodes.len(),
             reallocated: false,
@@ -302,10 +342,13 @@ mod tests {
             let cost = engine
                 .patch_in_place(&packed, &outcome.diff)
                 .expect("patched in place");
-            // A compaction rewrites the whole adjacency, in place.
-            if cost.uploaded_bytes == cost.layout_bytes {
+            // A compaction moves entries within the adjacency, reallocating nothing.
+            if cost.copied_bytes > 0 && cost.buffers_grown == 0 {
                 compactions += 1;
                 assert_eq!(engine.graph.adj.capacity(), capacity, "compacted in place");
+            }
+            if engine.graph.adj.capacity() != capacity {
+                assert!(cost.buffers_grown > 0, "growth is reported");
             }
             assert_eq!(engine.graph_differences(&packed), Vec::<String>::new());
             let fresh = build_graph(&packed, &engine.order, &engine.rank);
@@ -416,16 +459,56 @@ mod tests {
         }
         let (len, holes, capacity, at) = (g.adj.len(), g.holes, g.adj.capacity(), g.adj.as_ptr());
         assert!(holes > 0);
-        assert!(g.compact());
+        assert!(g.compact() > 0);
         assert_eq!(g.holes, 0);
         assert_eq!(g.adj.len(), len - holes);
         assert_eq!(g.damping.len(), len - holes);
         assert_eq!((g.adj.capacity(), g.adj.as_ptr()), (capacity, at));
-        assert!(!g.compact(), "nothing left to slide");
+        assert_eq!(g.compact(), 0, "nothing left to slide");
         assert_eq!(rows(&moved), before);
         moved.step(40);
         still.step(40);
         assert_eq!(moved.positions(), still.positions());
+    }
+
+    /// A patch that must grow arrays with no room left says so: which grew and the bytes
+    /// their growth copied, beside what it wrote.
+    #[test]
+    fn a_patch_that_grows_arrays_reports_it() {
+        let h = 0.01;
+        let mesh = BoxGrid::cube_cells([4, 4, 2], h).build().unwrap();
+        let model =
+            SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3))).unwrap();
+        let mut packed = model.pack(&mesh).unwrap();
+        let config = SimConfig::new(0.3 * stable_time_step(&packed).dt);
+        let mut engine = FastEngine::new(&packed, config);
+        let mut cutter = Cutter::new(mesh, model, CutMethod::Subdivide).unwrap();
+        let blade = ToolShape::Blade {
+            width: 0.05,
+            length: 0.1,
+            thickness: 2e-4,
+        };
+        let pose = |z: f64| Isometry3::translation(0.02, 0.0213, z);
+        let sweep = Sweep::of_blade(&blade, &pose(0.025), &pose(0.003)).unwrap();
+        let outcome = cutter.cut(&sweep, &engine.positions()).unwrap();
+        assert!(!outcome.diff.added_nodes.is_empty());
+        packed.apply(&outcome.diff).unwrap();
+        // No room anywhere.
+        engine.graph.adj.shrink_to_fit();
+        engine.x.shrink_to_fit();
+        let adj_bytes = (engine.graph.adj.len() * std::mem::size_of::<super::Entry>()) as u64;
+        let cost = engine.patch_in_place(&packed, &outcome.diff).unwrap();
+        assert!(cost.buffers_grown >= 2, "{cost:?}");
+        assert!(cost.copied_bytes >= adj_bytes, "{cost:?}");
+        assert_eq!(engine.graph_differences(&packed), Vec::<String>::new());
+        // With room again, the next cut grows nothing.
+        let sweep = Sweep::of_blade(&blade, &pose(0.003), &pose(0.001)).unwrap();
+        let outcome = cutter.cut(&sweep, &engine.positions()).unwrap();
+        if !outcome.diff.is_empty() {
+            packed.apply(&outcome.diff).unwrap();
+            let cost = engine.patch_in_place(&packed, &outcome.diff).unwrap();
+            assert_eq!(cost.buffers_grown, 0, "{cost:?}");
+        }
     }
 
     #[test]
