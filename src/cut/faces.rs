@@ -21,19 +21,12 @@ pub type FaceId = [NodeKey; 3];
 
 /// The face id of local face `local` of `tet`.
 pub fn face_id(tet: &Tet, local: usize) -> FaceId {
-    let [mut a, mut b, mut c] = TET_FACES[local].map(|i| tet.nodes[i]);
-    // Three compare-exchanges: `slice::sort` on three keys costs more than the lookups it
-    // serves, and every face of every tet a cut touches is named this way.
-    if a > b {
-        std::mem::swap(&mut a, &mut b);
-    }
-    if b > c {
-        std::mem::swap(&mut b, &mut c);
-    }
-    if a > b {
-        std::mem::swap(&mut a, &mut b);
-    }
-    [a, b, c]
+    face_of(&tet.nodes, local)
+}
+
+/// The face id of local face `local` of a tet with corners `nodes`.
+fn face_of(nodes: &[NodeKey; 4], local: usize) -> FaceId {
+    crate::mesh::topology::face_id(TET_FACES[local].map(|i| nodes[i]))
 }
 
 /// The tets using one face, as the index finds them: none, one (a boundary face), two (an
@@ -198,12 +191,8 @@ impl FaceIndex {
         let Some(me) = self.tets.remove(tk) else {
             return;
         };
-        let tet = Tet {
-            nodes: me.nodes,
-            region: 0,
-        };
         for local in 0..4 {
-            let id = face_id(&tet, local);
+            let id = face_of(&me.nodes, local);
             match me.across[local] {
                 Some(o) => {
                     self.note(id, None);
@@ -252,12 +241,8 @@ impl FaceIndex {
     pub fn boundary(&self) -> Vec<(TetKey, u8)> {
         let mut faces: Vec<(FaceId, TetKey, u8)> = Vec::with_capacity(self.boundary_faces);
         for (tk, t) in &self.tets {
-            let tet = Tet {
-                nodes: t.nodes,
-                region: 0,
-            };
             for local in (0..4).filter(|&l| t.across[l].is_none()) {
-                faces.push((face_id(&tet, local), tk, local as u8));
+                faces.push((face_of(&t.nodes, local), tk, local as u8));
             }
         }
         faces.sort_unstable_by_key(|f| f.0);
@@ -300,10 +285,9 @@ impl FaceIndex {
 /// The local face of a tet with corners `nodes` whose corners are `id`: the one opposite the
 /// corner not in `id`.
 fn local_face(nodes: &[NodeKey; 4], id: &FaceId) -> Option<usize> {
-    let opposite = (0..4).filter(|&i| !id.contains(&nodes[i]));
-    let mut it = opposite;
-    let first = it.next()?;
-    it.next().is_none().then_some(first)
+    let mut opposite = (0..4).filter(|&i| !id.contains(&nodes[i]));
+    let first = opposite.next()?;
+    opposite.next().is_none().then_some(first)
 }
 
 #[cfg(test)]

@@ -106,65 +106,62 @@ pub struct CutBench {
 impl CutBench {
     /// The rows.
     pub fn run(&self) -> Result<Vec<CutRow>> {
-        run(self)
-    }
-}
-
-fn run(bench: &CutBench) -> Result<Vec<CutRow>> {
-    let CutBench {
-        cubes,
-        lengths,
-        methods,
-        engines,
-        layouts,
-        floors,
-        incisions,
-    } = bench;
-    validate(cubes, lengths, floors, *incisions)?;
-    if methods.is_empty() || engines.is_empty() || layouts.is_empty() {
-        return Err(Error::Options(
-            "give at least one cut method, one engine and one layout".into(),
-        ));
-    }
-    let first = [floors
-        .first()
-        .copied()
-        .unwrap_or(crate::cut::subdivide::DEFAULT_QUALITY_FLOOR)];
-    let mut rows = Vec::new();
-    for &n in cubes {
-        for &length in lengths {
-            for &method in methods {
-                for &engine in engines {
-                    let per_layout = matches!(engine, EngineKind::Gpu | EngineKind::Auto);
-                    let kinds = if per_layout {
-                        layouts
-                    } else {
-                        &layouts[..1.min(layouts.len())]
-                    };
-                    let floors: &[f64] = if method == CutMethod::Subdivide && !floors.is_empty() {
-                        floors
-                    } else {
-                        &first
-                    };
-                    for &layout in kinds {
-                        for &floor in floors {
-                            let row = Row {
-                                n,
-                                length,
-                                method,
-                                engine,
-                                layout,
-                                floor,
-                                incisions: *incisions,
-                            };
-                            rows.push(one(&row)?);
+        let CutBench {
+            cubes,
+            lengths,
+            methods,
+            engines,
+            layouts,
+            floors,
+            incisions,
+        } = self;
+        validate(cubes, lengths, floors, *incisions)?;
+        if methods.is_empty() || engines.is_empty() || layouts.is_empty() {
+            return Err(Error::Options(
+                "give at least one cut method, one engine and one layout".into(),
+            ));
+        }
+        let first = [floors
+            .first()
+            .copied()
+            .unwrap_or(crate::cut::subdivide::DEFAULT_QUALITY_FLOOR)];
+        let mut rows = Vec::new();
+        for &n in cubes {
+            for &length in lengths {
+                for &method in methods {
+                    for &engine in engines {
+                        let per_layout = matches!(engine, EngineKind::Gpu | EngineKind::Auto);
+                        let kinds = if per_layout {
+                            layouts
+                        } else {
+                            &layouts[..1.min(layouts.len())]
+                        };
+                        let floors: &[f64] = if method == CutMethod::Subdivide && !floors.is_empty()
+                        {
+                            floors
+                        } else {
+                            &first
+                        };
+                        for &layout in kinds {
+                            for &floor in floors {
+                                let row = Row {
+                                    n,
+                                    length,
+                                    method,
+                                    engine,
+                                    layout,
+                                    floor,
+                                    incisions: *incisions,
+                                };
+                                rows.push(one(&row)?);
+                            }
                         }
                     }
                 }
             }
         }
+        Ok(rows)
     }
-    Ok(rows)
 }
 
 /// Check the sizes of a [`CutBench`] before anything is built: every box must have room for

@@ -8,8 +8,8 @@
 //! grows is appended to the adjacency and its old place becomes a hole. The adjacency is
 //! compacted in place (rows slid down over the holes, nothing allocated) when holes reach a
 //! quarter of it, or before a grown row would outgrow its capacity: growing a vector of
-//! megabytes copies it into fresh pages, a pause of several milliseconds (6-11 ms at 100,000
-//! tets) where sliding the rows costs a memmove.
+//! megabytes copies it into fresh pages, a pause of 6-35 ms at 100,000 tets, where sliding
+//! the rows costs a memmove.
 
 use std::collections::BTreeMap;
 
