@@ -71,6 +71,10 @@ enum BenchWhat {
         /// the percentiles more events and grow the mesh further.
         #[arg(long, default_value_t = lancet::report::cut_bench::INCISIONS)]
         incisions: usize,
+        /// Do not read ahead: each cut reads the nodes near the blade with a round trip of its
+        /// own (on the GPU), instead of with the step before it.
+        #[arg(long)]
+        no_read_ahead: bool,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -410,6 +414,7 @@ fn main() -> ExitCode {
                     layout,
                     floors,
                     incisions,
+                    no_read_ahead,
                     json,
                 }),
             ..
@@ -422,6 +427,7 @@ fn main() -> ExitCode {
                 layouts: layout.iter().map(|&l| l.into()).collect(),
                 floors,
                 incisions,
+                read_ahead: !no_read_ahead,
             },
             json,
         ),
@@ -910,14 +916,14 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes",
-        "cut", "apply", "surf", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
+        "ahead", "cut", "apply", "surf", "step", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
         "dt after", "floor", "min q"
     );
     for (r, engine) in rows.iter().zip(&labels) {
         println!(
-            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>5} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -928,9 +934,11 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
             r.max_ms,
             r.read_ms,
             r.nodes_read,
+            r.reads_ahead,
             r.cut_ms,
             r.apply_ms,
             r.surface_ms,
+            r.step_ms,
             r.bytes_per_cut,
             100.0 * r.bytes_per_cut / r.layout_bytes.max(1) as f64,
             r.passes_rebuilt,

@@ -319,6 +319,38 @@ impl Cutter {
         result
     }
 
+    /// The box of current positions a cut with `sweep` asks its source for
+    /// ([`Cutter::cut_from`]): the sweep's bounds grown by three of the mesh's longest rest
+    /// edges. `None` for an empty sweep.
+    pub fn reading_box(&self, sweep: &Sweep) -> Option<([f64; 3], [f64; 3])> {
+        let b = sweep.aabb()?;
+        Some(self.grown(b.min.coords.into(), b.max.coords.into(), 0.0))
+    }
+
+    /// A box holding [`Cutter::reading_box`] of every sweep that strays no further than
+    /// `margin` (m) from `predicted`: what a simulator that extrapolates its blade's motion (a
+    /// haptic device reports a velocity) gives [`crate::Simulation::prefetch_near`] before the
+    /// steps that come before the cut, so that on the GPU the cut's read comes back with them.
+    /// A cut whose sweep strays further reads with a round trip of its own, as without the
+    /// prediction. `None` for an empty sweep.
+    pub fn reading_box_ahead(
+        &self,
+        predicted: &Sweep,
+        margin: f64,
+    ) -> Option<([f64; 3], [f64; 3])> {
+        let b = predicted.aabb()?;
+        Some(self.grown(b.min.coords.into(), b.max.coords.into(), margin.max(0.0)))
+    }
+
+    /// `lo..=hi` grown by what a cut reads around its sweep, and by `more`.
+    fn grown(&self, lo: [f64; 3], hi: [f64; 3], more: f64) -> ([f64; 3], [f64; 3]) {
+        // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around them
+        // within two edges more: as much again while edges are at rest length, with room for
+        // stretching by half (past that, what the box missed is fetched by the cut).
+        let pad = 1.5 * self.reach + more;
+        (lo.map(|v| v - pad), hi.map(|v| v + pad))
+    }
+
     /// Dense indices of the corners of `tets` (repeats included).
     fn corners_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
         tets.iter().flat_map(|&t| {
@@ -400,14 +432,8 @@ impl Cutter {
         read: &mut ReadPositions,
     ) -> Result<CutOutcome> {
         let start = Instant::now();
-        if let Some(b) = sweep.aabb() {
-            // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around
-            // them within two edges more: as much again while edges are at rest length, with
-            // room for stretching by half (past that, what the box missed is fetched below).
-            let pad = 1.5 * self.reach;
-            let lo = b.min.coords.add_scalar(-pad);
-            let hi = b.max.coords.add_scalar(pad);
-            read.take_near(source.near([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])?)?;
+        if let Some((lo, hi)) = self.reading_box(sweep) {
+            read.take_near(source.near(lo, hi)?)?;
             self.settle(read);
         }
         let read_near_s = start.elapsed().as_secs_f64();

@@ -116,6 +116,18 @@ pub trait Engine: Send {
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
         crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&self.positions()), lo, hi)
     }
+    /// Find the nodes in the box `lo..=hi` (m) as the last pass of the next [`Engine::step`]
+    /// and start reading them back with it, so that a [`Engine::nodes_near`] for a box inside
+    /// this one, before the state changes again, needs no round trip of its own: the read
+    /// came back with the step. Engines whose state is in host memory have nothing to hide
+    /// and ignore it.
+    fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        let _ = (lo, hi);
+    }
+    /// How this engine's reads of nodes near a blade were served.
+    fn near_reads(&self) -> NearReads {
+        NearReads::default()
+    }
     /// Positions of the nodes `nodes` (model indices) at the start of the last step, m: where
     /// the step's motion began, after any correction made before it. Both integrators make the
     /// current position less `dt` times the velocity exactly that (Verlet's velocity is the
@@ -218,6 +230,17 @@ pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) 
         Some(&i) => Err(bad_node(i, n)),
         None => Ok(()),
     }
+}
+
+/// How an engine served [`Engine::nodes_near`]: from a read made ahead with the step before
+/// it ([`Engine::prefetch_near`]), or by a read of its own (a round trip to the device).
+/// Engines whose state is in host memory count neither.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct NearReads {
+    /// Reads that came back with a step.
+    pub ahead: u64,
+    /// Reads that needed a round trip of their own.
+    pub direct: u64,
 }
 
 /// What applying a model change cost an engine.
@@ -481,6 +504,8 @@ pub struct Simulation {
     /// The springs at each node, built at the first position correction.
     node_springs: Option<NodeSprings>,
     note: Option<String>,
+    /// A box whose nodes the last step of the next run reads ahead ([`Simulation::prefetch_near`]).
+    near_ahead: Option<([f64; 3], [f64; 3])>,
 }
 
 /// The springs at each node (indices into the model's springs), packed.
@@ -573,6 +598,7 @@ impl Simulation {
             base_scale: 0.0,
             steps_since_exact: 0,
             node_springs: None,
+            near_ahead: None,
             note,
         };
         sim.reset_energy_reference();
@@ -882,6 +908,9 @@ impl Simulation {
         let mut done = 0;
         while done < steps {
             let chunk = (steps - done).min(self.config.check_every as u64) as u32;
+            if done + chunk as u64 == steps {
+                self.hand_prefetch();
+            }
             self.engine.step(chunk);
             self.steps += chunk as u64;
             done += chunk as u64;
@@ -914,6 +943,9 @@ impl Simulation {
     /// Advance `steps` steps with no divergence check (for timing); call
     /// [`Simulation::check`] afterwards.
     pub fn step_unchecked(&mut self, steps: u32) {
+        if steps > 0 {
+            self.hand_prefetch();
+        }
         self.engine.step(steps);
         self.engine.wait();
         self.steps += steps as u64;
@@ -1235,6 +1267,31 @@ impl Simulation {
     /// Positions of a few nodes (model indices), m: on the GPU only those are read back.
     pub fn node_positions(&self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
         self.engine.node_positions(nodes)
+    }
+
+    /// Read the nodes in the box `lo..=hi` (m) ahead, with the last step of the next
+    /// [`Simulation::run`] (or [`Simulation::step_unchecked`]): on the GPU that step's
+    /// submission ends with the pass that finds them and starts their readback, so that the
+    /// cut after it ([`crate::cut::Cutter::cut_from`], whose box
+    /// [`crate::cut::Cutter::reading_box_ahead`] bounds) reads them without a round trip of its
+    /// own. A later read for a box that this one does not hold, or after the state changed
+    /// again (a further step, a position correction, a patch), reads from the device as
+    /// before; [`Simulation::near_reads`] counts which. The CPU engines ignore it.
+    pub fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        self.near_ahead = Some((lo, hi));
+    }
+
+    /// How the engine served reads of nodes near a blade: from a read made ahead with a step,
+    /// or with a round trip of their own (zero on the CPU engines).
+    pub fn near_reads(&self) -> NearReads {
+        self.engine.near_reads()
+    }
+
+    /// Give the engine the box to read ahead, for the step about to be submitted.
+    fn hand_prefetch(&mut self) {
+        if let Some((lo, hi)) = self.near_ahead.take() {
+            self.engine.prefetch_near(lo, hi);
+        }
     }
 
     /// The nodes whose current position lies in the box `lo..=hi` (m), with their positions

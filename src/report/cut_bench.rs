@@ -48,6 +48,12 @@ pub struct CutRow {
     pub read_ms: f64,
     /// Median nodes whose positions a cut event read back (of `nodes` and those added).
     pub nodes_read: f64,
+    /// Cut events whose read came back with the step before them (GPU engines reading ahead,
+    /// see [`crate::Simulation::prefetch_near`]); the others waited for a read of their own.
+    pub reads_ahead: usize,
+    /// Median of the step before each cut event, waited for, ms (not part of the latency: the
+    /// simulation steps anyway; it shows what reading ahead adds to the step).
+    pub step_ms: f64,
     /// Classifying and editing (the cutter).
     pub cut_ms: f64,
     /// Patching the engine (diff applied, dirty ranges uploaded, time step re-checked).
@@ -101,6 +107,11 @@ pub struct CutBench {
     /// give the percentiles more events to rest on and grow the mesh further, which is where
     /// a growing array or table would show as a pause.
     pub incisions: usize,
+    /// Whether the step before each cut event reads ahead the nodes any cut from the blade's
+    /// pose can read, with the blade's speed as the bound
+    /// ([`crate::cut::Cutter::reading_box_ahead`]): on the GPU the cut's read then comes back
+    /// with the step instead of a round trip of its own. The CPU engines ignore it.
+    pub read_ahead: bool,
 }
 
 impl CutBench {
@@ -114,6 +125,7 @@ impl CutBench {
             layouts,
             floors,
             incisions,
+            read_ahead,
         } = self;
         validate(cubes, lengths, floors, *incisions)?;
         if methods.is_empty() || engines.is_empty() || layouts.is_empty() {
@@ -152,6 +164,7 @@ impl CutBench {
                                     layout,
                                     floor,
                                     incisions: *incisions,
+                                    read_ahead: *read_ahead,
                                 };
                                 rows.push(one(&row)?);
                             }
@@ -321,7 +334,12 @@ struct Row {
     layout: LayoutKind,
     floor: f64,
     incisions: usize,
+    read_ahead: bool,
 }
+
+/// How far, m, the bench lets a blade's sweep stray from the one predicted when reading ahead
+/// (a millimetre: a tenth of a cell).
+const PREDICTION_MARGIN: f64 = 1e-3;
 
 fn one(row: &Row) -> Result<CutRow> {
     let &Row {
@@ -332,6 +350,7 @@ fn one(row: &Row) -> Result<CutRow> {
         layout,
         floor,
         incisions,
+        read_ahead,
     } = row;
     let h = CELL;
     let nz = (n / 2).max(2);
@@ -365,21 +384,32 @@ fn one(row: &Row) -> Result<CutRow> {
     let steps = 11;
     let (mut total, mut read, mut cutting, mut apply, mut surface) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut nodes_read = Vec::new();
+    let (mut nodes_read, mut step) = (Vec::new(), Vec::new());
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
-    let (mut passes_rebuilt, mut buffers_grown) = (0, 0);
+    let (mut passes_rebuilt, mut buffers_grown, mut reads_ahead) = (0, 0, 0);
     let sites = incision_sites(n, length / h, incisions);
     for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
         for k in 0..steps {
+            let z0 = top + 0.1 * h - 0.2 * h * k as f64;
+            let sweep =
+                Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");
+            // A simulator extrapolates the blade's motion (here it keeps its speed) and reads
+            // ahead, with the step, what the cut after it will read; a sweep that strayed more
+            // than the margin from the prediction would read with a round trip of its own.
+            if read_ahead {
+                if let Some((lo, hi)) = cutter.reading_box_ahead(&sweep, PREDICTION_MARGIN) {
+                    sim.prefetch_near(lo, hi);
+                }
+            }
+            let t = Instant::now();
             sim.run(1)?;
             // The cut's latency, not the step's: on the GPU the step may still be running, and
             // the first readback would wait for it.
             sim.wait();
-            let z0 = top + 0.1 * h - 0.2 * h * k as f64;
-            let sweep =
-                Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");
+            let stepped = t.elapsed().as_secs_f64() * 1e3;
+            let ahead_before = sim.near_reads().ahead;
             // The cutter reads only the positions near the blade, from the simulation.
             let t0 = Instant::now();
             let outcome = cutter.cut_from(&sweep, &mut sim)?;
@@ -393,6 +423,8 @@ fn one(row: &Row) -> Result<CutRow> {
             sim.edit_surface(&outcome.surface)?;
             let t4 = Instant::now();
             total.push((t4 - t0).as_secs_f64() * 1e3);
+            step.push(stepped);
+            reads_ahead += (sim.near_reads().ahead > ahead_before) as usize;
             read.push(outcome.read_s * 1e3);
             cutting.push(((t2 - t0).as_secs_f64() - outcome.read_s) * 1e3);
             nodes_read.push(outcome.nodes_read as f64);
@@ -431,6 +463,8 @@ fn one(row: &Row) -> Result<CutRow> {
         max_ms: sorted.last().copied().unwrap_or(0.0),
         read_ms: median(read),
         nodes_read: median(nodes_read),
+        reads_ahead,
+        step_ms: median(step),
         cut_ms: median(cutting),
         apply_ms: median(apply),
         surface_ms: median(surface),

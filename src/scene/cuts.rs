@@ -286,6 +286,31 @@ impl CutStage {
         self.cutter.mesh()
     }
 
+    /// Before a step (`tools` posed for its end): have the step read ahead what the cuts after
+    /// it will read, the boxes of the sweeps of the blades that touched the tissue at the last
+    /// step (one box holding them all), so that on the GPU those reads come back with the step.
+    pub fn before_step(&self, sim: &mut Simulation, tools: &[Tool]) {
+        let boxes = self
+            .blades
+            .iter()
+            .zip(&self.touching)
+            .filter(|(_, &touching)| touching)
+            .filter_map(|(&i, _)| {
+                let tool = &tools[i];
+                let sweep = Sweep::of_blade(&tool.shape, tool.previous_pose(), tool.pose())?;
+                self.cutter.reading_box(&sweep)
+            });
+        let union = boxes.reduce(|(lo, hi), (l, h)| {
+            (
+                [0, 1, 2].map(|c| lo[c].min(l[c])),
+                [0, 1, 2].map(|c| hi[c].max(h[c])),
+            )
+        });
+        if let Some((lo, hi)) = union {
+            sim.prefetch_near(lo, hi);
+        }
+    }
+
     /// Cut with every cutting blade's sweep over the step just taken (`tools` at their new
     /// poses, remembering the previous ones), between steps.
     pub fn after_step(&mut self, sim: &mut Simulation, tools: &[Tool]) -> Result<()> {

@@ -92,6 +92,9 @@ impl ToolStage {
         for (tool, scene_tool) in self.tools.iter_mut().zip(&self.scene_tools) {
             tool.set_pose(scene_tool.trajectory.pose_at(t));
         }
+        if let Some(cut) = &self.cut {
+            cut.before_step(sim, &self.tools);
+        }
         sim.run(1)?;
         if let Some(cut) = self.cut.as_mut() {
             cut.after_step(sim, &self.tools)?;

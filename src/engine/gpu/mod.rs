@@ -27,7 +27,7 @@ use bytemuck::{Pod, Zeroable};
 
 pub use context::GpuContext;
 
-use super::{Engine, EngineMemory, Health, Integrator, PatchCost, SimConfig};
+use super::{Engine, EngineMemory, Health, Integrator, NearReads, PatchCost, SimConfig};
 use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::connectivity::StepParams;
@@ -328,6 +328,10 @@ pub struct GpuEngine {
     /// The pass that starts nodes between two others. Built with the engine: compiling it at
     /// the first cut that subdivides would stall that cut (about 10 ms on lavapipe).
     blend: blend_state::BlendPass,
+    /// A box whose nodes the next step finds as its last pass ([`Engine::prefetch_near`]).
+    near_ahead: Option<([f64; 3], [f64; 3])>,
+    /// How reads of the nodes near a blade were served.
+    near_reads: NearReads,
 }
 
 /// The tissue surface on the device and the broad phases over it.
@@ -430,6 +434,8 @@ impl GpuEngine {
             surface_sync: SurfaceSync::Current,
             surface: None,
             blend,
+            near_ahead: None,
+            near_reads: NearReads::default(),
             ctx,
             config,
             layout,
@@ -545,6 +551,7 @@ impl GpuEngine {
     /// On an error (a diff that does not match the model) the engine is left inconsistent:
     /// build a new one.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<PatchCost> {
+        self.forget_ahead();
         let patch = self.layout.patch(model, diff)?;
         // A diff only appends nodes and changes the fixed flags it names: copy just those, not
         // the whole arrays (a local cut on a large mesh).
@@ -903,16 +910,36 @@ impl GpuEngine {
             return crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&x), lo, hi);
         };
         let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
-        let found = surface.near.find(
-            &self.ctx,
-            surface.tool.rest(),
-            &self.state,
-            self.phase,
-            self.layout.node_slots() as u32,
-            lo32,
-            hi32,
-        )?;
         let order = &self.layout.order().order;
+        let found = match surface.near.take_ahead(&self.ctx, lo32, hi32)? {
+            Some(all) => {
+                self.near_reads.ahead += 1;
+                // Narrowed to this box by the pass's own test (rest and displacement added
+                // in float32), so the list is the one a read of its own would give.
+                let rest = &self.rest;
+                let inside = |slot: u32, u: &[f32; 3]| {
+                    let Some(&old) = order.get(slot as usize) else {
+                        return false;
+                    };
+                    let r = rest.get(old as usize).copied().unwrap_or_default();
+                    let x = [0, 1, 2].map(|c| r[c] as f32 + u[c]);
+                    (0..3).all(|c| lo32[c] <= x[c] && x[c] <= hi32[c])
+                };
+                all.into_iter().filter(|(s, u)| inside(*s, u)).collect()
+            }
+            None => {
+                self.near_reads.direct += 1;
+                surface.near.find(
+                    &self.ctx,
+                    surface.tool.rest(),
+                    &self.state,
+                    self.phase,
+                    self.layout.node_slots() as u32,
+                    lo32,
+                    hi32,
+                )?
+            }
+        };
         let mut out: Vec<(u32, [f64; 3])> = found
             .into_iter()
             .filter_map(|(slot, u)| {
@@ -932,6 +959,13 @@ impl GpuEngine {
             .collect();
         out.sort_unstable_by_key(|e| e.0);
         Ok(out)
+    }
+
+    /// Drop a read of nodes near a blade made ahead with a step: the state it saw is changing.
+    fn forget_ahead(&mut self) {
+        if let Some(s) = &mut self.surface {
+            s.near.forget_ahead();
+        }
     }
 
     /// Broad phase of the tissue against itself on the device: pairs of surface triangles that
@@ -1038,6 +1072,7 @@ impl GpuEngine {
 
     /// Overwrite the raw device state (layout order, as [`GpuEngine::raw_state`] gives it).
     pub fn set_raw_state(&mut self, cur: &[[f32; 4]], second: &[[f32; 4]]) -> Result<()> {
+        self.forget_ahead();
         let n = self.layout.node_slots();
         if cur.len() != n || second.len() != n {
             return Err(crate::Error::Model(format!(
@@ -1207,6 +1242,12 @@ pub fn step_params(model: &PackedModel, config: SimConfig) -> StepParams {
 
 impl Engine for GpuEngine {
     fn step(&mut self, steps: u32) {
+        // Whatever was read ahead saw the state this step replaces.
+        self.forget_ahead();
+        let ahead = self.near_ahead.take();
+        // A culler behind a patch is brought up to date before the pass reads its rest
+        // positions; where that fails the read is not made ahead (a direct read will report it).
+        let ahead = ahead.filter(|_| self.refresh_surface().is_ok());
         let mut enc = self
             .ctx
             .device
@@ -1232,7 +1273,28 @@ impl Engine for GpuEngine {
         if let Some(t) = &self.timer {
             t.resolve(&mut enc);
         }
+        let slots = self.layout.node_slots() as u32;
+        let near = match (ahead, self.surface.as_mut()) {
+            (Some((lo, hi)), Some(s)) => {
+                let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
+                s.near
+                    .record_ahead(&self.ctx, &mut enc, self.phase, slots, lo32, hi32);
+                Some(&mut s.near)
+            }
+            _ => None,
+        };
         self.ctx.queue.submit([enc.finish()]);
+        if let Some(near) = near {
+            near.map_ahead();
+        }
+    }
+
+    fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        self.near_ahead = Some((lo, hi));
+    }
+
+    fn near_reads(&self) -> NearReads {
+        self.near_reads
     }
 
     fn last_device_seconds(&self) -> Option<f64> {
@@ -1257,6 +1319,7 @@ impl Engine for GpuEngine {
     }
 
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
+        self.forget_ahead();
         let n = self.layout.node_slots();
         let dt = self.config.dt;
         let mut cur = vec![[0.0f32; 4]; n];
@@ -1394,6 +1457,7 @@ impl Engine for GpuEngine {
     }
 
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()> {
+        self.forget_ahead();
         super::check_correction(nodes, positions, self.rest.len())?;
         let rank = &self.layout.order().rank;
         let b = self.state.bindings(self.phase);

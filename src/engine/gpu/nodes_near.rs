@@ -43,6 +43,13 @@ pub struct NodesNear {
     staging: wgpu::Buffer,
     /// One bind group per rotation phase (the displacement buffer differs).
     bind_groups: Vec<wgpu::BindGroup>,
+    /// Where a read made at the end of a step is copied (apart from `staging`, which a direct
+    /// read may use while this one is mapped).
+    ahead: wgpu::Buffer,
+    /// A read recorded into a step's commands, not yet submitted.
+    recorded: Option<Ahead>,
+    /// A read submitted with a step, being mapped or mapped.
+    mapping: Option<Ahead>,
 }
 
 /// One node found: its layout slot and its displacement.
@@ -62,6 +69,7 @@ impl NodesNear {
         let pipeline = buffers::compute_pipeline(ctx, "nodes near", SOURCE, &[&layout])?;
         let found = found_buffer(ctx, FIRST_CAPACITY)?;
         let staging = buffers::staging_buffer(ctx, found.size());
+        let ahead = buffers::staging_buffer(ctx, found.size());
         let mut pass = NodesNear {
             pipeline,
             layout,
@@ -69,6 +77,9 @@ impl NodesNear {
             found,
             staging,
             bind_groups: Vec::new(),
+            ahead,
+            recorded: None,
+            mapping: None,
         };
         pass.rebind(ctx, rest, state);
         Ok(pass)
@@ -107,53 +118,198 @@ impl NodesNear {
         lo: [f32; 3],
         hi: [f32; 3],
     ) -> Result<Vec<Found>> {
-        let groups = dispatch_size(ctx, slots);
         loop {
-            let capacity = (self.found.size() - HEADER) / 16;
-            let params = NearParams {
-                lo: [lo[0], lo[1], lo[2], 0.0],
-                hi: [hi[0], hi[1], hi[2], 0.0],
-                slots,
-                capacity: capacity as u32,
-                row: groups.0 * WORKGROUP,
-                _pad: 0,
-            };
-            ctx.queue
-                .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-            ctx.queue.write_buffer(&self.found, 0, &[0u8; 4]);
+            let capacity = self.record(ctx, slots, lo, hi);
             // The pass and the copy of its output in one submission: one round trip.
-            let mut enc = buffers::encode_dispatch(
-                ctx,
-                "nodes near",
-                &self.pipeline,
-                &self.bind_groups[phase],
-                groups,
-            );
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("nodes near"),
+                });
+            self.encode(ctx, &mut enc, phase, slots, &self.staging);
             let size = self.found.size();
-            enc.copy_buffer_to_buffer(&self.found, 0, &self.staging, 0, size);
             let raw = buffers::submit_and_read(ctx, enc, &self.staging, size)?;
-            let count = u32::from_le_bytes(
-                raw[..4]
-                    .try_into()
-                    .map_err(|_| Error::Gpu("nodes near: counter readback".into()))?,
-            ) as u64;
-            if count <= capacity {
-                let entries: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(
-                    &raw[HEADER as usize..(HEADER + 16 * count) as usize],
-                );
-                let mut out: Vec<Found> = entries
-                    .iter()
-                    .map(|e| (e[3], [0, 1, 2].map(|c| f32::from_bits(e[c]))))
-                    .collect();
-                out.sort_unstable_by_key(|f| f.0);
-                return Ok(out);
+            if let Some(found) = entries(&raw, capacity)? {
+                return Ok(found);
             }
             // More nodes than room: grow to hold them all and run again.
+            let count = counter(&raw)?;
             self.found = found_buffer(ctx, count)?;
             self.staging = buffers::staging_buffer(ctx, self.found.size());
             self.rebind(ctx, rest, state);
         }
     }
+
+    /// Record the pass for the box `lo..=hi` at the end of `enc` (a step's commands, so that it
+    /// sees the state the step leaves, `phase`), its output copied to a buffer of its own; call
+    /// [`NodesNear::map_ahead`] once `enc` is submitted. A later [`NodesNear::take_ahead`]
+    /// then needs no round trip of its own: the read came back with the step.
+    pub fn record_ahead(
+        &mut self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        phase: usize,
+        slots: u32,
+        lo: [f32; 3],
+        hi: [f32; 3],
+    ) {
+        self.forget_ahead();
+        let size = self.found.size();
+        if self.ahead.size() < size {
+            self.ahead = buffers::staging_buffer(ctx, size);
+        }
+        let capacity = self.record(ctx, slots, lo, hi);
+        self.encode(ctx, enc, phase, slots, &self.ahead);
+        self.recorded = Some(Ahead {
+            lo,
+            hi,
+            capacity,
+            size,
+            done: None,
+        });
+    }
+
+    /// Start mapping the read recorded by [`NodesNear::record_ahead`], whose commands have just
+    /// been submitted; it completes at the device's next poll after the step.
+    pub fn map_ahead(&mut self) {
+        let Some(mut ahead) = self.recorded.take() else {
+            return;
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        self.ahead
+            .map_async(wgpu::MapMode::Read, ..ahead.size, move |r| {
+                let _ = tx.send(r);
+            });
+        ahead.done = Some(rx);
+        self.mapping = Some(ahead);
+    }
+
+    /// Drop a read made ahead (the state it saw has changed): unmapping a pending map aborts
+    /// it, so the buffer is free for the next one.
+    pub fn forget_ahead(&mut self) {
+        self.recorded = None;
+        if self.mapping.take().is_some() {
+            self.ahead.unmap();
+        }
+    }
+
+    /// The nodes found ahead in a box holding `lo..=hi` (all of that box's, to be narrowed by
+    /// the caller), waiting for the step that found them if it is still running; `None`
+    /// where no read was made ahead, its box does not hold this one, or its output ran out of
+    /// room (then [`NodesNear::find`] reads, and grows the output). Consumed either way.
+    pub fn take_ahead(
+        &mut self,
+        ctx: &GpuContext,
+        lo: [f32; 3],
+        hi: [f32; 3],
+    ) -> Result<Option<Vec<Found>>> {
+        let Some(ahead) = self.mapping.take() else {
+            return Ok(None);
+        };
+        let holds = (0..3).all(|c| ahead.lo[c] <= lo[c] && hi[c] <= ahead.hi[c]);
+        let done = ahead.done.as_ref().filter(|_| holds);
+        let Some(done) = done else {
+            self.ahead.unmap();
+            return Ok(None);
+        };
+        let answer = match done.try_recv() {
+            Ok(answer) => answer,
+            Err(_) => {
+                // The step is still running: wait for it (its map completes with it).
+                ctx.device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+                done.recv()
+                    .map_err(|_| Error::Gpu("read ahead was never answered".into()))?
+            }
+        };
+        let raw = answer
+            .map_err(|e| Error::Gpu(format!("mapping the read ahead: {e}")))
+            .and_then(|()| {
+                self.ahead
+                    .get_mapped_range(..ahead.size)
+                    .map(|m| m.to_vec())
+                    .map_err(|e| Error::Gpu(format!("reading the read ahead: {e}")))
+            });
+        self.ahead.unmap();
+        entries(&raw?, ahead.capacity)
+    }
+
+    /// Write the box and clear the counter (queued before the next submission); returns the
+    /// output's room in entries.
+    fn record(&self, ctx: &GpuContext, slots: u32, lo: [f32; 3], hi: [f32; 3]) -> u64 {
+        let groups = dispatch_size(ctx, slots);
+        let capacity = (self.found.size() - HEADER) / 16;
+        let params = NearParams {
+            lo: [lo[0], lo[1], lo[2], 0.0],
+            hi: [hi[0], hi[1], hi[2], 0.0],
+            slots,
+            capacity: capacity as u32,
+            row: groups.0 * WORKGROUP,
+            _pad: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        ctx.queue.write_buffer(&self.found, 0, &[0u8; 4]);
+        capacity
+    }
+
+    /// The pass over `slots` nodes at `phase`, then the copy of its output into `to`.
+    fn encode(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        phase: usize,
+        slots: u32,
+        to: &wgpu::Buffer,
+    ) {
+        let groups = dispatch_size(ctx, slots);
+        buffers::record_dispatch(
+            enc,
+            "nodes near",
+            &self.pipeline,
+            &self.bind_groups[phase],
+            groups,
+        );
+        enc.copy_buffer_to_buffer(&self.found, 0, to, 0, self.found.size());
+    }
+}
+
+/// A read recorded at the end of a step (the box it tested, the output's room then).
+struct Ahead {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    capacity: u64,
+    size: u64,
+    /// Answered when the mapping completes (`None` until the step is submitted).
+    done: Option<std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>>,
+}
+
+/// The counter at the head of an output read back.
+fn counter(raw: &[u8]) -> Result<u64> {
+    raw.get(..4)
+        .and_then(|b| b.try_into().ok())
+        .map(|b: [u8; 4]| u32::from_le_bytes(b) as u64)
+        .ok_or_else(|| Error::Gpu("nodes near: counter readback".into()))
+}
+
+/// The entries of an output read back, in slot order; `None` where the pass found more than
+/// `capacity` (nothing past it was written).
+fn entries(raw: &[u8], capacity: u64) -> Result<Option<Vec<Found>>> {
+    let count = counter(raw)?;
+    if count > capacity {
+        return Ok(None);
+    }
+    let bytes = raw
+        .get(HEADER as usize..(HEADER + 16 * count) as usize)
+        .ok_or_else(|| Error::Gpu("nodes near: entries readback".into()))?;
+    let entries: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(bytes);
+    let mut out: Vec<Found> = entries
+        .iter()
+        .map(|e| (e[3], [0, 1, 2].map(|c| f32::from_bits(e[c]))))
+        .collect();
+    out.sort_unstable_by_key(|f| f.0);
+    Ok(Some(out))
 }
 
 /// An output buffer with room for `capacity` entries (at least), by size class.
