@@ -59,6 +59,16 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
     );
     let c = s.cuts.as_ref().unwrap();
     assert!(c.cuts > 0);
+    // A blade that touched the tissue at the step before is read ahead with the step: only
+    // the first read of each stroke (and one after a time-step change rebuilt the engine)
+    // makes a round trip of its own.
+    let r = c.near_reads;
+    assert!(
+        r.ahead > 2 * r.direct,
+        "{name} {layout:?} {method}: {} reads ahead, {} on their own",
+        r.ahead,
+        r.direct
+    );
     // Patches, not rebuilds: over the run the device got less than one full layout per cut
     // (besides the engine rebuilt whole where a cut lowered the time step).
     assert!(

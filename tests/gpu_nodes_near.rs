@@ -101,8 +101,9 @@ fn device_finds_every_node_in_the_box(
 #[test]
 fn an_output_too_small_grows_and_drops_nothing() {
     let Some(ctx) = common::gpu() else { return };
-    // 15^3 = 3,375 nodes: more than the pass first has room for.
-    let mesh = BoxGrid::cube_cells([14, 14, 14], 0.01).build().unwrap();
+    // 19^3 = 6,859 nodes: more than the pass first has room for (2,048 entries, rounded up
+    // to a size class: 4,095).
+    let mesh = BoxGrid::cube_cells([18, 18, 18], 0.01).build().unwrap();
     let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))
         .unwrap()
         .pack(&mesh)

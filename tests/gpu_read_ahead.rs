@@ -92,7 +92,14 @@ fn a_read_ahead_gives_what_a_read_of_its_own_gives(
             let before = reads(&engine);
             let ahead = engine.nodes_near(inner[0], inner[1]).unwrap();
             assert_eq!(reads(&engine).ahead, before.ahead + 1, "served by the step");
-            // The same box again: the read ahead is spent, this one makes its own round trip.
+            // A box inside it: served by the same read.
+            let smaller = [inner[0].map(|v| v + 1e-4), inner[1].map(|v| v - 1e-4)];
+            let again = engine.nodes_near(smaller[0], smaller[1]).unwrap();
+            assert_eq!(reads(&engine).ahead, before.ahead + 2);
+            holds_the_box(&engine, smaller, &again);
+            // The same box with a round trip of its own: a step of no steps drops the read
+            // ahead and leaves the state as it is.
+            engine.step(0);
             let own = engine.nodes_near(inner[0], inner[1]).unwrap();
             assert_eq!(reads(&engine).direct, before.direct + 1);
             assert_eq!(ahead.len(), own.len(), "the same nodes");
@@ -156,6 +163,33 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     assert!(
         got.iter().any(|e| e.0 == outside),
         "the moved node is found"
+    );
+    holds_the_box(&engine, inner, &got);
+
+    // The state replaced after the step (set_state, set_raw_state): a read must see the new
+    // state.
+    let (x, v) = random_state(&model, 23);
+    engine.prefetch_near(outer[0], outer[1]);
+    engine.step(1);
+    engine.set_state(&x, &v);
+    let before = reads(&engine);
+    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
+    assert_eq!(
+        reads(&engine).ahead,
+        before.ahead,
+        "a stale read was served"
+    );
+    holds_the_box(&engine, inner, &got);
+    let raw = engine.raw_state().unwrap();
+    engine.prefetch_near(outer[0], outer[1]);
+    engine.step(3);
+    engine.set_raw_state(&raw.0, &raw.1).unwrap();
+    let before = reads(&engine);
+    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
+    assert_eq!(
+        reads(&engine).ahead,
+        before.ahead,
+        "a stale read was served"
     );
     holds_the_box(&engine, inner, &got);
 
@@ -253,4 +287,42 @@ fn a_cut_that_reads_ahead_cuts_as_one_that_does_not(
     assert_eq!(a.near_reads().ahead, 10, "every read came with the steps");
     assert_eq!(b.near_reads().ahead, 0);
     assert_eq!(cut_a.mesh().tet_count(), cut_b.mesh().tet_count());
+}
+
+/// A read ahead that finds more nodes than the output holds is not served (nothing is
+/// dropped): the read of its own grows the output, and the next read ahead, with the room
+/// that made, is served whole.
+#[test]
+fn a_read_ahead_past_the_output_room_reads_again_and_the_next_one_fits() {
+    // 19^3 = 6,859 nodes: more than the pass first has room for (2,048 entries, rounded up
+    // to a size class: 4,095).
+    let mesh = BoxGrid::cube_cells([18, 18, 18], 0.01).build().unwrap();
+    let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let Some(mut engine) = engine_on(&model, LayoutKind::Connectivity) else {
+        return;
+    };
+    let all = [[-1.0; 3], [1.0; 3]];
+    for round in 0..2 {
+        engine.prefetch_near(all[0], all[1]);
+        engine.step(1);
+        let before = reads(&engine);
+        let got = engine.nodes_near(all[0], all[1]).unwrap();
+        assert_eq!(holds_the_box(&engine, all, &got), model.rest.len());
+        assert_eq!(got.len(), model.rest.len());
+        let after = reads(&engine);
+        if round == 0 {
+            assert_eq!(
+                (after.ahead, after.direct),
+                (before.ahead, before.direct + 1)
+            );
+        } else {
+            assert_eq!(
+                (after.ahead, after.direct),
+                (before.ahead + 1, before.direct)
+            );
+        }
+    }
 }

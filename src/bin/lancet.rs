@@ -691,6 +691,14 @@ fn print_summary(s: &RunSummary) {
             c.min_quality_uncut,
             c.quality_floor
         );
+        let reads = c.near_reads;
+        if reads.ahead + reads.direct > 0 {
+            println!(
+                "  reads of the nodes near a blade: {} with the step before the cut, {} with a \
+                 round trip of their own",
+                reads.ahead, reads.direct
+            );
+        }
         // A few cuts one by one; `--json` lists them all.
         const SHOWN: usize = 8;
         for e in c.events.iter().take(SHOWN) {

@@ -11,6 +11,7 @@ use slotmap::SecondaryMap;
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
 use super::sweep::Sweep;
+use crate::collide::tool::Aabb;
 use crate::mesh::{NodeKey, TetKey, TetMesh};
 
 /// Current corner positions of a tet.
@@ -63,16 +64,18 @@ pub fn overlapping(
     let Some(b) = sweep.aabb() else {
         return Vec::new();
     };
-    tets.retain(|&tk| {
-        let p = corners(tk);
-        (0..3).all(|c| {
-            let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
-            let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
-            lo <= b.max[c] + margin && hi >= b.min[c] - margin
-        })
-    });
+    tets.retain(|&tk| bounds_overlap(&corners(tk), &b, margin));
     tets.sort();
     tets
+}
+
+/// Whether the bounds of a tet at `p`, grown by `margin`, overlap `b`.
+pub fn bounds_overlap(p: &Corners, b: &Aabb, margin: f64) -> bool {
+    (0..3).all(|c| {
+        let lo = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
+        let hi = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
+        lo <= b.max[c] + margin && hi >= b.min[c] - margin
+    })
 }
 
 /// The candidate tets that the sweep meets (exact test), in key order.

@@ -351,15 +351,18 @@ impl Cutter {
         (lo.map(|v| v - pad), hi.map(|v| v + pad))
     }
 
+    /// Dense indices of the corners of tet `tk`.
+    fn dense_corners(&self, tk: TetKey) -> [u32; 4] {
+        self.mesh
+            .tet(tk)
+            .expect("a tet near the sweep")
+            .nodes
+            .map(|k| self.dense[k])
+    }
+
     /// Dense indices of the corners of `tets` (repeats included).
     fn corners_of<'a>(&'a self, tets: &'a [TetKey]) -> impl Iterator<Item = u32> + 'a {
-        tets.iter().flat_map(|&t| {
-            self.mesh
-                .tet(t)
-                .expect("a tet near the sweep")
-                .nodes
-                .map(|k| self.dense[k])
-        })
+        tets.iter().flat_map(|&t| self.dense_corners(t))
     }
 
     /// Dense indices of the corners of every tet at a corner of `tets`, of the tets a cut
@@ -459,14 +462,31 @@ impl Cutter {
                 self.epoch,
             )
         };
-        // Their corners, where the box missed some (stretched tissue).
-        read.complete(self.corners_of(&near), source)?;
-        self.settle(read);
-        let candidates = {
+        // The candidates: tets whose bounds meet the sweep's. Tested at once where the cut has
+        // read all four corners (one pass over the tets near); the box missed a corner of the
+        // others (stretched tissue), which are read first.
+        let mut candidates = Vec::new();
+        let mut missed = Vec::new();
+        if let Some(b) = sweep.aabb() {
+            for tk in near {
+                let c = self.dense_corners(tk);
+                if c.iter().all(|&i| read.knows(i)) {
+                    if classify::bounds_overlap(&c.map(|i| read.class(i)), &b, self.snap) {
+                        candidates.push(tk);
+                    }
+                } else {
+                    missed.push(tk);
+                }
+            }
+        }
+        if !missed.is_empty() {
+            read.complete(self.corners_of(&missed), source)?;
+            self.settle(read);
             let (mesh, dense, known) = (&self.mesh, &self.dense, &*read);
             let corners = |tk: TetKey| corners_at(mesh, dense, known, tk);
-            classify::overlapping(near, &corners, sweep, self.snap)
-        };
+            candidates.extend(classify::overlapping(missed, &corners, sweep, self.snap));
+        }
+        candidates.sort_unstable();
         // Every classification reads corners of candidates, of their face neighbours and of the
         // tets around their nodes (a subdivision's trial splits): read what the box missed.
         let before = Instant::now();

@@ -506,6 +506,9 @@ pub struct Simulation {
     note: Option<String>,
     /// A box whose nodes the last step of the next run reads ahead ([`Simulation::prefetch_near`]).
     near_ahead: Option<([f64; 3], [f64; 3])>,
+    /// How reads of nodes near a blade were served, over every engine this simulation had (a
+    /// new time step rebuilds it).
+    near_reads: NearReads,
 }
 
 /// The springs at each node (indices into the model's springs), packed.
@@ -599,6 +602,7 @@ impl Simulation {
             steps_since_exact: 0,
             node_springs: None,
             near_ahead: None,
+            near_reads: NearReads::default(),
             note,
         };
         sim.reset_energy_reference();
@@ -1284,7 +1288,7 @@ impl Simulation {
     /// How the engine served reads of nodes near a blade: from a read made ahead with a step,
     /// or with a round trip of their own (zero on the CPU engines).
     pub fn near_reads(&self) -> NearReads {
-        self.engine.near_reads()
+        self.near_reads
     }
 
     /// Give the engine the box to read ahead, for the step about to be submitted.
@@ -1297,7 +1301,12 @@ impl Simulation {
     /// The nodes whose current position lies in the box `lo..=hi` (m), with their positions
     /// ([`Engine::nodes_near`]): on the GPU found on the device, and only they are read back.
     pub fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
-        self.engine.nodes_near(lo, hi)
+        let before = self.engine.near_reads();
+        let found = self.engine.nodes_near(lo, hi);
+        let after = self.engine.near_reads();
+        self.near_reads.ahead += after.ahead - before.ahead;
+        self.near_reads.direct += after.direct - before.direct;
+        found
     }
 
     /// Positions of a few nodes at the start of the last step (after the corrections made

@@ -184,6 +184,10 @@ pub struct CutReport {
     pub violations: Vec<String>,
     /// Each cut, in order (the totals above sum them).
     pub events: Vec<CutEvent>,
+    /// How the cuts' reads of the nodes near the blades were served: with the step before
+    /// them (the GPU engine reading ahead for a blade that touched the tissue at the step
+    /// before) or with a round trip of their own (zero on the CPU engines).
+    pub near_reads: crate::engine::NearReads,
 }
 
 /// The cutting part of a scene run.

@@ -346,7 +346,8 @@ pub fn run_scene(
         summary.self_contact_steps = stage.self_contact_steps;
         summary.self_contact_deepest = stage.self_contact_deepest;
         if let Some(cut) = stage.cut {
-            let (cut_mesh, report) = cut.finish(&x);
+            let (cut_mesh, mut report) = cut.finish(&x);
+            report.near_reads = sim.near_reads();
             mesh = cut_mesh;
             summary.cuts = Some(report);
         }

@@ -46,10 +46,8 @@ pub struct NodesNear {
     /// Where a read made at the end of a step is copied (apart from `staging`, which a direct
     /// read may use while this one is mapped).
     ahead: wgpu::Buffer,
-    /// A read recorded into a step's commands, not yet submitted.
-    recorded: Option<Ahead>,
-    /// A read submitted with a step, being mapped or mapped.
-    mapping: Option<Ahead>,
+    /// A read made with the last step, until the state changes.
+    read_ahead: Option<Ahead>,
 }
 
 /// One node found: its layout slot and its displacement.
@@ -78,8 +76,7 @@ impl NodesNear {
             staging,
             bind_groups: Vec::new(),
             ahead,
-            recorded: None,
-            mapping: None,
+            read_ahead: None,
         };
         pass.rebind(ctx, rest, state);
         Ok(pass)
@@ -160,19 +157,23 @@ impl NodesNear {
         }
         let capacity = self.record(ctx, slots, lo, hi);
         self.encode(ctx, enc, phase, slots, &self.ahead);
-        self.recorded = Some(Ahead {
+        self.read_ahead = Some(Ahead {
             lo,
             hi,
             capacity,
             size,
-            done: None,
+            state: AheadState::Recorded,
         });
     }
 
     /// Start mapping the read recorded by [`NodesNear::record_ahead`], whose commands have just
     /// been submitted; it completes at the device's next poll after the step.
     pub fn map_ahead(&mut self) {
-        let Some(mut ahead) = self.recorded.take() else {
+        let Some(ahead) = self
+            .read_ahead
+            .as_mut()
+            .filter(|a| matches!(a.state, AheadState::Recorded))
+        else {
             return;
         };
         let (tx, rx) = std::sync::mpsc::channel();
@@ -180,59 +181,59 @@ impl NodesNear {
             .map_async(wgpu::MapMode::Read, ..ahead.size, move |r| {
                 let _ = tx.send(r);
             });
-        ahead.done = Some(rx);
-        self.mapping = Some(ahead);
+        ahead.state = AheadState::Mapping(rx);
     }
 
-    /// Drop a read made ahead (the state it saw has changed): unmapping a pending map aborts
-    /// it, so the buffer is free for the next one.
+    /// Drop a read made ahead (the state it saw has changed), leaving its buffer unmapped and
+    /// free for the next one: a pending map is aborted, a failed one left alone (wgpu has
+    /// already put the buffer back).
     pub fn forget_ahead(&mut self) {
-        self.recorded = None;
-        if self.mapping.take().is_some() {
-            self.ahead.unmap();
+        if let Some(Ahead {
+            state: AheadState::Mapping(rx),
+            ..
+        }) = self.read_ahead.take()
+        {
+            if !matches!(rx.try_recv(), Ok(Err(_))) {
+                self.ahead.unmap();
+            }
         }
     }
 
     /// The nodes found ahead in a box holding `lo..=hi` (all of that box's, to be narrowed by
     /// the caller), waiting for the step that found them if it is still running; `None`
     /// where no read was made ahead, its box does not hold this one, or its output ran out of
-    /// room (then [`NodesNear::find`] reads, and grows the output). Consumed either way.
+    /// room (then [`NodesNear::find`] reads, and grows the output). The read stays until
+    /// [`NodesNear::forget_ahead`], so several reads between two steps (several blades) are
+    /// all served by it.
     pub fn take_ahead(
         &mut self,
         ctx: &GpuContext,
         lo: [f32; 3],
         hi: [f32; 3],
     ) -> Result<Option<Vec<Found>>> {
-        let Some(ahead) = self.mapping.take() else {
+        let Some(ahead) = self.read_ahead.as_mut() else {
             return Ok(None);
         };
-        let holds = (0..3).all(|c| ahead.lo[c] <= lo[c] && hi[c] <= ahead.hi[c]);
-        let done = ahead.done.as_ref().filter(|_| holds);
-        let Some(done) = done else {
-            self.ahead.unmap();
+        if !(0..3).all(|c| ahead.lo[c] <= lo[c] && hi[c] <= ahead.hi[c]) {
             return Ok(None);
-        };
-        let answer = match done.try_recv() {
-            Ok(answer) => answer,
-            Err(_) => {
-                // The step is still running: wait for it (its map completes with it).
-                ctx.device
-                    .poll(wgpu::PollType::wait_indefinitely())
-                    .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
-                done.recv()
-                    .map_err(|_| Error::Gpu("read ahead was never answered".into()))?
+        }
+        if let AheadState::Mapping(rx) = &ahead.state {
+            let (raw, unmap) = read_mapped(ctx, &self.ahead, rx, ahead.size);
+            if unmap {
+                self.ahead.unmap();
             }
-        };
-        let raw = answer
-            .map_err(|e| Error::Gpu(format!("mapping the read ahead: {e}")))
-            .and_then(|()| {
-                self.ahead
-                    .get_mapped_range(..ahead.size)
-                    .map(|m| m.to_vec())
-                    .map_err(|e| Error::Gpu(format!("reading the read ahead: {e}")))
-            });
-        self.ahead.unmap();
-        entries(&raw?, ahead.capacity)
+            match raw.and_then(|raw| entries(&raw, ahead.capacity)) {
+                Ok(found) => ahead.state = AheadState::Read(found),
+                Err(e) => {
+                    self.read_ahead = None;
+                    return Err(e);
+                }
+            }
+        }
+        Ok(match &ahead.state {
+            AheadState::Read(found) => found.clone(),
+            _ => None,
+        })
     }
 
     /// Write the box and clear the counter (queued before the next submission); returns the
@@ -275,14 +276,65 @@ impl NodesNear {
     }
 }
 
-/// A read recorded at the end of a step (the box it tested, the output's room then).
+/// A read recorded at the end of a step: the box it tested, the output's room and the bytes
+/// copied then, and how far it has come.
 struct Ahead {
     lo: [f32; 3],
     hi: [f32; 3],
     capacity: u64,
     size: u64,
-    /// Answered when the mapping completes (`None` until the step is submitted).
-    done: Option<std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>>,
+    state: AheadState,
+}
+
+/// Answers a map of a readback buffer.
+type MapAnswer = std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>;
+
+enum AheadState {
+    /// In a step's commands, not yet submitted.
+    Recorded,
+    /// Submitted; the buffer is being mapped (answered when the step has run).
+    Mapping(MapAnswer),
+    /// Read back and unmapped: the entries found (`None`: more than the output held).
+    Read(Option<Vec<Found>>),
+}
+
+/// The first `size` bytes of `buffer`, whose map `answer` answers, waiting for the device if
+/// the map is still pending; and whether the caller must unmap the buffer (it is mapped, or
+/// its map is still pending and unmapping aborts it; a failed map has left it unmapped).
+fn read_mapped(
+    ctx: &GpuContext,
+    buffer: &wgpu::Buffer,
+    answer: &MapAnswer,
+    size: u64,
+) -> (Result<Vec<u8>>, bool) {
+    let answered = match answer.try_recv() {
+        Ok(a) => Ok(a),
+        // The step is still running: wait for it (the map completes with it).
+        Err(_) => ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
+            .and_then(|_| {
+                answer
+                    .recv()
+                    .map_err(|_| Error::Gpu("read ahead was never answered".into()))
+            }),
+    };
+    match answered {
+        Ok(Ok(())) => {
+            let raw = buffer
+                .get_mapped_range(..size)
+                .map(|m| m.to_vec())
+                .map_err(|e| Error::Gpu(format!("reading the read ahead: {e}")));
+            (raw, true)
+        }
+        Ok(Err(e)) => (
+            Err(Error::Gpu(format!("mapping the read ahead: {e}"))),
+            false,
+        ),
+        // Never answered: the map is still pending, and unmapping aborts it.
+        Err(e) => (Err(e), true),
+    }
 }
 
 /// The counter at the head of an output read back.
