@@ -910,53 +910,52 @@ impl GpuEngine {
             return crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&x), lo, hi);
         };
         let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
-        let order = &self.layout.order().order;
-        let found = match surface.near.take_ahead(&self.ctx, lo32, hi32)? {
+        let (order, rest, fixed) = (&self.layout.order().order, &self.rest, &self.fixed);
+        // The model node at a slot and its position as `state_f64` gives it (a cut reads what
+        // a full readback gives), with its rest position; none at a hole.
+        let node = |slot: u32, u: &[f32; 3]| {
+            let old = *order.get(slot as usize)?;
+            let r = *rest.get(old as usize)?;
+            let x = if fixed[old as usize] {
+                r
+            } else {
+                [0, 1, 2].map(|c| r[c] + u[c] as f64)
+            };
+            Some((old, x, r))
+        };
+        let mut out: Vec<(u32, [f64; 3])> = match surface.near.take_ahead(&self.ctx, lo32, hi32)? {
             Some(all) => {
                 self.near_reads.ahead += 1;
                 // Narrowed to this box by the pass's own test (rest and displacement added
                 // in float32), so the list is the one a read of its own would give.
-                let rest = &self.rest;
-                let inside = |slot: u32, u: &[f32; 3]| {
-                    let Some(&old) = order.get(slot as usize) else {
-                        return false;
-                    };
-                    let r = rest.get(old as usize).copied().unwrap_or_default();
-                    let x = [0, 1, 2].map(|c| r[c] as f32 + u[c]);
-                    (0..3).all(|c| lo32[c] <= x[c] && x[c] <= hi32[c])
-                };
-                all.into_iter().filter(|(s, u)| inside(*s, u)).collect()
+                all.iter()
+                    .filter_map(|(slot, u)| {
+                        let (old, x, r) = node(*slot, u)?;
+                        let x32 = [0, 1, 2].map(|c| r[c] as f32 + u[c]);
+                        (0..3)
+                            .all(|c| lo32[c] <= x32[c] && x32[c] <= hi32[c])
+                            .then_some((old, x))
+                    })
+                    .collect()
             }
             None => {
                 self.near_reads.direct += 1;
-                surface.near.find(
-                    &self.ctx,
-                    surface.tool.rest(),
-                    &self.state,
-                    self.phase,
-                    self.layout.node_slots() as u32,
-                    lo32,
-                    hi32,
-                )?
+                surface
+                    .near
+                    .find(
+                        &self.ctx,
+                        surface.tool.rest(),
+                        &self.state,
+                        self.phase,
+                        self.layout.node_slots() as u32,
+                        lo32,
+                        hi32,
+                    )?
+                    .iter()
+                    .filter_map(|(slot, u)| node(*slot, u).map(|(old, x, _)| (old, x)))
+                    .collect()
             }
         };
-        let mut out: Vec<(u32, [f64; 3])> = found
-            .into_iter()
-            .filter_map(|(slot, u)| {
-                let old = *order.get(slot as usize)?;
-                if old == crate::layout::NodeOrder::HOLE {
-                    return None;
-                }
-                let r = self.rest[old as usize];
-                // The same arithmetic as `state_f64`: a cut reads what a full readback gives.
-                let x = if self.fixed[old as usize] {
-                    r
-                } else {
-                    [0, 1, 2].map(|c| r[c] + u[c] as f64)
-                };
-                Some((old, x))
-            })
-            .collect();
         out.sort_unstable_by_key(|e| e.0);
         Ok(out)
     }

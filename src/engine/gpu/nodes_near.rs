@@ -102,8 +102,8 @@ impl NodesNear {
     }
 
     /// The node slots among the first `slots` whose current position (rest + displacement, in
-    /// float32) lies in `lo..=hi`, with their displacements, at the state of `phase`. In slot
-    /// order.
+    /// float32) lies in `lo..=hi`, with their displacements, at the state of `phase`, in the
+    /// order the device appended them (no order: sort them).
     #[allow(clippy::too_many_arguments)]
     pub fn find(
         &mut self,
@@ -322,9 +322,13 @@ fn read_mapped(
     };
     match answered {
         Ok(Ok(())) => {
+            // Only the counter and the entries it counts (at most the buffer's room).
             let raw = buffer
                 .get_mapped_range(..size)
-                .map(|m| m.to_vec())
+                .map(|m| {
+                    let used = counter(&m).map_or(HEADER, |n| HEADER + 16 * n).min(size);
+                    m[..used as usize].to_vec()
+                })
                 .map_err(|e| Error::Gpu(format!("reading the read ahead: {e}")));
             (raw, true)
         }
@@ -345,8 +349,8 @@ fn counter(raw: &[u8]) -> Result<u64> {
         .ok_or_else(|| Error::Gpu("nodes near: counter readback".into()))
 }
 
-/// The entries of an output read back, in slot order; `None` where the pass found more than
-/// `capacity` (nothing past it was written).
+/// The entries of an output read back, in the order the device appended them; `None` where
+/// the pass found more than `capacity` (nothing past it was written).
 fn entries(raw: &[u8], capacity: u64) -> Result<Option<Vec<Found>>> {
     let count = counter(raw)?;
     if count > capacity {
@@ -356,12 +360,12 @@ fn entries(raw: &[u8], capacity: u64) -> Result<Option<Vec<Found>>> {
         .get(HEADER as usize..(HEADER + 16 * count) as usize)
         .ok_or_else(|| Error::Gpu("nodes near: entries readback".into()))?;
     let entries: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(bytes);
-    let mut out: Vec<Found> = entries
-        .iter()
-        .map(|e| (e[3], [0, 1, 2].map(|c| f32::from_bits(e[c]))))
-        .collect();
-    out.sort_unstable_by_key(|f| f.0);
-    Ok(Some(out))
+    Ok(Some(
+        entries
+            .iter()
+            .map(|e| (e[3], [0, 1, 2].map(|c| f32::from_bits(e[c]))))
+            .collect(),
+    ))
 }
 
 /// An output buffer with room for `capacity` entries (at least), by size class.
