@@ -121,6 +121,16 @@ fn a_read_ahead_gives_what_a_read_of_its_own_gives(
     );
 }
 
+/// The nodes in `inner`, read with a round trip of their own (no read ahead served), checked
+/// against a full readback.
+fn read_afresh(engine: &mut GpuEngine, inner: [[f64; 3]; 2]) -> Found {
+    let before = reads(engine);
+    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
+    assert_eq!(reads(engine).ahead, before.ahead, "a stale read was served");
+    holds_the_box(engine, inner, &got);
+    got
+}
+
 #[test]
 fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_hold() {
     let model = random_model(9, false);
@@ -134,14 +144,7 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     engine.prefetch_near(outer[0], outer[1]);
     engine.step(1);
     engine.step(1);
-    let before = reads(&engine);
-    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(
-        reads(&engine).ahead,
-        before.ahead,
-        "a stale read was served"
-    );
-    holds_the_box(&engine, inner, &got);
+    read_afresh(&mut engine, inner);
 
     // A position correction after the step: a node moved into the box must be found.
     let x = engine.positions();
@@ -153,18 +156,11 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     engine.prefetch_near(outer[0], outer[1]);
     engine.step(1);
     engine.correct_positions(&[outside], &[centre]).unwrap();
-    let before = reads(&engine);
-    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(
-        reads(&engine).ahead,
-        before.ahead,
-        "a stale read was served"
-    );
+    let got = read_afresh(&mut engine, inner);
     assert!(
         got.iter().any(|e| e.0 == outside),
         "the moved node is found"
     );
-    holds_the_box(&engine, inner, &got);
 
     // The state replaced after the step (set_state, set_raw_state): a read must see the new
     // state.
@@ -172,26 +168,12 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     engine.prefetch_near(outer[0], outer[1]);
     engine.step(1);
     engine.set_state(&x, &v);
-    let before = reads(&engine);
-    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(
-        reads(&engine).ahead,
-        before.ahead,
-        "a stale read was served"
-    );
-    holds_the_box(&engine, inner, &got);
+    read_afresh(&mut engine, inner);
     let raw = engine.raw_state().unwrap();
     engine.prefetch_near(outer[0], outer[1]);
     engine.step(3);
     engine.set_raw_state(&raw.0, &raw.1).unwrap();
-    let before = reads(&engine);
-    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(
-        reads(&engine).ahead,
-        before.ahead,
-        "a stale read was served"
-    );
-    holds_the_box(&engine, inner, &got);
+    read_afresh(&mut engine, inner);
 
     // A patch after the step.
     let diff = random_diff(&model, 41);
@@ -200,14 +182,7 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     engine.prefetch_near(outer[0], outer[1]);
     engine.step(1);
     engine.patch(&next, &diff).unwrap();
-    let before = reads(&engine);
-    let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(
-        reads(&engine).ahead,
-        before.ahead,
-        "a stale read was served"
-    );
-    holds_the_box(&engine, inner, &got);
+    read_afresh(&mut engine, inner);
 
     // A box the read ahead does not hold: the outer box read ahead, the inner one's
     // neighbour asked for.
