@@ -503,3 +503,47 @@ fn applying_a_diff_keeps_springs_sorted_and_findable() {
         }
     }
 }
+
+/// A packing with room ([`PackedLayout::reserve_room`], as the GPU engine keeps its host copy)
+/// takes the patches of a few local cuts, nodes added included, without moving any array:
+/// the first cut used to reallocate the arrays that grew (a 12 MB connectivity table on the
+/// 100k-tet box), a pause of milliseconds. And the room changes nothing a patch gives.
+#[rstest]
+fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let mesh = lancet::mesh::generate::BoxGrid::cube_cells([12; 3], 0.01)
+        .build()
+        .unwrap();
+    let mut model = lancet::model::SpringModel::build(
+        &mesh,
+        &lancet::model::ModelConfig::new(lancet::model::Material::elastic(5e3, 0.25, 1000.0)),
+    )
+    .unwrap()
+    .pack(&mesh)
+    .unwrap();
+    let mut roomy = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    let mut tight = roomy.clone();
+    roomy.reserve_room();
+    let at = |l: &PackedLayout| ARRAYS.map(|a| (l.array(a).as_ptr(), l.node_slots()));
+    let before = at(&roomy);
+    for round in 0..3 {
+        let diff = random_diff(&model, 70 + round);
+        assert!(!diff.added_nodes.is_empty(), "the cuts add nodes");
+        let next = applied(&model, &diff);
+        let (a, b) = (
+            roomy.patch(&next, &diff).unwrap(),
+            tight.patch(&next, &diff).unwrap(),
+        );
+        assert!(!a.repacked, "{kind:?} round {round}: a local cut repacked");
+        assert_eq!(a, b, "{kind:?} round {round}: the room changed the patch");
+        assert!(
+            roomy == tight,
+            "{kind:?} round {round}: the room changed the layout"
+        );
+        model = next;
+    }
+    for (a, (before, after)) in ARRAYS.iter().zip(before.iter().zip(at(&roomy))) {
+        assert_eq!(before.0, after.0, "{kind:?}: {a:?} was reallocated");
+    }
+}

@@ -379,8 +379,10 @@ impl GpuEngine {
         ctx: GpuContext,
         model: &PackedModel,
         config: SimConfig,
-        layout: PackedLayout,
+        mut layout: PackedLayout,
     ) -> Result<Self> {
+        // Patches append to the host's arrays: room now, not a reallocation at the first cut.
+        layout.reserve_room();
         let params = step_params(model, config);
         let uniform_data = StepUniform {
             h: params.h,
