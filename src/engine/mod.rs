@@ -448,7 +448,7 @@ fn gpu_engine(_: &PackedModel, _: SimConfig) -> Result<Box<dyn Engine>> {
 }
 
 /// Below this fraction of the stable bound, float32 Verlet rounds away a measurable part of
-/// each step's increment (see [`verlet_precision_note`]).
+/// each step's increment (see `verlet_precision_note`).
 pub const VERLET_F32_FRACTION: f64 = 0.3;
 
 /// Advice for float32 Verlet far below the stable bound. Verlet stores two positions, and the

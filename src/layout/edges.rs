@@ -368,7 +368,7 @@ impl EdgeLayout {
     /// in place, keeping their entries sorted by the other end, as a fresh packing sorts them.
     /// A row with no room left for an added spring is written anew, with room, at the end of
     /// the table: only it and its `[start, end)` record are dirty, and its old place becomes a
-    /// hole. Once holes exceed a quarter of the table ([`HOLE_FRACTION`]) the table is
+    /// hole. Once holes exceed a quarter of the table (`HOLE_FRACTION`) the table is
     /// compacted, every row with room, and the patch says `repacked`.
     ///
     /// Each node then sums the same forces in the same order as in

@@ -1036,7 +1036,7 @@ impl GpuEngine {
         self.fixed_point
     }
 
-    /// "gpu-connectivity on <adapter>"; the edge layout with atomics names its variant
+    /// `"gpu-connectivity on <adapter>"`; the edge layout with atomics names its variant
     /// ("gpu-edges-atomicfixed on ...").
     pub fn describe(&self) -> String {
         let variant = match (&self.passes, self.config.accumulation) {

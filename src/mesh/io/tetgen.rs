@@ -3,7 +3,7 @@
 //! `.node`: header `<#points> <dim 3> <#attributes> <boundary marker 0|1>`, then rows
 //! `id x y z [attributes] [marker]`. `.ele`: header `<#tets> <4|10> <#region attributes>`, then
 //! rows `id n1 .. n4 [n5 .. n10] [region]`. Numbering starts at 0 or 1 "as the file says": ids
-//! are mapped through [`IdMap`], so either works, and so do sparse ids. `#` starts a comment.
+//! are mapped through `IdMap`, so either works, and so do sparse ids. `#` starts a comment.
 
 use std::path::{Path, PathBuf};
 
