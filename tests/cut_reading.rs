@@ -257,3 +257,57 @@ fn the_energy_reference_follows_the_cut_from_what_it_read(
     }
     assert!(cuts >= 2, "the blade cut only {cuts} times");
 }
+
+/// Carving tissue stretched to three and five times its length: every tet a small sweep meets
+/// (the exact test over every tet at the stretched positions) is carved. The candidates are
+/// the tets with any corner within twice the longest rest edge of the sweep, which holds a
+/// corner of every tet the sweep meets while the tet's nearest corner is that close; a scan
+/// that listed each tet only at one fixed corner lost a sixth of them at four times.
+#[rstest]
+fn carving_strongly_stretched_tissue_misses_no_tet_the_sweep_meets(
+    #[values(3.0, 5.0)] stretch: f64,
+) {
+    let mesh = BoxGrid::cube_cells([8, 4, 4], H).build().unwrap();
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
+    let base = Cutter::new(mesh, model, CutMethod::Remove).unwrap();
+    let c = 4.0 * H;
+    let x: Vec<[f64; 3]> = base
+        .mesh()
+        .nodes()
+        .map(|(_, n)| [c + stretch * (n.rest.x - c), n.rest.y, n.rest.z])
+        .collect();
+    let mut rng = models::Rng(12345);
+    let mut met = 0;
+    for _ in 0..60 {
+        let p = nalgebra::Point3::new(
+            c + stretch * (rng.next() - 0.5) * 6.0 * H,
+            (0.5 + 3.0 * rng.next()) * H,
+            (0.5 + 3.0 * rng.next()) * H,
+        );
+        let d = 0.05 * H;
+        let tri = [
+            p,
+            p + Vector3::new(d, 0.0, 0.0),
+            p + Vector3::new(0.0, d, d),
+        ];
+        let mut cutter = base.clone();
+        let want = cutter
+            .mesh()
+            .tets()
+            .filter(|(_, t)| {
+                let q = t
+                    .nodes
+                    .map(|k| nalgebra::Point3::from(x[cutter.dense_index(k).unwrap() as usize]));
+                lancet::cut::exact::triangle_meets_tet(&tri, &q)
+            })
+            .count();
+        let got = cutter
+            .cut(&Sweep::from_triangles(vec![tri]), &x)
+            .unwrap()
+            .tets_removed;
+        assert_eq!(got, want, "stretched {stretch} times: a sweep at {p:?}");
+        met += want;
+    }
+    assert!(met > 30, "the sweeps met only {met} tets");
+}

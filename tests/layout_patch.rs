@@ -526,6 +526,14 @@ fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
     let mut tight = roomy.clone();
     roomy.reserve_room();
     let at = |l: &PackedLayout| ARRAYS.map(|a| (l.array(a).as_ptr(), l.node_slots()));
+    // A quarter of room, not a doubling.
+    let bytes = |l: &PackedLayout| ARRAYS.map(|a| l.array(a).len()).iter().sum::<usize>();
+    assert!(
+        roomy.host_capacity_bytes() <= bytes(&roomy) * 5 / 4 + 64 * 32 * ARRAYS.len(),
+        "{kind:?}: {} bytes held for {} bytes of arrays",
+        roomy.host_capacity_bytes(),
+        bytes(&roomy)
+    );
     let before = at(&roomy);
     for round in 0..3 {
         let diff = random_diff(&model, 70 + round);

@@ -6,6 +6,7 @@
 //! material the blade actually passed through.
 
 use nalgebra::Point3;
+use slotmap::SecondaryMap;
 
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
@@ -16,19 +17,20 @@ use crate::mesh::{NodeKey, TetKey, TetMesh};
 /// Current corner positions of a tet.
 pub type Corners = [Point3<f64>; 4];
 
-/// The tets owned by the `nodes` (with their current positions; others may come too) within
-/// `reach` of the sweep's bounds ([`FaceIndex::tets_owned_by`]: each tet by one corner), each
-/// once, in no order: where the candidates of the exact tests are looked for ([`overlapping`]
-/// keeps them). A tet whose bounds meet the sweep's has every corner within its longest edge
-/// of them, its owner too, so `reach` must be at least the longest current edge near the
-/// blade; the cutter uses twice the longest rest edge. Scanning nodes rather than tets reads
-/// one position per node, and each tet is listed by one node only, with no set of the tets
-/// seen.
+/// The tets at the `nodes` (with their current positions; others may come too) within `reach`
+/// of the sweep's bounds, each once, in no order: where the candidates of the exact tests are
+/// looked for ([`overlapping`] keeps them). A tet meeting the sweep has a corner within its
+/// longest edge of it, so `reach` must be at least the longest current edge near the blade;
+/// the cutter uses twice the longest rest edge. Scanning nodes rather than tets reads one
+/// position per node; `visited` (stamped with `epoch`, which must differ from every earlier
+/// call's) lists each tet once.
 pub fn tets_near(
     faces: &FaceIndex,
     nodes: impl Iterator<Item = (NodeKey, [f64; 3])>,
     reach: f64,
     sweep: &Sweep,
+    visited: &mut SecondaryMap<TetKey, u32>,
+    epoch: u32,
 ) -> Vec<TetKey> {
     let Some(b) = sweep.aabb() else {
         return Vec::new();
@@ -39,8 +41,13 @@ pub fn tets_near(
     );
     let mut out: Vec<TetKey> = Vec::new();
     for (k, p) in nodes {
-        if (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
-            out.extend_from_slice(faces.tets_owned_by(k));
+        if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
+            continue;
+        }
+        for &tk in faces.tets_at(k) {
+            if visited.insert(tk, epoch) != Some(epoch) {
+                out.push(tk);
+            }
         }
     }
     out

@@ -76,9 +76,6 @@ pub struct BoundaryChanges {
 pub struct FaceIndex {
     /// The tets at each node, in key order.
     node_tets: SecondaryMap<NodeKey, Vec<TetKey>>,
-    /// The tets whose first corner (as indexed) is each node: every tet is listed at exactly
-    /// one node, so a scan of nodes lists each tet once without remembering which it has seen.
-    owned: SecondaryMap<NodeKey, Vec<TetKey>>,
     /// Each indexed tet: its corners as indexed and the tet across each local face.
     tets: SecondaryMap<TetKey, Indexed>,
     boundary_faces: usize,
@@ -183,9 +180,6 @@ impl FaceIndex {
                 v.insert(at, tk);
             }
         }
-        if let Some(e) = self.owned.entry(tet.nodes[0]) {
-            e.or_default().push(tk);
-        }
         self.tets.insert(tk, me);
         Ok(())
     }
@@ -221,9 +215,6 @@ impl FaceIndex {
                 }
             }
         }
-        if let Some(v) = self.owned.get_mut(me.nodes[0]) {
-            v.retain(|t| *t != tk);
-        }
     }
 
     /// The tet across local face `local` of `tk` (whose nodes are `tet`), if the face is inside.
@@ -243,12 +234,6 @@ impl FaceIndex {
     /// The tets at a node, in key order (empty for a node no tet uses).
     pub fn tets_at(&self, n: NodeKey) -> &[TetKey] {
         self.node_tets.get(n).map_or(&[], |v| v.as_slice())
-    }
-
-    /// The tets whose first corner is node `n`, in no order: each indexed tet is owned by
-    /// exactly one node, one of its corners.
-    pub fn tets_owned_by(&self, n: NodeKey) -> &[TetKey] {
-        self.owned.get(n).map_or(&[], |v| v.as_slice())
     }
 
     /// The boundary faces as (tet, local face), in face-id order (found and sorted on each
@@ -367,28 +352,6 @@ mod tests {
             .map(|u| (u[0].0, u[0].1 as u8))
             .collect();
         assert_eq!(index.boundary(), boundary, "boundary in face-id order");
-        // Each tet owned once, by its first corner.
-        let mut owned: Vec<TetKey> = tets
-            .iter()
-            .flat_map(|(_, t)| t.nodes)
-            .flat_map(|n| index.tets_owned_by(n).iter().copied())
-            .collect();
-        owned.sort();
-        owned.dedup_by(|a, b| a == b);
-        let mut all: Vec<TetKey> = tets.iter().map(|t| t.0).collect();
-        all.sort();
-        assert_eq!(owned, all, "every tet owned");
-        for (tk, tet) in tets {
-            assert!(index.tets_owned_by(tet.nodes[0]).contains(tk));
-            let owners = tet
-                .nodes
-                .iter()
-                .collect::<std::collections::BTreeSet<_>>()
-                .into_iter()
-                .filter(|&&n| index.tets_owned_by(n).contains(tk))
-                .count();
-            assert_eq!(owners, 1, "owned by one corner");
-        }
         assert_eq!(index.boundary_len(), boundary.len());
         assert_eq!(index.face_count(), users.len());
     }

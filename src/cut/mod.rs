@@ -149,6 +149,9 @@ pub struct Cutter {
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
     on_cut: BTreeSet<NodeKey>,
+    /// Scratch for finding candidates: the last cut that looked at each tet.
+    visited: SecondaryMap<TetKey, u32>,
+    epoch: u32,
     /// The positions the last cut read.
     read: ReadPositions,
     /// Smallest rest volume-length ratio a subdividing split may make (0: no floor).
@@ -200,6 +203,8 @@ impl Cutter {
             volume_removed: 0.0,
             snap,
             on_cut: BTreeSet::new(),
+            visited: SecondaryMap::new(),
+            epoch: 0,
             read: ReadPositions::default(),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
             families: template::Families::default(),
@@ -435,6 +440,12 @@ impl Cutter {
             self.settle(read);
         }
         let read_near_s = start.elapsed().as_secs_f64();
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            // Wrapped: stale stamps could equal the new epoch.
+            self.visited.clear();
+            self.epoch = 1;
+        }
         let keys = &self.keys;
         let near = {
             let at = read.positions();
@@ -442,7 +453,14 @@ impl Cutter {
                 .near()
                 .iter()
                 .map(|&i| (keys[i as usize], at[i as usize]));
-            classify::tets_near(&self.faces, nodes, self.reach, sweep)
+            classify::tets_near(
+                &self.faces,
+                nodes,
+                self.reach,
+                sweep,
+                &mut self.visited,
+                self.epoch,
+            )
         };
         // The candidates: tets whose bounds meet the sweep's. Tested at once where the cut has
         // read all four corners (one pass over the tets near); the box missed a corner of the

@@ -247,12 +247,13 @@ impl PackedLayout {
     /// Keep a quarter of room in every array, so that the patches of local cuts append without
     /// reallocating: the first patch of a fresh packing otherwise moved each array that grew
     /// (the connectivity table of the 100k-tet box is 12 MB) into new pages, a pause of 3-6 ms
-    /// on the first cut. Costs a quarter more host memory for the arrays; a repack starts
-    /// without room again.
+    /// on the first cut. Costs a quarter more host memory for the arrays; call it again after
+    /// a patch that repacked (the GPU engine does).
     pub fn reserve_room(&mut self) {
         fn room<T>(v: &mut Vec<T>) {
-            // Small arrays (the valence buckets) by at least 64 entries.
-            v.reserve((v.len() / 4).max(64));
+            // Exactly (`reserve` may double); small arrays (the valence buckets) by at least
+            // 64 entries.
+            v.reserve_exact((v.len() / 4).max(64));
         }
         fn order_room(o: &mut NodeOrder) {
             room(&mut o.order);
@@ -277,6 +278,24 @@ impl PackedLayout {
                 room(&mut e.incidence_rows);
                 room(&mut e.incidence);
                 room(&mut e.nodes.inv_mass);
+            }
+        }
+    }
+
+    /// Bytes the host holds for the arrays it uploads ([`PackedLayout::array`]), room
+    /// included.
+    pub fn host_capacity_bytes(&self) -> usize {
+        fn held<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        match self {
+            Self::Connectivity(c) => held(&c.slots) + held(&c.nodes.inv_mass),
+            Self::Valence(v) => held(&v.slots) + held(&v.nodes.inv_mass) + held(&v.buckets),
+            Self::Edges(e) => {
+                held(&e.springs)
+                    + held(&e.incidence_rows)
+                    + held(&e.incidence)
+                    + held(&e.nodes.inv_mass)
             }
         }
     }

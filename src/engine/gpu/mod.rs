@@ -555,6 +555,10 @@ impl GpuEngine {
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<PatchCost> {
         self.forget_ahead();
         let patch = self.layout.patch(model, diff)?;
+        if patch.repacked {
+            // A repack (or an edge compaction) made new arrays: room again for the next cuts.
+            self.layout.reserve_room();
+        }
         // A diff only appends nodes and changes the fixed flags it names: copy just those, not
         // the whole arrays (a local cut on a large mesh).
         let before = self.rest.len();
