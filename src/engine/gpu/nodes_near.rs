@@ -3,6 +3,11 @@
 //! reads back just their displacements (16 bytes each, with the counter in the same buffer: one
 //! round trip), instead of every node's state. Built with the surface culler, whose rest
 //! positions it reads, so that a cut never waits for a pipeline to compile.
+//!
+//! The pass can also be recorded at the end of a step's commands, its output copied to a
+//! buffer of its own that is mapped once the step is submitted ([`NodesNear::record_ahead`]):
+//! the wait for the step then brings the read back too, and the cut that follows is served
+//! from it ([`NodesNear::take_ahead`]) with no round trip of its own.
 
 use bytemuck::{Pod, Zeroable};
 
