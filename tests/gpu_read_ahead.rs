@@ -13,7 +13,7 @@ mod models;
 use lancet::collide::ToolShape;
 use lancet::cut::{CutMethod, Cutter, Sweep};
 use lancet::engine::gpu::GpuEngine;
-use lancet::engine::{Engine, EngineKind, NearReads, SimConfig, Simulation};
+use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
@@ -61,10 +61,6 @@ fn holds_the_box(engine: &GpuEngine, [lo, hi]: [[f64; 3]; 2], got: &Found) -> us
     want.len()
 }
 
-fn reads(engine: &GpuEngine) -> NearReads {
-    engine.near_reads()
-}
-
 fn engine_on(model: &PackedModel, kind: LayoutKind) -> Option<GpuEngine> {
     let ctx = common::gpu()?;
     let mut engine = GpuEngine::with_context(ctx, model, SimConfig::new(2e-5), kind).unwrap();
@@ -89,19 +85,23 @@ fn a_read_ahead_gives_what_a_read_of_its_own_gives(
             let (inner, outer) = boxes(&mut rng, &engine.positions());
             engine.prefetch_near(outer[0], outer[1]);
             engine.step(1);
-            let before = reads(&engine);
+            let before = engine.near_reads();
             let ahead = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(reads(&engine).ahead, before.ahead + 1, "served by the step");
+            assert_eq!(
+                engine.near_reads().ahead,
+                before.ahead + 1,
+                "served by the step"
+            );
             // A box inside it: served by the same read.
             let smaller = [inner[0].map(|v| v + 1e-4), inner[1].map(|v| v - 1e-4)];
             let again = engine.nodes_near(smaller[0], smaller[1]).unwrap();
-            assert_eq!(reads(&engine).ahead, before.ahead + 2);
+            assert_eq!(engine.near_reads().ahead, before.ahead + 2);
             holds_the_box(&engine, smaller, &again);
             // The same box with a round trip of its own: a step of no steps drops the read
             // ahead and leaves the state as it is.
             engine.step(0);
             let own = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(reads(&engine).direct, before.direct + 1);
+            assert_eq!(engine.near_reads().direct, before.direct + 1);
             assert_eq!(ahead.len(), own.len(), "the same nodes");
             for (a, b) in ahead.iter().zip(&own) {
                 assert_eq!((a.0, a.1.map(f64::to_bits)), (b.0, b.1.map(f64::to_bits)));
@@ -124,9 +124,13 @@ fn a_read_ahead_gives_what_a_read_of_its_own_gives(
 /// The nodes in `inner`, read with a round trip of their own (no read ahead served), checked
 /// against a full readback.
 fn read_afresh(engine: &mut GpuEngine, inner: [[f64; 3]; 2]) -> Found {
-    let before = reads(engine);
+    let before = engine.near_reads();
     let got = engine.nodes_near(inner[0], inner[1]).unwrap();
-    assert_eq!(reads(engine).ahead, before.ahead, "a stale read was served");
+    assert_eq!(
+        engine.near_reads().ahead,
+        before.ahead,
+        "a stale read was served"
+    );
     holds_the_box(engine, inner, &got);
     got
 }
@@ -188,10 +192,14 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     // neighbour asked for.
     engine.prefetch_near(inner[0], inner[1]);
     engine.step(1);
-    let before = reads(&engine);
+    let before = engine.near_reads();
     let got = engine.nodes_near(outer[0], outer[1]).unwrap();
-    assert_eq!(reads(&engine).ahead, before.ahead, "a box it does not hold");
-    assert_eq!(reads(&engine).direct, before.direct + 1);
+    assert_eq!(
+        engine.near_reads().ahead,
+        before.ahead,
+        "a box it does not hold"
+    );
+    assert_eq!(engine.near_reads().direct, before.direct + 1);
     holds_the_box(&engine, outer, &got);
 }
 
@@ -283,11 +291,11 @@ fn a_read_ahead_past_the_output_room_reads_again_and_the_next_one_fits() {
     for round in 0..2 {
         engine.prefetch_near(all[0], all[1]);
         engine.step(1);
-        let before = reads(&engine);
+        let before = engine.near_reads();
         let got = engine.nodes_near(all[0], all[1]).unwrap();
         assert_eq!(holds_the_box(&engine, all, &got), model.rest.len());
         assert_eq!(got.len(), model.rest.len());
-        let after = reads(&engine);
+        let after = engine.near_reads();
         if round == 0 {
             assert_eq!(
                 (after.ahead, after.direct),

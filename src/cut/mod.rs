@@ -323,8 +323,7 @@ impl Cutter {
     /// ([`Cutter::cut_from`]): the sweep's bounds grown by three of the mesh's longest rest
     /// edges. `None` for an empty sweep.
     pub fn reading_box(&self, sweep: &Sweep) -> Option<([f64; 3], [f64; 3])> {
-        let b = sweep.aabb()?;
-        Some(self.grown(b.min.coords.into(), b.max.coords.into(), 0.0))
+        self.reading_box_ahead(sweep, 0.0)
     }
 
     /// A box holding [`Cutter::reading_box`] of every sweep that strays no further than
@@ -339,16 +338,14 @@ impl Cutter {
         margin: f64,
     ) -> Option<([f64; 3], [f64; 3])> {
         let b = predicted.aabb()?;
-        Some(self.grown(b.min.coords.into(), b.max.coords.into(), margin.max(0.0)))
-    }
-
-    /// `lo..=hi` grown by what a cut reads around its sweep, and by `more`.
-    fn grown(&self, lo: [f64; 3], hi: [f64; 3], more: f64) -> ([f64; 3], [f64; 3]) {
         // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around them
         // within two edges more: as much again while edges are at rest length, with room for
         // stretching by half (past that, what the box missed is fetched by the cut).
-        let pad = 1.5 * self.reach + more;
-        (lo.map(|v| v - pad), hi.map(|v| v + pad))
+        let pad = 1.5 * self.reach + margin.max(0.0);
+        Some((
+            [0, 1, 2].map(|c| b.min[c] - pad),
+            [0, 1, 2].map(|c| b.max[c] + pad),
+        ))
     }
 
     /// Dense indices of the corners of tet `tk`.

@@ -109,8 +109,8 @@ pub struct CutBench {
     /// give the percentiles more events to rest on and grow the mesh further, which is where
     /// a growing array or table would show as a pause.
     pub incisions: usize,
-    /// Whether the step before each cut event reads ahead the nodes any cut from the blade's
-    /// pose can read, with the blade's speed as the bound
+    /// Whether the step before each cut event reads ahead what the cut will read, predicting
+    /// the blade's sweep from its motion at the event before
     /// ([`crate::cut::Cutter::reading_box_ahead`]): on the GPU the cut's read then comes back
     /// with the step instead of a round trip of its own. The CPU engines ignore it.
     pub read_ahead: bool,

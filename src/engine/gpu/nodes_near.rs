@@ -160,12 +160,11 @@ impl NodesNear {
         if self.ahead.size() < size {
             self.ahead = buffers::staging_buffer(ctx, size);
         }
-        let capacity = self.record(ctx, slots, lo, hi);
+        self.record(ctx, slots, lo, hi);
         self.encode(ctx, enc, phase, slots, &self.ahead);
         self.read_ahead = Some(Ahead {
             lo,
             hi,
-            capacity,
             size,
             state: AheadState::Recorded,
         });
@@ -227,7 +226,7 @@ impl NodesNear {
             if unmap {
                 self.ahead.unmap();
             }
-            match raw.and_then(|raw| entries(&raw, ahead.capacity)) {
+            match raw.and_then(|raw| entries(&raw, room(ahead.size))) {
                 Ok(found) => ahead.state = AheadState::Read(found),
                 Err(e) => {
                     self.read_ahead = None;
@@ -245,7 +244,7 @@ impl NodesNear {
     /// output's room in entries.
     fn record(&self, ctx: &GpuContext, slots: u32, lo: [f32; 3], hi: [f32; 3]) -> u64 {
         let groups = dispatch_size(ctx, slots);
-        let capacity = (self.found.size() - HEADER) / 16;
+        let capacity = room(self.found.size());
         let params = NearParams {
             lo: [lo[0], lo[1], lo[2], 0.0],
             hi: [hi[0], hi[1], hi[2], 0.0],
@@ -281,12 +280,11 @@ impl NodesNear {
     }
 }
 
-/// A read recorded at the end of a step: the box it tested, the output's room and the bytes
-/// copied then, and how far it has come.
+/// A read recorded at the end of a step: the box it tested, the bytes of the output copied
+/// then, and how far it has come.
 struct Ahead {
     lo: [f32; 3],
     hi: [f32; 3],
-    capacity: u64,
     size: u64,
     state: AheadState,
 }
@@ -344,6 +342,11 @@ fn read_mapped(
         // Never answered: the map is still pending, and unmapping aborts it.
         Err(e) => (Err(e), true),
     }
+}
+
+/// Entries an output buffer of `size` bytes has room for.
+fn room(size: u64) -> u64 {
+    (size - HEADER) / 16
 }
 
 /// The counter at the head of an output read back.
