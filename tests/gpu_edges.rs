@@ -128,7 +128,11 @@ fn edge_variant_step_equals_its_cpu_twin_on_random_inputs(
     match accumulation {
         // Integer sums do not depend on the order of the atomic adds, and the float32 force
         // and integration arithmetic is the twin's: bitwise equal.
-        Accumulation::AtomicFixed => assert_eq!(worst, 0.0, "fixed point differs from its twin"),
+        // (On a device that fuses multiply-adds the forces round differently before they are
+        // quantized: the tolerance below then applies.)
+        Accumulation::AtomicFixed if common::rounds_like_cpu() => {
+            assert_eq!(worst, 0.0, "fixed point differs from its twin")
+        }
         // The twin sums in one fixed order; the device's order (gather: the same; float atomics:
         // any) may round differently. A few float32 ulps of the motion per step.
         _ => assert!(

@@ -1,6 +1,6 @@
 //! Incremental patches on the device: after cut-like random edits, each layout's engine holds
-//! exactly the patched arrays and moved state (it steps bit for bit like the CPU twin of the
-//! patched layout), and steps bit for bit like an engine built from scratch on the changed model
+//! exactly the patched arrays and moved state (it steps like the CPU twin of the patched layout:
+//! bit for bit on a device that rounds like the CPU, `common::assert_twin`), and steps bit for bit like an engine built from scratch on the changed model
 //! in the same arrangement, while uploading only a part of the layout.
 
 mod common;
@@ -74,12 +74,18 @@ fn steps_like_twin_and_rebuild(
     let expect_twin = twin(engine, accumulation, want.clone(), 13);
     engine.step(13);
     let got = engine.raw_state().unwrap();
-    assert_eq!(
-        bits(&got.0),
-        bits(&expect_twin.0),
-        "round {round}: device and CPU twin of the patched layout differ"
+    common::assert_twin(
+        &got.0,
+        &expect_twin.0,
+        13,
+        &format!("round {round}: the patched layout"),
     );
-    assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
+    common::assert_twin(
+        &got.1,
+        &expect_twin.1,
+        13,
+        &format!("round {round}: second buffer"),
+    );
     if accumulation != Accumulation::AtomicFixed {
         let r = rebuilt_steps(engine, model, config, &want, 13);
         assert_eq!(
@@ -180,7 +186,7 @@ fn a_connectivity_row_that_outgrows_its_capacity_continues_on_the_device() {
         let expect = twin(&engine, Accumulation::Gather, want, 11);
         engine.step(11);
         let got = engine.raw_state().unwrap();
-        assert_eq!(bits(&got.0), bits(&expect.0), "round {round}");
+        common::assert_twin(&got.0, &expect.0, 11, &format!("round {round}"));
     }
 }
 
@@ -317,8 +323,8 @@ fn an_edge_row_outgrowing_its_room_moves_alone_and_steps_like_a_rebuild_on_the_d
         let expect_twin = twin(&engine, Accumulation::Gather, want.clone(), 13);
         engine.step(13);
         let got = engine.raw_state().unwrap();
-        assert_eq!(bits(&got.0), bits(&expect_twin.0), "round {round}: twin");
-        assert_eq!(bits(&got.1), bits(&expect_twin.1), "round {round}: twin");
+        common::assert_twin(&got.0, &expect_twin.0, 13, &format!("round {round}: twin"));
+        common::assert_twin(&got.1, &expect_twin.1, 13, &format!("round {round}: twin"));
         let r = rebuilt_steps(&engine, &model, config, &want, 13);
         assert_eq!(
             bits(&r.0),
