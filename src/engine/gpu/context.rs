@@ -2,7 +2,8 @@
 
 use crate::error::{Error, Result};
 
-/// An open wgpu device with what lancet needs to know about it.
+/// An open wgpu device with what lancet needs to know about it. Clones share the device.
+#[derive(Clone)]
 pub struct GpuContext {
     /// The device.
     pub device: wgpu::Device,
@@ -12,6 +13,8 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     /// The limits requested (the adapter's own, which are larger than wgpu's defaults).
     pub limits: wgpu::Limits,
+    /// Set by the device's lost callback.
+    lost: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 /// Preference among adapters: discrete GPUs first, a CPU device (lavapipe) last but one.
@@ -37,13 +40,47 @@ impl GpuContext {
     /// searched first and OpenGL only when they have no adapter. Restricting to `vulkan` is how
     /// to make sure no OpenGL fallback is picked up, e.g. to test the no-GPU path with the
     /// Vulkan driver hidden (`VK_ICD_FILENAMES=/nonexistent`).
+    ///
+    /// The device is opened once per process and shared by every engine and context made with
+    /// `new` (they submit to its one queue; error scopes are per thread): opening a device costs
+    /// a tenth of a second or more and driver resources, and NVIDIA's Linux Vulkan driver
+    /// crashes or runs out of devices when many are opened and closed, on several threads at
+    /// once (wgpu issues 5930 and 10234; seen here as heap corruption and "device lost" in the
+    /// GPU tests, which made an engine per test in parallel). A device that is lost is opened
+    /// again at the next call. A failure to open is not kept: the next call tries again.
     pub fn new() -> Result<Self> {
-        Self::with_limits(|_| {})
+        static SHARED: std::sync::Mutex<Option<GpuContext>> = std::sync::Mutex::new(None);
+        let mut shared = SHARED.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(ctx) = shared.as_ref().filter(|c| !c.is_lost()) {
+            return Ok(ctx.clone());
+        }
+        let ctx = Self::open(|_| {})?;
+        *shared = Some(ctx.clone());
+        Ok(ctx)
     }
 
-    /// Like [`GpuContext::new`], with the device's limits lowered by `lower` (which may only
-    /// lower them): to check that a mesh too big for a smaller device gets a clear error.
+    /// A device of its own, with its limits lowered by `lower` (which may only lower them): to
+    /// check that a mesh too big for a smaller device gets a clear error.
     pub fn with_limits(lower: impl FnOnce(&mut wgpu::Limits)) -> Result<Self> {
+        Self::open(lower)
+    }
+
+    /// Whether the device was lost (a driver reset, the GPU removed): nothing more runs on it.
+    pub fn is_lost(&self) -> bool {
+        self.lost.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Whether `self` and `other` are the same device (wgpu compares devices by an id that is
+    /// unique only within one instance, and each opening makes its own instance).
+    pub fn same_device(&self, other: &GpuContext) -> bool {
+        std::sync::Arc::ptr_eq(&self.lost, &other.lost)
+    }
+
+    /// Open a new device on the preferred adapter.
+    fn open(lower: impl FnOnce(&mut wgpu::Limits)) -> Result<Self> {
+        // One opening at a time in a process, for the same driver's sake.
+        static OPENING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _one_at_a_time = OPENING.lock().unwrap_or_else(|e| e.into_inner());
         let from_env = std::env::var("WGPU_BACKEND").ok();
         let searches = match wgpu::Backends::from_env() {
             Some(b) if b.is_empty() => {
@@ -96,11 +133,17 @@ impl GpuContext {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+        let lost = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = lost.clone();
+        device.set_device_lost_callback(move |_, _| {
+            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
         Ok(GpuContext {
             device,
             queue,
             info,
             limits,
+            lost,
         })
     }
 
