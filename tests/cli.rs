@@ -317,6 +317,17 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
     );
     let v = json_of(&out);
     assert!(v["bandwidth"]["bytes_per_s"].as_f64().unwrap() > 1e8);
+    // The device's copy is measured whenever a GPU engine is benchmarked: a buffer of at least
+    // 16 MiB (past the caches), copied at a plausible rate (over 100 MB/s, under 100 TB/s).
+    if has_gpu {
+        let d = &v["device_bandwidth"];
+        assert!(d["bytes"].as_u64().unwrap() >= 16 << 20, "{d}");
+        let b = d["bytes_per_s"].as_f64().unwrap();
+        assert!(b > 1e8 && b < 1e14, "{d}");
+        assert!(["compute pass", "buffer copy"].contains(&d["method"].as_str().unwrap()));
+    } else {
+        assert!(v["device_bandwidth"].is_null());
+    }
     let rows = v["rows"].as_array().unwrap();
     // The CPU engine once, the GPU engine in each of the three layouts (when there is a GPU).
     let gpu_rows = rows
@@ -335,6 +346,19 @@ fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
         let achieved = r["achieved_bytes_per_s"].as_f64().unwrap();
         assert!((achieved - bytes as f64 / (ms * 1e-3)).abs() <= 1e-6 * achieved);
         assert!(r["floor_ratio"].as_f64().unwrap() > 0.0);
+        // GPU rows against the device's copy bandwidth, CPU rows against the host's triad.
+        let on_gpu = r["engine"].as_str().unwrap().starts_with("gpu-");
+        let floor = if on_gpu {
+            &v["device_bandwidth"]["bytes_per_s"]
+        } else {
+            &v["bandwidth"]["bytes_per_s"]
+        };
+        assert_eq!(r["bandwidth_bytes_per_s"].as_f64(), floor.as_f64(), "{r}");
+        let ratio = r["floor_ratio"].as_f64().unwrap();
+        assert!(
+            (ratio - achieved / floor.as_f64().unwrap()).abs() <= 1e-9 * ratio,
+            "{r}"
+        );
         assert!(r["error_vs_reference"].as_f64().unwrap() < 1e-2, "{r}");
         // Timestamp queries time the GPU engine only.
         if !r["engine"].as_str().unwrap().starts_with("gpu-") {

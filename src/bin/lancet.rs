@@ -985,6 +985,36 @@ fn bench_collide(_: &[usize], _: &[usize], _: usize, _: bool) -> lancet::Result<
     ))
 }
 
+/// The device's copy bandwidth, the floor of the GPU rows, when a GPU engine is benchmarked
+/// and an adapter opens (without one the GPU rows fail or fall back on their own, and say so).
+#[cfg(feature = "gpu")]
+fn device_bandwidth(
+    engines: &[lancet::engine::EngineKind],
+) -> Option<lancet::report::device_copy::DeviceBandwidth> {
+    use lancet::engine::EngineKind;
+    if !engines
+        .iter()
+        .any(|e| matches!(e, EngineKind::Gpu | EngineKind::Auto))
+    {
+        return None;
+    }
+    let ctx = lancet::engine::gpu::GpuContext::new().ok()?;
+    match lancet::report::device_copy::device_copy(&ctx) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            eprintln!("note: the device copy bandwidth was not measured ({e}); the gpu rows use the host's");
+            None
+        }
+    }
+}
+
+#[cfg(not(feature = "gpu"))]
+fn device_bandwidth(
+    _: &[lancet::engine::EngineKind],
+) -> Option<lancet::report::device_copy::DeviceBandwidth> {
+    None
+}
+
 fn bench(
     cubes: &[usize],
     files: &[PathBuf],
@@ -1003,9 +1033,20 @@ fn bench(
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
     // 2^24 doubles per array (128 MiB): far beyond any cache, as STREAM requires.
     let bw = bandwidth::stream_triad(1 << 24, 5);
-    let report = bench::run_bench(&meshes, opts, &bw)?;
+    let device_bw = device_bandwidth(&opts.engines);
+    let report = bench::run_bench(
+        &meshes,
+        opts,
+        &bw,
+        device_bw.as_ref().map(|d| d.bytes_per_s),
+    )?;
     if json {
-        let v = json!({ "bandwidth": bw, "rows": report.rows, "skipped": report.skipped });
+        let v = json!({
+            "bandwidth": bw,
+            "device_bandwidth": device_bw,
+            "rows": report.rows,
+            "skipped": report.skipped
+        });
         println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         return Ok(ExitCode::SUCCESS);
     }
@@ -1015,6 +1056,16 @@ fn bench(
         bw.threads,
         bw.bytes_per_s / 1e9
     );
+    if let Some(d) = &device_bw {
+        println!(
+            "device copy bandwidth ({}, read + written, {} MiB arrays): {:.1} GB/s on {}; the \
+             floor of the gpu rows",
+            d.method,
+            d.bytes >> 20,
+            d.bytes_per_s / 1e9,
+            d.device
+        );
+    }
     let mut devices: Vec<&str> = rows
         .iter()
         .filter_map(|r| r.engine.split_once(" on ").map(|(_, d)| d))

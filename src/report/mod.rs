@@ -7,5 +7,6 @@ pub mod bench;
 #[cfg(all(feature = "gpu", feature = "collide"))]
 pub mod collide_bench;
 pub mod cut_bench;
+pub mod device_copy;
 #[cfg(feature = "plot")]
 pub mod plot;

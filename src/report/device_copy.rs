@@ -1,0 +1,119 @@
+//! The memory-bandwidth floor of a GPU: a compute pass that copies one array into another on
+//! the device, measured in the same run as the benchmarks.
+//!
+//! A GPU step streams the spring data and node state from the device's own memory, so its floor
+//! is what the device can copy, not what the host can stream (an H100 copies at about 3 TB/s,
+//! its host at about 0.1 TB/s). On a CPU device (lavapipe) the two are the same memory.
+
+#[cfg(feature = "gpu")]
+use crate::engine::gpu::GpuContext;
+#[cfg(feature = "gpu")]
+use crate::error::{Error, Result};
+
+/// Result of the device copy.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DeviceBandwidth {
+    /// Best bytes per second over the timed submissions, counting each byte read and written
+    /// (as STREAM's copy does).
+    pub bytes_per_s: f64,
+    /// Bytes per copy.
+    pub bytes: u64,
+    /// The device, as `GpuContext::describe` names it.
+    pub device: String,
+    /// The faster way of copying, which sets the floor: "compute pass" (one vec4 per
+    /// invocation, as the steps move data; the faster on GPUs) or "buffer copy" (the copy
+    /// command; the faster on a CPU device such as lavapipe, whose compute passes pay for each
+    /// invocation).
+    pub method: &'static str,
+}
+
+const SOURCE: &str = include_str!("../../shaders/device_copy.wgsl");
+
+/// Copy an array of up to 256 MiB (far past any GPU cache; smaller where the device's bindings
+/// are limited) into another, both with a compute pass that moves one vec4 per invocation (the
+/// way the steps move their arrays) and with the copy command, and keep the faster: many copies
+/// per submission so that submitting and waiting are a small part of the time, and the best of
+/// five submissions. The copy command alone is not the floor of a GPU: on an H100 it read
+/// 840 GB/s where the steps reached 1,700 GB/s.
+#[cfg(feature = "gpu")]
+pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
+    use crate::engine::gpu::buffers;
+    let bytes = (256u64 << 20)
+        .min(ctx.limits.max_buffer_size)
+        .min(ctx.limits.max_storage_buffer_binding_size)
+        & !4095;
+    let vec4s = (bytes / 16) as u32;
+    let storage = |label, usage| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | usage,
+            mapped_at_creation: false,
+        })
+    };
+    let src = storage("copy source", wgpu::BufferUsages::COPY_SRC);
+    let dst = storage("copy destination", wgpu::BufferUsages::COPY_DST);
+    let n = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("copy count"),
+        size: 16,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue
+        .write_buffer(&n, 0, bytemuck::cast_slice(&[vec4s, 0, 0, 0]));
+    let layout = buffers::pass_layout(ctx, "device copy", &[true, false]);
+    let pipeline = buffers::compute_pipeline(ctx, "device copy", SOURCE, &[&layout])?;
+    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("device copy"),
+        layout: &layout,
+        entries: &buffers::entries(&[&n, &src, &dst]),
+    });
+    let workgroups = vec4s.div_ceil(256);
+    let x = workgroups.min(ctx.limits.max_compute_workgroups_per_dimension);
+    let grid = (x, workgroups.div_ceil(x));
+    // Each way of copying, timed alone.
+    let timed = |copies: u32, pass: bool| -> Result<f64> {
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("copy"),
+            });
+        for _ in 0..copies {
+            if pass {
+                buffers::record_dispatch(&mut enc, "device copy", &pipeline, &group, grid);
+            } else {
+                enc.copy_buffer_to_buffer(&src, 0, &dst, 0, bytes);
+            }
+        }
+        let t = std::time::Instant::now();
+        ctx.queue.submit([enc.finish()]);
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("device copy: {e}")))?;
+        Ok(t.elapsed().as_secs_f64())
+    };
+    let best_of = |pass: bool| -> Result<f64> {
+        // The first copy pays for first touches (memory is committed on first use); the
+        // second sets how many copies take about 50 ms.
+        timed(1, pass)?;
+        let once = timed(1, pass)?.max(1e-6);
+        let copies = ((0.05 / once).ceil() as u32).clamp(1, 4096);
+        let mut best = f64::INFINITY;
+        for _ in 0..5 {
+            best = best.min(timed(copies, pass)? / copies as f64);
+        }
+        Ok(best)
+    };
+    let (pass, copy) = (best_of(true)?, best_of(false)?);
+    let best = pass.min(copy);
+    Ok(DeviceBandwidth {
+        bytes_per_s: 2.0 * vec4s as f64 * 16.0 / best,
+        bytes: vec4s as u64 * 16,
+        device: ctx.describe(),
+        method: if pass <= copy {
+            "compute pass"
+        } else {
+            "buffer copy"
+        },
+    })
+}
