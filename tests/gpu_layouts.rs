@@ -294,7 +294,7 @@ fn rows_that_continue_step_on_the_gpu_like_full_rows(
     }
     let moved = u.iter().flatten().any(|&x| x.abs() > 1e-7);
     assert!(moved, "the nodes move");
-    common::assert_twin(&a.0, &u, 20, "continued rows");
+    common::assert_twin(&a.0, &u, &cur, 20, "continued rows");
 }
 
 #[test]

@@ -77,12 +77,14 @@ fn steps_like_twin_and_rebuild(
     common::assert_twin(
         &got.0,
         &expect_twin.0,
+        &want.0,
         13,
         &format!("round {round}: the patched layout"),
     );
     common::assert_twin(
         &got.1,
         &expect_twin.1,
+        &want.1,
         13,
         &format!("round {round}: second buffer"),
     );
@@ -183,10 +185,10 @@ fn a_connectivity_row_that_outgrows_its_capacity_continues_on_the_device() {
             report.layout_bytes
         );
         let want = engine.raw_state().unwrap();
-        let expect = twin(&engine, Accumulation::Gather, want, 11);
+        let expect = twin(&engine, Accumulation::Gather, want.clone(), 11);
         engine.step(11);
         let got = engine.raw_state().unwrap();
-        common::assert_twin(&got.0, &expect.0, 11, &format!("round {round}"));
+        common::assert_twin(&got.0, &expect.0, &want.0, 11, &format!("round {round}"));
     }
 }
 
@@ -323,8 +325,9 @@ fn an_edge_row_outgrowing_its_room_moves_alone_and_steps_like_a_rebuild_on_the_d
         let expect_twin = twin(&engine, Accumulation::Gather, want.clone(), 13);
         engine.step(13);
         let got = engine.raw_state().unwrap();
-        common::assert_twin(&got.0, &expect_twin.0, 13, &format!("round {round}: twin"));
-        common::assert_twin(&got.1, &expect_twin.1, 13, &format!("round {round}: twin"));
+        let what = format!("round {round}: twin");
+        common::assert_twin(&got.0, &expect_twin.0, &want.0, 13, &what);
+        common::assert_twin(&got.1, &expect_twin.1, &want.1, 13, &what);
         let r = rebuilt_steps(&engine, &model, config, &want, 13);
         assert_eq!(
             bits(&r.0),

@@ -69,8 +69,10 @@ pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
         entries: &buffers::entries(&[&n, &src, &dst]),
     });
     let workgroups = vec4s.div_ceil(256);
-    let x = workgroups.min(ctx.limits.max_compute_workgroups_per_dimension);
-    let grid = (x, workgroups.div_ceil(x));
+    // As square as one dimension's limit allows: 2^24 vec4s are 65,536 workgroups, one past
+    // the limit, and (65,535, 2) would launch twice as many as there is work for.
+    let rows = workgroups.div_ceil(ctx.limits.max_compute_workgroups_per_dimension);
+    let grid = (workgroups.div_ceil(rows), rows);
     // Each way of copying, timed alone.
     let timed = |copies: u32, pass: bool| -> Result<f64> {
         let mut enc = ctx

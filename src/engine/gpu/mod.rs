@@ -332,6 +332,8 @@ pub struct GpuEngine {
     near_ahead: Option<([f64; 3], [f64; 3])>,
     /// How reads of the nodes near a blade were served.
     near_reads: NearReads,
+    /// The last step's submission, which `wait` waits for.
+    last_submission: Option<wgpu::SubmissionIndex>,
 }
 
 /// The tissue surface on the device and the broad phases over it.
@@ -438,6 +440,7 @@ impl GpuEngine {
             blend,
             near_ahead: None,
             near_reads: NearReads::default(),
+            last_submission: None,
             ctx,
             config,
             layout,
@@ -1288,7 +1291,7 @@ impl Engine for GpuEngine {
             }
             _ => None,
         };
-        self.ctx.queue.submit([enc.finish()]);
+        self.last_submission = Some(self.ctx.queue.submit([enc.finish()]));
         if let Some(near) = near {
             near.map_ahead();
         }
@@ -1308,7 +1311,12 @@ impl Engine for GpuEngine {
     }
 
     fn wait(&mut self) {
-        let _ = self.ctx.device.poll(wgpu::PollType::wait_indefinitely());
+        // This engine's last step only: the device is shared (`GpuContext::new`), and waiting
+        // for all of it would wait for other engines' work too.
+        let _ = self.ctx.device.poll(wgpu::PollType::Wait {
+            submission_index: self.last_submission.clone(),
+            timeout: None,
+        });
     }
 
     fn positions(&self) -> Vec<[f64; 3]> {
