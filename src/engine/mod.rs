@@ -69,7 +69,8 @@ pub trait Engine: Send {
     }
     /// Replace the state (fixed nodes keep their rest position whatever is given).
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
-    /// Block until submitted work has finished (GPU engines; CPU engines finish in `step`).
+    /// Block until the steps submitted have run, and with them (a queue runs in order)
+    /// whatever this engine submitted before them (GPU engines; CPU engines finish in `step`).
     fn wait(&mut self) {}
     /// Seconds the device itself spent on the last `step` call, measured with timestamp
     /// queries (after [`Engine::wait`]); `None` for CPU engines and devices without them.
