@@ -104,9 +104,8 @@ pub fn rounds_like_cpu() -> bool {
 }
 
 /// The largest difference between `got` (from the device) and `want` (from its CPU twin),
-/// relative to how far the twin moved from `start` (the largest magnitude would hide a
-/// difference 25 times larger: a displacement of 5e-4 moves by 2e-5 in 13 steps), in the
-/// first three lanes.
+/// relative to how far the twin moved from `start` (scaled by the largest magnitude instead,
+/// a state far from rest would hide what its steps changed), in the first three lanes.
 pub fn relative_difference(got: &[[f32; 4]], want: &[[f32; 4]], start: &[[f32; 4]]) -> f64 {
     assert_eq!(got.len(), want.len(), "as many entries");
     assert_eq!(start.len(), want.len(), "as many entries");
@@ -128,8 +127,8 @@ pub fn relative_difference(got: &[[f32; 4]], want: &[[f32; 4]], start: &[[f32; 4
 /// Assert that `got`, from the device after `steps` steps from `start`, is what the CPU twin
 /// computed (`want`): bit for bit where the device rounds like the CPU (lavapipe, CI), else
 /// within 1e-5 of the twin's motion per step, the bound `tests/gpu_edges.rs` holds on an H100.
-/// (Removing any one of the 504 springs of `gpu_patch`'s model, Verlet, 13 steps, passes this
-/// bound in 3 cases; scaled by the largest magnitude instead, in 89.)
+/// A spring left out still shows: `tests/twin_tolerance.rs` (1 of 504 dropped springs within
+/// the bound; scaled by the largest magnitude instead, 94 under Verlet).
 #[track_caller]
 pub fn assert_twin(
     got: &[[f32; 4]],
