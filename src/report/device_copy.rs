@@ -27,6 +27,7 @@ pub struct DeviceBandwidth {
     pub method: &'static str,
 }
 
+#[cfg(feature = "gpu")]
 const SOURCE: &str = include_str!("../../shaders/device_copy.wgsl");
 
 /// Copy an array of up to 256 MiB (far past any GPU cache; smaller where the device's bindings
@@ -68,11 +69,8 @@ pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
         layout: &layout,
         entries: &buffers::entries(&[&n, &src, &dst]),
     });
-    let workgroups = vec4s.div_ceil(256);
-    // As square as one dimension's limit allows: 2^24 vec4s are 65,536 workgroups, one past
-    // the limit, and (65,535, 2) would launch twice as many as there is work for.
-    let rows = workgroups.div_ceil(ctx.limits.max_compute_workgroups_per_dimension);
-    let grid = (workgroups.div_ceil(rows), rows);
+    // The steps' workgroups and grid, so that the copy moves data as they do.
+    let grid = crate::engine::gpu::dispatch_size(ctx, vec4s);
     // Each way of copying, timed alone.
     let timed = |copies: u32, pass: bool| -> Result<f64> {
         let mut enc = ctx

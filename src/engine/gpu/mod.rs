@@ -1224,16 +1224,15 @@ fn build_passes(
     })
 }
 
-/// Workgroup counts covering `n` invocations, folded into two dimensions when one would exceed
-/// the device's limit per dimension.
-fn dispatch_size(ctx: &GpuContext, n: u32) -> (u32, u32) {
+/// Workgroups of [`WORKGROUP`] covering `n` invocations, folded into as few rows as the
+/// device's limit per dimension allows, of equal width (65,536 workgroups fold into two rows of
+/// 32,768; the limit's width, 65,535, would leave almost a row idle). The shaders find their
+/// index as `row * y + x` with `row` = the width times [`WORKGROUP`].
+pub fn dispatch_size(ctx: &GpuContext, n: u32) -> (u32, u32) {
     let groups = n.div_ceil(WORKGROUP).max(1);
     let max = ctx.limits.max_compute_workgroups_per_dimension.max(1);
-    if groups <= max {
-        (groups, 1)
-    } else {
-        (max, groups.div_ceil(max))
-    }
+    let rows = groups.div_ceil(max);
+    (groups.div_ceil(rows), rows)
 }
 
 /// The step constants of a model and configuration, in float32.
@@ -1291,10 +1290,11 @@ impl Engine for GpuEngine {
             }
             _ => None,
         };
-        self.last_submission = Some(self.ctx.queue.submit([enc.finish()]));
+        let submitted = self.ctx.queue.submit([enc.finish()]);
         if let Some(near) = near {
-            near.map_ahead();
+            near.map_ahead(submitted.clone());
         }
+        self.last_submission = Some(submitted);
     }
 
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {

@@ -171,8 +171,8 @@ impl NodesNear {
     }
 
     /// Start mapping the read recorded by [`NodesNear::record_ahead`], whose commands have just
-    /// been submitted; it completes at the device's next poll after the step.
-    pub fn map_ahead(&mut self) {
+    /// been submitted as `submitted`; it completes at the device's next poll after the step.
+    pub fn map_ahead(&mut self, submitted: wgpu::SubmissionIndex) {
         let Some(ahead) = self
             .read_ahead
             .as_mut()
@@ -185,7 +185,7 @@ impl NodesNear {
             .map_async(wgpu::MapMode::Read, ..ahead.size, move |r| {
                 let _ = tx.send(r);
             });
-        ahead.state = AheadState::Mapping(rx);
+        ahead.state = AheadState::Mapping(rx, submitted);
     }
 
     /// Drop a read made ahead (the state it saw has changed), leaving its buffer unmapped and
@@ -193,7 +193,7 @@ impl NodesNear {
     /// already put the buffer back).
     pub fn forget_ahead(&mut self) {
         if let Some(Ahead {
-            state: AheadState::Mapping(rx),
+            state: AheadState::Mapping(rx, _),
             ..
         }) = self.read_ahead.take()
         {
@@ -221,8 +221,8 @@ impl NodesNear {
         if !(0..3).all(|c| ahead.lo[c] <= lo[c] && hi[c] <= ahead.hi[c]) {
             return Ok(None);
         }
-        if let AheadState::Mapping(rx) = &ahead.state {
-            let (raw, unmap) = read_mapped(ctx, &self.ahead, rx, ahead.size);
+        if let AheadState::Mapping(rx, submitted) = &ahead.state {
+            let (raw, unmap) = read_mapped(ctx, &self.ahead, rx, submitted, ahead.size);
             if unmap {
                 self.ahead.unmap();
             }
@@ -295,27 +295,34 @@ type MapAnswer = std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferA
 enum AheadState {
     /// In a step's commands, not yet submitted.
     Recorded,
-    /// Submitted; the buffer is being mapped (answered when the step has run).
-    Mapping(MapAnswer),
+    /// Submitted (as the index given); the buffer is being mapped (answered when the step has
+    /// run).
+    Mapping(MapAnswer, wgpu::SubmissionIndex),
     /// Read back and unmapped: the entries found (`None`: more than the output held).
     Read(Option<Vec<Found>>),
 }
 
-/// The first `size` bytes of `buffer`, whose map `answer` answers, waiting for the device if
-/// the map is still pending; and whether the caller must unmap the buffer (it is mapped, or
-/// its map is still pending and unmapping aborts it; a failed map has left it unmapped).
+/// The first `size` bytes of `buffer`, whose map `answer` answers, waiting for the submission
+/// `submitted` that wrote it if the map is still pending; and whether the caller must unmap the
+/// buffer (it is mapped, or its map is still pending and unmapping aborts it; a failed map has
+/// left it unmapped).
 fn read_mapped(
     ctx: &GpuContext,
     buffer: &wgpu::Buffer,
     answer: &MapAnswer,
+    submitted: &wgpu::SubmissionIndex,
     size: u64,
 ) -> (Result<Vec<u8>>, bool) {
     let answered = match answer.try_recv() {
         Ok(a) => Ok(a),
-        // The step is still running: wait for it (the map completes with it).
+        // The step is still running: wait for it (the map completes with it), not for other
+        // work on the shared device.
         Err(_) => ctx
             .device
-            .poll(wgpu::PollType::wait_indefinitely())
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(submitted.clone()),
+                timeout: None,
+            })
             .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
             .and_then(|_| {
                 answer
