@@ -985,19 +985,10 @@ fn bench_collide(_: &[usize], _: &[usize], _: usize, _: bool) -> lancet::Result<
     ))
 }
 
-/// The device's copy bandwidth, the floor of the GPU rows, when a GPU engine is benchmarked
-/// and an adapter opens (without one the GPU rows fail or fall back on their own, and say so).
+/// The device's copy bandwidth, the floor of the GPU rows (asked for only when there are
+/// some), where an adapter opens.
 #[cfg(feature = "gpu")]
-fn device_bandwidth(
-    engines: &[lancet::engine::EngineKind],
-) -> Option<lancet::report::device_copy::DeviceBandwidth> {
-    use lancet::engine::EngineKind;
-    if !engines
-        .iter()
-        .any(|e| matches!(e, EngineKind::Gpu | EngineKind::Auto))
-    {
-        return None;
-    }
+fn device_bandwidth() -> Option<lancet::report::device_copy::DeviceBandwidth> {
     let ctx = lancet::engine::gpu::GpuContext::new().ok()?;
     match lancet::report::device_copy::device_copy(&ctx) {
         Ok(d) => Some(d),
@@ -1009,9 +1000,7 @@ fn device_bandwidth(
 }
 
 #[cfg(not(feature = "gpu"))]
-fn device_bandwidth(
-    _: &[lancet::engine::EngineKind],
-) -> Option<lancet::report::device_copy::DeviceBandwidth> {
+fn device_bandwidth() -> Option<lancet::report::device_copy::DeviceBandwidth> {
     None
 }
 
@@ -1033,13 +1022,11 @@ fn bench(
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
     // 2^24 doubles per array (128 MiB): far beyond any cache, as STREAM requires.
     let bw = bandwidth::stream_triad(1 << 24, 5);
-    let device_bw = device_bandwidth(&opts.engines);
-    let report = bench::run_bench(
-        &meshes,
-        opts,
-        &bw,
-        device_bw.as_ref().map(|d| d.bytes_per_s),
-    )?;
+    let mut device_bw = None;
+    let report = bench::run_bench(&meshes, opts, &bw, || {
+        device_bw = device_bandwidth();
+        device_bw.as_ref().map(|d| d.bytes_per_s)
+    })?;
     if json {
         let v = json!({
             "bandwidth": bw,
