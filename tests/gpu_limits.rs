@@ -13,6 +13,15 @@ use lancet::model::Material;
 use lancet::{Error, ModelConfig, SpringModel};
 use rstest::rstest;
 
+/// The spring model of a box of `cells`^3 cells of 1 cm.
+fn box_model(cells: usize) -> lancet::model::PackedModel {
+    let mesh = BoxGrid::cube_cells([cells; 3], 0.01).build().unwrap();
+    SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(1e4, 0.3, 1e3)))
+        .unwrap()
+        .pack(&mesh)
+        .unwrap()
+}
+
 #[rstest]
 fn a_mesh_past_the_binding_limit_is_refused_with_a_clear_error(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
@@ -21,11 +30,7 @@ fn a_mesh_past_the_binding_limit_is_refused_with_a_clear_error(
         return;
     }
     // 9,261 nodes and 59,660 springs: about 3.8 MB of slots or spring records.
-    let mesh = BoxGrid::cube_cells([20; 3], 0.01).build().unwrap();
-    let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(1e4, 0.3, 1e3)))
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
+    let model = box_model(20);
     let limit = 1u64 << 20;
     let small = GpuContext::with_limits(|l| {
         l.max_storage_buffer_binding_size = limit;
@@ -77,11 +82,7 @@ fn folded_dispatches_step_like_unfolded_ones(
         return;
     }
     // 1,000 nodes (16 workgroups) and about 6,000 springs (94): both fold at 10.
-    let mesh = BoxGrid::cube_cells([9; 3], 0.01).build().unwrap();
-    let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(1e4, 0.3, 1e3)))
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
+    let model = box_model(9);
     assert!(model.springs.len() > 64 * 90);
     let narrow = GpuContext::with_limits(|l| l.max_compute_workgroups_per_dimension = 10).unwrap();
     let config = SimConfig::new(2e-4);
