@@ -4,6 +4,8 @@
 //! the workgroups a dimension allows fold into rows, and step as unfolded ones do.
 
 mod common;
+#[path = "common/models.rs"]
+mod models;
 
 use lancet::engine::gpu::{GpuContext, GpuEngine};
 use lancet::engine::SimConfig;
@@ -104,4 +106,75 @@ fn folded_dispatches_step_like_unfolded_ones(
     assert_eq!(bits(&a.0), bits(&b.0));
     assert_eq!(bits(&a.1), bits(&b.1));
     assert!(a.0.iter().any(|p| p[0] != 0.0), "the nodes moved");
+}
+
+/// A patch with more state moves than ten workgroups hold (700 new nodes, every other one
+/// blended between two existing nodes) moves them on a device allowing 10 workgroups per
+/// dimension exactly as on the full device, in every layout: the move pass folds its
+/// dispatch like the step's passes.
+#[rstest]
+fn folded_state_moves_match_unfolded_ones(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    use lancet::engine::Engine;
+    use lancet::model::StateBlend;
+    if common::gpu().is_none() {
+        return;
+    }
+    // 729 nodes and 700 more; about 5,000 springs after the patch: within the 100 workgroups
+    // two folded dimensions of 10 hold.
+    let model = box_model(8);
+    let n = model.node_count();
+    let mut diff = models::floating_ring(&model, 700, 1);
+    assert!(model.springs.len() + 700 < 64 * 100);
+    for (k, a) in diff
+        .added_nodes
+        .iter_mut()
+        .enumerate()
+        .filter(|(k, _)| k % 2 == 1)
+    {
+        a.blend = Some(StateBlend {
+            with: ((k * 7) % n) as u32,
+            t: 0.25,
+        });
+    }
+    let mut next = model.clone();
+    next.apply(&diff).unwrap();
+    let narrow = GpuContext::with_limits(|l| l.max_compute_workgroups_per_dimension = 10).unwrap();
+    let config = SimConfig::new(2e-4);
+    let run = |ctx: GpuContext| {
+        let mut e = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+        // Every node displaced and moving differently, so each move carries its own state.
+        let x: Vec<[f64; 3]> = model
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(i, r)| [r[0] * 1.05, r[1] + 1e-4 * (i % 7) as f64, r[2]])
+            .collect();
+        let v: Vec<[f64; 3]> = (0..n).map(|i| [0.0, 0.0, 1e-3 * (i % 5) as f64]).collect();
+        e.set_state(&x, &v);
+        e.step(3);
+        e.patch(&next, &diff).unwrap();
+        let (x, v) = e.state();
+        e.step(3);
+        (x, v, e.raw_state().unwrap())
+    };
+    let (a, b) = (run(narrow), run(GpuContext::new().unwrap()));
+    assert_eq!(a.0.len(), n + 700);
+    assert_eq!((&a.0, &a.1), (&b.0, &b.1), "state right after the patch");
+    let bits =
+        |v: &[[f32; 4]]| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
+    assert_eq!(bits(&a.2 .0), bits(&b.2 .0));
+    assert_eq!(bits(&a.2 .1), bits(&b.2 .1));
+    // The blended nodes started between their two sources, not at either (the source's
+    // displacement along y differs from the partner's for these).
+    let y = |p: &[f64; 3], i: usize| p[1] - model.rest[i % n][1];
+    let k = 1;
+    let (from, with) = (k % n, (k * 7) % n);
+    let got = a.0[n + k][1] - diff.added_nodes[k].rest[1];
+    let want = 0.75 * y(&a.0[from], from) + 0.25 * y(&a.0[with], with);
+    assert!(
+        (got - want).abs() < 1e-7,
+        "blended start {got} against {want}"
+    );
 }

@@ -98,7 +98,7 @@ impl StateMove {
     }
 }
 
-/// `a * (1 - t) + b * t` per component, in the order `shaders/blend_state.wgsl` computes it:
+/// `a * (1 - t) + b * t` per component, in the order `shaders/move_state.wgsl` computes it:
 /// the state a blended move writes, wherever it is computed.
 pub(crate) fn mix_state(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
     std::array::from_fn(|c| a[c] * (1.0 - t) + b[c] * t)

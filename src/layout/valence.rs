@@ -182,15 +182,21 @@ impl ValenceLayout {
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
         super::patch::check_model(before, diff, model)?;
-        let old_rank = self.order.rank.clone();
+        // Where added nodes' state comes from, in the order before the patch (nodes move below).
+        let added_sources: Vec<StateMove> = diff
+            .added_nodes
+            .iter()
+            .map(|a| StateMove::added(0, a, &self.order.rank))
+            .collect();
         let lists = touched_neighbours(diff, before, |t| self.neighbours(t));
         // Untouched neighbours of touched nodes: their rows are rewritten if a node they point
-        // at moves, so their neighbour lists are read now, in the order before the patch.
-        let mut others: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+        // at moves, so their rows are read now, with the model index of each slot's other end
+        // in the order before the patch. Their springs do not change: only where a slot points.
+        let mut others: BTreeMap<u32, Vec<(Slot, u32)>> = BTreeMap::new();
         for list in lists.values() {
             for &nb in list {
                 if !lists.contains_key(&nb) && !others.contains_key(&nb) {
-                    others.insert(nb, self.neighbours(nb));
+                    others.insert(nb, self.row_of(nb));
                 }
             }
         }
@@ -224,7 +230,7 @@ impl ValenceLayout {
             }
             // Where the node's state comes from, in the order before the patch.
             let source = if new_node {
-                StateMove::added(0, &diff.added_nodes[t as usize - before], &old_rank)
+                added_sources[t as usize - before]
             } else {
                 let idx = self.order.rank[t as usize];
                 self.vacate(idx);
@@ -250,23 +256,32 @@ impl ValenceLayout {
             rows.insert(idx);
             moved.push(t);
         }
-        // Rewrite the rows of touched nodes and of neighbours that point at a moved node.
-        let mut write: BTreeMap<u32, &Vec<u32>> = lists.iter().map(|(&t, l)| (t, l)).collect();
-        for &t in &moved {
-            for nb in &lists[&t] {
-                if let Some(l) = others.get(nb) {
-                    write.insert(*nb, l);
-                }
-            }
-        }
-        for (&t, list) in &write {
-            let idx = self.order.rank[t as usize];
-            let b = self.buckets[self.bucket_of(idx)];
+        // Rewrite the rows of touched nodes, and of neighbours that point at a moved node.
+        for (&t, list) in &lists {
             let row = row_slots(model, t, list, &self.order.rank)?;
-            let at = (b.offset + (idx - b.first) * b.valence) as usize;
-            self.slots[at..at + row.len()].copy_from_slice(&row);
-            self.nodes.inv_mass[idx as usize] = inv_mass_of(model, t);
-            rows.insert(idx);
+            self.write_row(t, &row, model);
+            rows.insert(self.order.rank[t as usize]);
+        }
+        let mut pointing: Vec<u32> = moved
+            .iter()
+            .flat_map(|t| &lists[t])
+            .copied()
+            .filter(|nb| others.contains_key(nb))
+            .collect();
+        pointing.sort_unstable();
+        pointing.dedup();
+        for t in pointing {
+            let mut row: Vec<Slot> = others[&t]
+                .iter()
+                .map(|&(slot, node)| Slot {
+                    other: self.order.rank[node as usize],
+                    ..slot
+                })
+                .collect();
+            // Sorted by layout index, as every packing sorts a row.
+            row.sort_by_key(|s| s.other);
+            self.write_row(t, &row, model);
+            rows.insert(self.order.rank[t as usize]);
         }
         for &idx in &rows {
             let b = self.buckets[self.bucket_of(idx)];
@@ -292,6 +307,27 @@ impl ValenceLayout {
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();
         Ok(patch)
+    }
+
+    /// The slots of model node `t`'s row, each with the model index of its other end.
+    fn row_of(&self, t: u32) -> Vec<(Slot, u32)> {
+        let idx = self.order.rank[t as usize];
+        let b = self.buckets[self.bucket_of(idx)];
+        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        self.slots[at..at + b.valence as usize]
+            .iter()
+            .take_while(|s| s.other != Slot::EMPTY)
+            .map(|s| (*s, self.order.order[s.other as usize]))
+            .collect()
+    }
+
+    /// Write `row` as model node `t`'s row (at its place after the patch) and its mass.
+    fn write_row(&mut self, t: u32, row: &[Slot], model: &PackedModel) {
+        let idx = self.order.rank[t as usize];
+        let b = self.buckets[self.bucket_of(idx)];
+        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        self.slots[at..at + row.len()].copy_from_slice(row);
+        self.nodes.inv_mass[idx as usize] = inv_mass_of(model, t);
     }
 
     /// Neighbours (model indices) of model node `t`, from its row.

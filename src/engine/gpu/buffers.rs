@@ -70,6 +70,17 @@ pub fn compute_pipeline(
     source: &str,
     layouts: &[&wgpu::BindGroupLayout],
 ) -> Result<wgpu::ComputePipeline> {
+    compute_pipeline_at(ctx, label, source, "main", layouts)
+}
+
+/// [`compute_pipeline`] with entry point `entry`, for a shader with several.
+pub fn compute_pipeline_at(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    entry: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> Result<wgpu::ComputePipeline> {
     let d = &ctx.device;
     let scope = d.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -85,7 +96,7 @@ pub fn compute_pipeline(
         label: Some(label),
         layout: Some(&pipeline_layout),
         module: &module,
-        entry_point: Some("main"),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
     });
@@ -169,7 +180,7 @@ pub fn storage_buffer(
 
 /// A zeroed storage buffer with room for `bytes` by `sizing`, a copy source and destination
 /// (patches write it in place, a grown successor copies from it).
-fn zeroed_storage(
+pub fn zeroed_storage(
     ctx: &GpuContext,
     label: &str,
     bytes: u64,

@@ -9,19 +9,22 @@
 //! positions (and velocities) are read back, when asked for.
 
 pub mod atomic_edges;
-pub mod blend_state;
 pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
 pub mod context;
 pub mod health;
 pub mod layout_buffers;
+pub mod move_state;
 pub mod node_gather;
 pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
 pub mod timing;
+pub mod upload;
+
+pub use upload::{merged_ranges, WRITE_GAP};
 
 use bytemuck::{Pod, Zeroable};
 
@@ -32,7 +35,7 @@ use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::connectivity::StepParams;
 use crate::layout::edges::{Accumulation, FixedPoint};
-use crate::layout::patch::{Dirty, LayoutArray, StateMove};
+use crate::layout::patch::{Dirty, LayoutArray};
 use crate::layout::{LayoutKind, NodeOrder, PackedLayout};
 use crate::model::{ModelDiff, PackedModel};
 use buffers::{Growth, Sizing};
@@ -136,84 +139,6 @@ impl NodeState {
         }
         ctx.queue.submit([enc.finish()]);
         Ok(next)
-    }
-
-    /// Apply state moves: every buffer gets `state[to] = old[from]` (zero without a source;
-    /// the mix of two sources for a blended move, by `blend`), all sources read before any
-    /// destination is written, entirely on the device.
-    fn apply_moves(
-        &self,
-        ctx: &GpuContext,
-        moves: &[StateMove],
-        blend: &blend_state::BlendPass,
-    ) -> Result<()> {
-        if moves.is_empty() {
-            return Ok(());
-        }
-        let bufs = self.buffers();
-        let m = moves.len() as u64;
-        let blended: Vec<(usize, &StateMove)> = moves
-            .iter()
-            .enumerate()
-            .filter(|(_, mv)| mv.blend.is_some())
-            .collect();
-        let nb = blended.len() as u64;
-        // Staging, per buffer: one entry per move (its source), then one per blended move (its
-        // second source). Created zeroed: the entries of moves without a source stay zero.
-        let per = m + nb;
-        let temp = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("state moves"),
-            size: per * 16 * bufs.len() as u64,
-            usage: wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST
-                | wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let mut enc = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("state moves"),
-            });
-        for (b, buf) in bufs.iter().enumerate() {
-            let base = b as u64 * per;
-            for (k, mv) in moves.iter().enumerate() {
-                if let Some(from) = mv.from {
-                    let at = (base + k as u64) * 16;
-                    enc.copy_buffer_to_buffer(buf, from as u64 * 16, &temp, at, 16);
-                }
-            }
-            for (j, (_, mv)) in blended.iter().enumerate() {
-                let with = mv.blend.expect("blended").with;
-                let at = (base + m + j as u64) * 16;
-                enc.copy_buffer_to_buffer(buf, with as u64 * 16, &temp, at, 16);
-            }
-        }
-        for (b, buf) in bufs.iter().enumerate() {
-            for (k, mv) in moves.iter().enumerate() {
-                if mv.blend.is_none() {
-                    let at = (b as u64 * per + k as u64) * 16;
-                    enc.copy_buffer_to_buffer(&temp, at, buf, mv.to as u64 * 16, 16);
-                }
-            }
-        }
-        if !blended.is_empty() {
-            for (b, buf) in bufs.iter().enumerate() {
-                let base = b as u64 * per;
-                let records: Vec<blend_state::BlendRecord> = blended
-                    .iter()
-                    .enumerate()
-                    .map(|(j, &(k, mv))| blend_state::BlendRecord {
-                        to: mv.to,
-                        first: (base + k as u64) as u32,
-                        second: (base + m + j as u64) as u32,
-                        t: mv.blend.expect("blended").t,
-                    })
-                    .collect();
-                blend.record(ctx, &mut enc, &temp, buf, &records)?;
-            }
-        }
-        ctx.queue.submit([enc.finish()]);
-        Ok(())
     }
 
     /// Number of rotation phases.
@@ -325,9 +250,9 @@ pub struct GpuEngine {
     surface_sync: SurfaceSync,
     /// The tissue surface and its cullers, built only once a program culls.
     surface: Option<SurfaceCulling>,
-    /// The pass that starts nodes between two others. Built with the engine: compiling it at
-    /// the first cut that subdivides would stall that cut (about 10 ms on lavapipe).
-    blend: blend_state::BlendPass,
+    /// The pass that moves node state within the layout at a patch. Built with the engine:
+    /// compiling it at the first cut would stall that cut (about 10 ms on lavapipe).
+    mover: move_state::MovePass,
     /// A box whose nodes the next step finds as its last pass ([`Engine::prefetch_near`]).
     near_ahead: Option<([f64; 3], [f64; 3])>,
     /// How reads of the nodes near a blade were served.
@@ -432,12 +357,12 @@ impl GpuEngine {
         )?;
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         let timer = timing::PassTimer::new(&ctx);
-        let blend = blend_state::BlendPass::new(&ctx)?;
+        let mover = move_state::MovePass::new(&ctx)?;
         Ok(GpuEngine {
             timer,
             surface_sync: SurfaceSync::Current,
             surface: None,
-            blend,
+            mover,
             near_ahead: None,
             near_reads: NearReads::default(),
             last_submission: None,
@@ -598,6 +523,9 @@ impl GpuEngine {
             state_moves: patch.moves.len(),
             reallocated: rebuild,
         };
+        // The dirty ranges and the state moves go up together: one staging buffer, one
+        // submission.
+        let mut upload = upload::Upload::new();
         if rebuild {
             self.passes = build_passes(
                 &self.ctx,
@@ -612,7 +540,7 @@ impl GpuEngine {
         } else {
             let grown = self.outgrown();
             let growth = self.grow(&grown, &patch.dirty)?;
-            let (written, tables) = self.write_dirty(&patch.dirty, &grown);
+            let (written, tables) = self.write_dirty(&patch.dirty, &grown, &mut upload);
             cost.uploaded_bytes = growth.uploaded + written;
             cost.copied_bytes = growth.copied;
             cost.buffers_grown = grown.len() + tables;
@@ -635,8 +563,17 @@ impl GpuEngine {
             self.health
                 .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
         }
-        self.state
-            .apply_moves(&self.ctx, &patch.moves, &self.blend)?;
+        let moves = self.mover.stage(&self.ctx, &mut upload, &patch.moves)?;
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("patch"),
+            });
+        upload.record(&self.ctx, &mut enc)?;
+        self.mover
+            .record(&self.ctx, &mut enc, &self.state.buffers(), moves);
+        self.ctx.queue.submit([enc.finish()]);
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         self.note_surface_moves(&patch.moves, rebuild || patch.repacked);
@@ -693,16 +630,25 @@ impl GpuEngine {
     }
 
     /// Write the dirty ranges of every array but those in `skip` (grown: already written) in
-    /// place, and the valence bucket table when it changed. Returns the bytes written and how
-    /// many tables outgrew their buffers on the way (the bucket table grows as it is written).
-    fn write_dirty(&mut self, dirty: &[Dirty], skip: &[LayoutArray]) -> (u64, usize) {
+    /// place through `upload`, and the valence bucket table when it changed. Returns the bytes
+    /// written and how many tables outgrew their buffers on the way (the bucket table grows as
+    /// it is written).
+    fn write_dirty(
+        &mut self,
+        dirty: &[Dirty],
+        skip: &[LayoutArray],
+        upload: &mut upload::Upload,
+    ) -> (u64, usize) {
         let mut written = 0u64;
-        for d in dirty.iter().filter(|d| !skip.contains(&d.array)) {
-            let Some(buf) = self.passes.buffer(d.array) else {
+        for (array, bytes) in merged_ranges(dirty, WRITE_GAP) {
+            if skip.contains(&array) {
+                continue;
+            }
+            let Some(buf) = self.passes.buffer(array) else {
                 continue;
             };
-            let data = &self.layout.array(d.array)[d.bytes.start as usize..d.bytes.end as usize];
-            self.ctx.queue.write_buffer(buf, d.bytes.start, data);
+            let data = &self.layout.array(array)[bytes.start as usize..bytes.end as usize];
+            upload.write(buf, bytes.start, data);
             written += data.len() as u64;
         }
         let mut grown = 0;
