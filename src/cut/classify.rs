@@ -6,7 +6,6 @@
 //! material the blade actually passed through.
 
 use nalgebra::Point3;
-use slotmap::SecondaryMap;
 
 use super::exact::{segment_crosses_triangle, triangle_meets_tet};
 use super::faces::FaceIndex;
@@ -22,15 +21,14 @@ pub type Corners = [Point3<f64>; 4];
 /// looked for ([`overlapping`] keeps them). A tet meeting the sweep has a corner within its
 /// longest edge of it, so `reach` must be at least the longest current edge near the blade;
 /// the cutter uses twice the longest rest edge. Scanning nodes rather than tets reads one
-/// position per node; `visited` (stamped with `epoch`, which must differ from every earlier
-/// call's) lists each tet once.
+/// position per node; `first_visit` (true the first time it is asked about a tet in this
+/// scan) lists each tet once.
 pub fn tets_near(
     faces: &FaceIndex,
     nodes: impl Iterator<Item = (NodeKey, [f64; 3])>,
     reach: f64,
     sweep: &Sweep,
-    visited: &mut SecondaryMap<TetKey, u32>,
-    epoch: u32,
+    mut first_visit: impl FnMut(TetKey) -> bool,
 ) -> Vec<TetKey> {
     let Some(b) = sweep.aabb() else {
         return Vec::new();
@@ -45,7 +43,7 @@ pub fn tets_near(
             continue;
         }
         for &tk in faces.tets_at(k) {
-            if visited.insert(tk, epoch) != Some(epoch) {
+            if first_visit(tk) {
                 out.push(tk);
             }
         }

@@ -23,6 +23,7 @@ impl Cutter {
             self.faces.remove(tk);
             self.model.remove_tet(&self.mesh, tk)?;
             self.mesh.remove_tet(tk);
+            self.tet_table.forget(tk);
         }
         self.volume_removed += outcome.volume_removed;
         self.crack
@@ -163,6 +164,7 @@ impl Cutter {
                 }
             }
             self.mesh.set_tet_nodes(t, new)?;
+            self.note_tet(t);
             self.model.renode_tet(t, *old, new)?;
             after.push(new);
         }

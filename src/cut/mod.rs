@@ -36,6 +36,7 @@ mod snapshot;
 pub mod subdivide;
 pub mod sweep;
 mod template;
+mod tet_table;
 
 use std::collections::BTreeSet;
 use std::time::Instant;
@@ -149,8 +150,8 @@ pub struct Cutter {
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
     on_cut: BTreeSet<NodeKey>,
-    /// Scratch for finding candidates: the last cut that looked at each tet.
-    visited: SecondaryMap<TetKey, u32>,
+    /// Each tet's dense corners and the last cut that looked at it (the candidate scan).
+    tet_table: tet_table::TetTable,
     epoch: u32,
     /// The positions the last cut read.
     read: ReadPositions,
@@ -172,6 +173,10 @@ impl Cutter {
         let faces = FaceIndex::of(&mesh)?;
         let nodes = mesh.dense_nodes();
         let (dense, keys) = (nodes.index, nodes.keys);
+        let mut tet_table = tet_table::TetTable::default();
+        for (tk, t) in mesh.tets() {
+            tet_table.set(tk, t.nodes.map(|k| dense[k]));
+        }
         let snap = mesh
             .bounds()
             .map_or(0.0, |(lo, hi)| SNAP_RELATIVE * (hi - lo).norm());
@@ -203,7 +208,7 @@ impl Cutter {
             volume_removed: 0.0,
             snap,
             on_cut: BTreeSet::new(),
-            visited: SecondaryMap::new(),
+            tet_table,
             epoch: 0,
             read: ReadPositions::default(),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
@@ -350,11 +355,24 @@ impl Cutter {
 
     /// Dense indices of the corners of tet `tk`.
     fn dense_corners(&self, tk: TetKey) -> [u32; 4] {
-        self.mesh
-            .tet(tk)
-            .expect("a tet near the sweep")
-            .nodes
-            .map(|k| self.dense[k])
+        let c = self.tet_table.corners(tk);
+        debug_assert_eq!(
+            c,
+            self.mesh
+                .tet(tk)
+                .expect("a tet near the sweep")
+                .nodes
+                .map(|k| self.dense[k]),
+            "the tet table is behind the mesh"
+        );
+        c
+    }
+
+    /// Bring tet `tk`'s entry in the tet table up to date (added, or given new corners).
+    fn note_tet(&mut self, tk: TetKey) {
+        let t = self.mesh.tet(tk).expect("a tet just made or changed");
+        let c = t.nodes.map(|k| self.dense[k]);
+        self.tet_table.set(tk, c);
     }
 
     /// Dense indices of the corners of `tets` (repeats included).
@@ -440,7 +458,7 @@ impl Cutter {
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
             // Wrapped: stale stamps could equal the new epoch.
-            self.visited.clear();
+            self.tet_table.clear_stamps();
             self.epoch = 1;
         }
         let keys = &self.keys;
@@ -450,14 +468,10 @@ impl Cutter {
                 .near()
                 .iter()
                 .map(|&i| (keys[i as usize], at[i as usize]));
-            classify::tets_near(
-                &self.faces,
-                nodes,
-                self.reach,
-                sweep,
-                &mut self.visited,
-                self.epoch,
-            )
+            let (table, epoch) = (&mut self.tet_table, self.epoch);
+            classify::tets_near(&self.faces, nodes, self.reach, sweep, |tk| {
+                table.first_visit(tk, epoch)
+            })
         };
         // The candidates: tets whose bounds meet the sweep's. Tested at once where the cut has
         // read all four corners (one pass over the tets near); the box missed a corner of the
@@ -479,8 +493,8 @@ impl Cutter {
         if !missed.is_empty() {
             read.complete(self.corners_of(&missed), source)?;
             self.settle(read);
-            let (mesh, dense, known) = (&self.mesh, &self.dense, &*read);
-            let corners = |tk: TetKey| corners_at(mesh, dense, known, tk);
+            let (table, known) = (&self.tet_table, &*read);
+            let corners = |tk: TetKey| corners_at(table, known, tk);
             candidates.extend(classify::overlapping(missed, &corners, sweep, self.snap));
         }
         candidates.sort_unstable();
@@ -490,9 +504,9 @@ impl Cutter {
         read.complete(self.ring_of(&candidates), source)?;
         self.settle(read);
         let read_s = read_near_s + before.elapsed().as_secs_f64();
-        let (mesh, dense) = (&self.mesh, &self.dense);
+        let (mesh, table) = (&self.mesh, &self.tet_table);
         let known = &*read;
-        let corners = |tk: TetKey| corners_at(mesh, dense, known, tk);
+        let corners = |tk: TetKey| corners_at(table, known, tk);
         let mut outcome = CutOutcome::default();
         match self.method {
             CutMethod::Remove => {
@@ -553,14 +567,6 @@ impl Cutter {
 }
 
 /// The classification corners of tet `tk`, as the cut `read` them.
-fn corners_at(
-    mesh: &TetMesh,
-    dense: &SecondaryMap<NodeKey, u32>,
-    read: &ReadPositions,
-    tk: TetKey,
-) -> classify::Corners {
-    mesh.tet(tk)
-        .expect("candidates are tets of the mesh")
-        .nodes
-        .map(|k| read.class(dense[k]))
+fn corners_at(table: &tet_table::TetTable, read: &ReadPositions, tk: TetKey) -> classify::Corners {
+    table.corners(tk).map(|i| read.class(i))
 }

@@ -170,11 +170,13 @@ impl Cutter {
                     }
                     None => self.mesh.add_tet(nodes, region)?,
                 };
+                self.note_tet(t);
                 keys.push(t);
                 made.push(t);
             }
             for &t in gone.iter().skip(count) {
                 self.mesh.remove_tet(t);
+                self.tet_table.forget(t);
             }
             children.extend(keys.iter().copied());
             self.families.set_children(f, keys);
