@@ -139,6 +139,10 @@ fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
         partial,
         "at least one patch uploaded only part of the layout"
     );
+    // The device was polled between patches (each round reads the state back): each patch
+    // reused the staging buffer the one before it used.
+    let (kept, made) = engine.staging_buffers();
+    assert_eq!((kept, made), (1, 1), "staging buffers kept and made");
 }
 
 /// A cut that gives a node more springs than the connectivity table's rows hold continues its

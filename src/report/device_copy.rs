@@ -39,6 +39,11 @@ const SOURCE: &str = include_str!("../../shaders/device_copy.wgsl");
 #[cfg(feature = "gpu")]
 pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
     use crate::engine::gpu::buffers;
+    // Engines dropped before this still hold their memory until the device is polled: free it
+    // first, so that the arrays below are placed as on an idle device.
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("device copy: {e}")))?;
     let bytes = (256u64 << 20)
         .min(ctx.limits.max_buffer_size)
         .min(ctx.limits.max_storage_buffer_binding_size)

@@ -253,6 +253,8 @@ pub struct GpuEngine {
     /// The pass that moves node state within the layout at a patch. Built with the engine:
     /// compiling it at the first cut would stall that cut (about 10 ms on lavapipe).
     mover: move_state::MovePass,
+    /// Staging buffers of patches' uploads, reused.
+    staging: upload::StagingPool,
     /// A box whose nodes the next step finds as its last pass ([`Engine::prefetch_near`]).
     near_ahead: Option<([f64; 3], [f64; 3])>,
     /// How reads of the nodes near a blade were served.
@@ -363,6 +365,7 @@ impl GpuEngine {
             surface_sync: SurfaceSync::Current,
             surface: None,
             mover,
+            staging: upload::StagingPool::default(),
             near_ahead: None,
             near_reads: NearReads::default(),
             last_submission: None,
@@ -570,14 +573,23 @@ impl GpuEngine {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("patch"),
             });
-        upload.record(&self.ctx, &mut enc)?;
+        let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
         self.mover
             .record(&self.ctx, &mut enc, &self.state.buffers(), moves);
         self.ctx.queue.submit([enc.finish()]);
+        if let Some(b) = staging {
+            self.staging.submitted(b);
+        }
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         self.note_surface_moves(&patch.moves, rebuild || patch.repacked);
         Ok(cost)
+    }
+
+    /// The staging buffers patches upload through: how many are kept for reuse, and how many
+    /// were made so far.
+    pub fn staging_buffers(&self) -> (usize, usize) {
+        (self.staging.kept(), self.staging.made())
     }
 
     /// Re-quantize the fixed-point accumulation (edge layout, atomic fixed point) only when the

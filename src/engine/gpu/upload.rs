@@ -5,9 +5,12 @@
 //! is flushed at the next submission: a valence patch wrote 60-100 ranges that way, 2 µs each
 //! on lavapipe before the flush. Here every range goes into one mapped buffer, and the copies
 //! out of it are recorded into the encoder that carries the rest of the patch (the state
-//! moves), so a patch is one allocation and one submission.
+//! moves), so a patch is one submission; the staging buffers are kept and reused
+//! ([`StagingPool`]).
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
 
 use super::GpuContext;
 use crate::error::{Error, Result};
@@ -55,29 +58,124 @@ impl Upload {
         self.data.len() as u64
     }
 
-    /// Record the copies into `enc`, from one staging buffer filled now. Nothing is recorded
-    /// (and nothing allocated) when there is nothing to write.
-    pub fn record(self, ctx: &GpuContext, enc: &mut wgpu::CommandEncoder) -> Result<()> {
+    /// Record the copies into `enc`, from a staging buffer of `pool` filled now. Returns the
+    /// buffer, to hand back to the pool once `enc` is submitted ([`StagingPool::submitted`]);
+    /// nothing is recorded (and no buffer taken) when there is nothing to write.
+    pub fn record(
+        self,
+        ctx: &GpuContext,
+        pool: &mut StagingPool,
+        enc: &mut wgpu::CommandEncoder,
+    ) -> Result<Option<wgpu::Buffer>> {
         if self.copies.is_empty() {
-            return Ok(());
+            return Ok(None);
         }
-        // Mappable for writing and a copy source: host memory the device copies from, the
-        // same kind of buffer a queue write stages through.
-        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("patch upload"),
-            size: self.data.len() as u64,
-            usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: true,
-        });
+        let staging = pool.take(ctx, self.data.len() as u64);
         staging
-            .get_mapped_range_mut(..)
+            .get_mapped_range_mut(..self.data.len() as u64)
             .map_err(|e| Error::Gpu(format!("filling the patch's staging buffer: {e}")))?
             .copy_from_slice(&self.data);
         staging.unmap();
         for c in &self.copies {
             enc.copy_buffer_to_buffer(&staging, c.src_offset, &c.dst, c.dst_offset, c.size);
         }
-        Ok(())
+        Ok(Some(staging))
+    }
+}
+
+/// Staging buffers kept between patches, mapped again as soon as the device is done with
+/// them.
+///
+/// A buffer made for each patch is memory the allocator gets from the driver and the host
+/// faults in page by page (a queue write does the same): on lavapipe the page faults were a
+/// fifth of a patch's writes, and on a virtual machine an allocation from the driver can take
+/// milliseconds. A used buffer is mapped for writing again after its submission
+/// (`map_async`, which completes when the engine next polls the device, at the latest with
+/// the step that follows); a patch takes a mapped one large enough, or makes one.
+#[derive(Default)]
+pub struct StagingPool {
+    /// Mapped and free.
+    ready: Vec<wgpu::Buffer>,
+    /// Submitted, waiting to be mapped again (the flag is set by the map's callback).
+    mapping: Vec<(wgpu::Buffer, Arc<AtomicU8>)>,
+    /// Buffers made so far.
+    made: usize,
+}
+
+/// A buffer's map: still pending.
+const PENDING: u8 = 0;
+/// Mapped.
+const MAPPED: u8 = 1;
+/// Failed (the device was lost): the buffer is dropped.
+const FAILED: u8 = 2;
+
+/// Buffers kept at most: a patch uses one, and a few cover patches that come faster than the
+/// device polls.
+const KEPT: usize = 4;
+
+/// Least size of a staging buffer: a local cut writes 2-40 kB.
+const LEAST: u64 = 64 << 10;
+
+impl StagingPool {
+    /// A mapped buffer of at least `size` bytes.
+    fn take(&mut self, ctx: &GpuContext, size: u64) -> wgpu::Buffer {
+        self.collect();
+        if let Some(i) = self.ready.iter().position(|b| b.size() >= size) {
+            return self.ready.swap_remove(i);
+        }
+        // Mappable for writing and a copy source: host memory the device copies from, the same
+        // kind of buffer a queue write stages through.
+        self.made += 1;
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("patch upload"),
+            size: size.next_power_of_two().max(LEAST),
+            usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: true,
+        })
+    }
+
+    /// Take back `buffer` after the submission that copies from it: it is mapped again when
+    /// the device is done with it.
+    pub fn submitted(&mut self, buffer: wgpu::Buffer) {
+        let state = Arc::new(AtomicU8::new(PENDING));
+        let set = state.clone();
+        buffer.map_async(wgpu::MapMode::Write, .., move |r| {
+            set.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+        });
+        self.mapping.push((buffer, state));
+        self.collect();
+        // Past the few kept (the device has not been polled for a while), the oldest go.
+        let over = (self.ready.len() + self.mapping.len()).saturating_sub(KEPT);
+        let from_ready = over.min(self.ready.len());
+        self.ready.drain(..from_ready);
+        self.mapping
+            .drain(..(over - from_ready).min(self.mapping.len()));
+    }
+
+    /// Move the buffers whose map completed to the ready ones; drop those whose map failed.
+    fn collect(&mut self) {
+        let mut i = 0;
+        while i < self.mapping.len() {
+            match self.mapping[i].1.load(Ordering::Acquire) {
+                PENDING => i += 1,
+                state => {
+                    let (b, _) = self.mapping.remove(i);
+                    if state == MAPPED {
+                        self.ready.push(b);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Buffers kept (mapped or being mapped).
+    pub fn kept(&self) -> usize {
+        self.ready.len() + self.mapping.len()
+    }
+
+    /// Buffers made so far (the rest of the patches reused one).
+    pub fn made(&self) -> usize {
+        self.made
     }
 }
 
