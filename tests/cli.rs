@@ -856,6 +856,14 @@ fn bench_cut_cuts_in_the_smallest_box_it_accepts() {
             r["nodes_per_cm2"].as_f64().is_some_and(f64::is_finite),
             "{r:#}"
         );
+        // The slowest event's parts are the whole of the largest latency.
+        let s = &r["slowest"];
+        let parts: f64 = ["read_ms", "cut_ms", "apply_ms", "surface_ms"]
+            .iter()
+            .map(|k| s[k].as_f64().unwrap())
+            .sum();
+        let max = r["max_ms"].as_f64().unwrap();
+        assert!((parts - max).abs() <= 1e-9 * max.max(1.0), "{r:#}");
     }
 }
 

@@ -924,14 +924,16 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}  {}",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes",
         "ahead", "cut", "apply", "surf", "step", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
-        "dt after", "floor", "min q"
+        "dt after", "floor", "min q", "slowest in"
     );
     for (r, engine) in rows.iter().zip(&labels) {
+        let (part, ms) = r.slowest.largest();
+        let grew = if r.slowest.grew { " (grew)" } else { "" };
         println!(
-            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>5} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>5} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}  {part} {ms:.3}{grew}",
             r.tets,
             r.length * 100.0,
             r.method,

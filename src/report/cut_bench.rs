@@ -86,6 +86,41 @@ pub struct CutRow {
     pub quality_floor: f64,
     /// The lowest rest volume-length ratio of a tet after the cuts (the uncut boxes' is 0.657).
     pub min_quality: f64,
+    /// Where the slowest cut event's time went: what sets `max_ms`, and with few events
+    /// `p99_ms`.
+    pub slowest: SlowestEvent,
+}
+
+/// The parts of one cut event, ms (the slowest of a row).
+#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
+pub struct SlowestEvent {
+    /// Reading the positions near the blade.
+    pub read_ms: f64,
+    /// The cutter.
+    pub cut_ms: f64,
+    /// Patching the engine.
+    pub apply_ms: f64,
+    /// Giving the engine the new surface.
+    pub surface_ms: f64,
+    /// Whether the patch grew a buffer or rebuilt the passes.
+    pub grew: bool,
+}
+
+impl SlowestEvent {
+    /// The largest part, by name, and its time.
+    pub fn largest(&self) -> (&'static str, f64) {
+        [
+            ("read", self.read_ms),
+            ("cut", self.cut_ms),
+            ("apply", self.apply_ms),
+            ("surf", self.surface_ms),
+        ]
+        .into_iter()
+        .fold(
+            ("read", f64::NEG_INFINITY),
+            |a, b| if b.1 > a.1 { b } else { a },
+        )
+    }
 }
 
 /// What `lancet bench cut` runs: one row per box, length, method, engine (GPU ones once per
@@ -389,6 +424,7 @@ fn one(row: &Row) -> Result<CutRow> {
     let (mut nodes_read, mut step) = (Vec::new(), Vec::new());
     let (mut bytes, mut added, mut springs, mut removed) = (0u64, 0usize, 0i64, 0usize);
     let mut layout_bytes = 0;
+    let mut grew: Vec<bool> = Vec::new();
     let (mut passes_rebuilt, mut buffers_grown, mut reads_ahead) = (0, 0, 0);
     let sites = incision_sites(n, length / h, incisions);
     for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
@@ -443,6 +479,7 @@ fn one(row: &Row) -> Result<CutRow> {
             surface.push((t4 - t3).as_secs_f64() * 1e3);
             bytes += cost.uploaded_bytes;
             layout_bytes = cost.layout_bytes;
+            grew.push(cost.reallocated || cost.buffers_grown > 0);
             passes_rebuilt += cost.reallocated as usize;
             buffers_grown += cost.buffers_grown;
             added += outcome.nodes_added;
@@ -459,6 +496,16 @@ fn one(row: &Row) -> Result<CutRow> {
              the cut (a cell is {h} m) or give a larger box"
         )));
     }
+    let worst = (0..cuts)
+        .max_by(|&a, &b| total[a].total_cmp(&total[b]))
+        .expect("at least one cut");
+    let slowest = SlowestEvent {
+        read_ms: read[worst],
+        cut_ms: cutting[worst],
+        apply_ms: apply[worst],
+        surface_ms: surface[worst],
+        grew: grew[worst],
+    };
     let mut sorted = total.clone();
     sorted.sort_by(f64::total_cmp);
     let area_cm2 = sites.len() as f64 * length.min(n as f64 * h) * 2.0 * h * 1e4;
@@ -491,6 +538,7 @@ fn one(row: &Row) -> Result<CutRow> {
         dt_after: sim.bound().dt,
         quality_floor: floor,
         min_quality: cutter.mesh().min_volume_length_ratio(),
+        slowest,
     })
 }
 
@@ -499,6 +547,21 @@ mod tests {
     use super::*;
 
     const LENGTHS: [f64; 6] = [0.1, 0.3, 0.5, 1.0, 3.0, 7.5];
+
+    #[test]
+    fn the_largest_part_of_the_slowest_event_is_named() {
+        let e = |read_ms, cut_ms, apply_ms, surface_ms| SlowestEvent {
+            read_ms,
+            cut_ms,
+            apply_ms,
+            surface_ms,
+            grew: false,
+        };
+        assert_eq!(e(0.1, 0.3, 2.5, 0.05).largest(), ("apply", 2.5));
+        assert_eq!(e(0.9, 0.3, 0.2, 0.05).largest(), ("read", 0.9));
+        assert_eq!(e(0.1, 0.3, 0.2, 0.5).largest(), ("surf", 0.5));
+        assert_eq!(e(0.1, 1.3, 0.2, 0.05).largest(), ("cut", 1.3));
+    }
 
     /// Up to the default count, the incisions are the planes at the middle of the box, as
     /// many as fit: more only come when asked for.
