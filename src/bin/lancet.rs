@@ -924,10 +924,10 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}  {}",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}  slowest in",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes",
         "ahead", "cut", "apply", "surf", "step", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
-        "dt after", "floor", "min q", "slowest in"
+        "dt after", "floor", "min q"
     );
     for (r, engine) in rows.iter().zip(&labels) {
         let (part, ms) = r.slowest.largest();
