@@ -307,3 +307,51 @@ mod incremental {
         }
     }
 }
+
+mod incremental_large {
+    use super::models;
+    use lancet::mesh::generate::BoxGrid;
+    use lancet::model::{stable_time_step, Material, ModelConfig, SpringModel};
+
+    /// On a model of thousands of nodes (many blocks of the bound's minima), a chain of
+    /// updates keeps the smallest bound and its node those of the per-node bounds (the first
+    /// of equals) and of the changed model from scratch, and an undo puts everything back.
+    #[test]
+    fn chained_updates_and_undos_keep_the_smallest_bound() {
+        let mesh = BoxGrid::cube_cells([12, 12, 12], 0.01).build().unwrap();
+        let config = ModelConfig::new(Material::elastic(1e4, 0.3, 1e3));
+        let mut model = SpringModel::build(&mesh, &config)
+            .unwrap()
+            .pack(&mesh)
+            .unwrap();
+        let mut bound = stable_time_step(&model);
+        for round in 0..12u64 {
+            let diff = models::random_diff(&model, 900 + round);
+            let kept = bound.clone();
+            let undo = bound.update(&model, &diff);
+            if round % 3 == 2 {
+                bound.undo(undo);
+                assert_eq!(bound, kept, "round {round}: undo");
+                continue;
+            }
+            let mut next = model.clone();
+            next.apply(&diff).unwrap();
+            model = next;
+            let first_smallest =
+                bound
+                    .per_node
+                    .iter()
+                    .enumerate()
+                    .fold(
+                        (f64::INFINITY, 0),
+                        |a, (i, &h)| if h < a.0 { (h, i) } else { a },
+                    );
+            assert_eq!((bound.dt, bound.node), first_smallest, "round {round}");
+            let fresh = stable_time_step(&model);
+            assert!(
+                (bound.dt - fresh.dt).abs() <= 1e-12 * fresh.dt,
+                "round {round}"
+            );
+        }
+    }
+}

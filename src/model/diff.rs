@@ -244,23 +244,26 @@ impl PackedModel {
 /// allocated, so a cut that changes tens of springs of a model of hundreds of thousands costs a
 /// move of the tail, not a new array.
 fn remove_sorted(springs: &mut Vec<PackedSpring>, gone: &[[u32; 2]]) {
-    let Some(first) = gone.first() else {
+    // Where each removed spring is (binary searches from the last one found), then the runs
+    // between them moved down as blocks: a memmove of the tail rather than a comparison and a
+    // copy per spring.
+    let mut at: Vec<usize> = Vec::with_capacity(gone.len());
+    let mut lo = 0;
+    for g in gone {
+        lo += springs[lo..].partition_point(|s| s.nodes < *g);
+        if springs.get(lo).is_some_and(|s| s.nodes == *g) {
+            at.push(lo);
+            lo += 1;
+        }
+    }
+    let Some(&first) = at.first() else {
         return;
     };
-    let from = springs.partition_point(|s| s.nodes < *first);
-    let mut write = from;
-    let mut gone = gone.iter().peekable();
-    for read in from..springs.len() {
-        let s = springs[read];
-        while gone.peek().is_some_and(|g| **g < s.nodes) {
-            gone.next();
-        }
-        if gone.peek() == Some(&&s.nodes) {
-            gone.next();
-            continue;
-        }
-        springs[write] = s;
-        write += 1;
+    let mut write = first;
+    for (k, &i) in at.iter().enumerate() {
+        let end = at.get(k + 1).copied().unwrap_or(springs.len());
+        springs.copy_within(i + 1..end, write);
+        write += end - (i + 1);
     }
     springs.truncate(write);
 }

@@ -39,6 +39,30 @@ pub struct StabilityBound {
     pub k_sum: Vec<f64>,
     /// Sum of the dampings of each node's springs, N s/m.
     pub c_sum: Vec<f64>,
+    /// The smallest of each block of [`BLOCK`] per-node bounds and its node, so that an update
+    /// finds the smallest bound from the blocks it touched, not from every node.
+    blocks: Vec<(f64, usize)>,
+}
+
+/// Nodes per block of [`StabilityBound`]'s minima.
+const BLOCK: usize = 256;
+
+/// The smallest bound of block `b` of `per_node` and its node (the first of equals).
+fn block_min(per_node: &[f64], b: usize) -> (f64, usize) {
+    let start = b * BLOCK;
+    let (h, i) = smallest(&per_node[start..per_node.len().min(start + BLOCK)]);
+    (h, start + i)
+}
+
+/// The smallest of the block minima (the first of equals, as [`smallest`] over every node).
+fn smallest_block(blocks: &[(f64, usize)]) -> (f64, usize) {
+    let mut best = (f64::INFINITY, 0);
+    for &(h, i) in blocks {
+        if h < best.0 {
+            best = (h, i);
+        }
+    }
+    best
 }
 
 /// `h(w, c)` from the module documentation.
@@ -73,7 +97,10 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         per_node[i] = h;
         omega_max = omega_max.max(omega);
     }
-    let (dt, node) = smallest(&per_node);
+    let blocks: Vec<(f64, usize)> = (0..n.div_ceil(BLOCK))
+        .map(|b| block_min(&per_node, b))
+        .collect();
+    let (dt, node) = smallest_block(&blocks);
     StabilityBound {
         dt,
         node,
@@ -81,6 +108,7 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         per_node,
         k_sum,
         c_sum,
+        blocks,
     }
 }
 
@@ -170,7 +198,7 @@ impl StabilityBound {
         for c in &diff.changed_nodes {
             mass.insert(c.node, (c.mass, c.fixed));
         }
-        for i in touched {
+        for &i in &touched {
             let i = i as usize;
             if i >= n {
                 // Out of range: applying such a diff fails, and the bound is put back.
@@ -188,20 +216,45 @@ impl StabilityBound {
                 h
             };
         }
-        (self.dt, self.node) = smallest(&self.per_node);
+        self.refresh_blocks(touched.iter().map(|&i| i as usize), undo.len);
+        (self.dt, self.node) = smallest_block(&self.blocks);
         undo
+    }
+
+    /// Bring the block minima up to date after the bounds of the nodes `changed` changed and
+    /// the per-node bounds, `before` long until then, took their present length.
+    fn refresh_blocks(&mut self, changed: impl Iterator<Item = usize>, before: usize) {
+        let n = self.per_node.len();
+        let count = n.div_ceil(BLOCK);
+        self.blocks.truncate(count);
+        // Blocks that grew or shrank, and new ones, from the last block that was full.
+        let first_partial = (before / BLOCK).min(count);
+        self.blocks.resize(count, (f64::INFINITY, 0));
+        let mut dirty: Vec<usize> = changed
+            .filter(|&i| i < n)
+            .map(|i| i / BLOCK)
+            .chain(first_partial..count)
+            .collect();
+        dirty.sort_unstable();
+        dirty.dedup();
+        for b in dirty {
+            self.blocks[b] = block_min(&self.per_node, b);
+        }
     }
 
     /// Put the bound back as it was before the [`StabilityBound::update`] that gave `undo`.
     pub fn undo(&mut self, undo: BoundUndo) {
-        for (i, h, k, c) in undo.saved {
+        for &(i, h, k, c) in &undo.saved {
             self.per_node[i] = h;
             self.k_sum[i] = k;
             self.c_sum[i] = c;
         }
+        let grown = self.per_node.len();
         self.per_node.truncate(undo.len);
         self.k_sum.truncate(undo.len);
         self.c_sum.truncate(undo.len);
+        let restored: Vec<usize> = undo.saved.iter().map(|s| s.0).collect();
+        self.refresh_blocks(restored.into_iter(), grown.min(undo.len));
         (self.dt, self.node, self.omega_max) = (undo.dt, undo.node, undo.omega_max);
     }
 }
