@@ -63,6 +63,42 @@ fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
     }
 }
 
+/// A model that is not the one the diff gives (a spring the diff changes left as it was, a
+/// spring it removes still there) is refused with an error naming the spring, and the layout
+/// is left as it was.
+#[rstest]
+fn a_model_that_does_not_match_the_diff_is_refused_and_the_layout_kept(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
+) {
+    let model = random_model(5, true);
+    let diff = random_diff(&model, 77);
+    assert!(!diff.changed_springs.is_empty() && !diff.removed_springs.is_empty());
+    let next = applied(&model, &diff);
+    let layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    // The changed spring as it was before the diff.
+    let mut stale = next.clone();
+    let c = diff.changed_springs[0];
+    let i = stale.spring_index(c.nodes[0], c.nodes[1]).unwrap();
+    stale.springs[i].stiffness =
+        model.springs[model.spring_index(c.nodes[0], c.nodes[1]).unwrap()].stiffness;
+    assert_ne!(
+        stale.springs[i].stiffness, c.stiffness,
+        "the diff changes the stiffness"
+    );
+    // A removed spring put back.
+    let mut kept = next.clone();
+    let [a, b] = diff.removed_springs[0];
+    let gone = model.springs[model.spring_index(a, b).unwrap()];
+    kept.springs.push(gone);
+    kept.springs.sort_by_key(|s| s.nodes);
+    for (wrong, what) in [(&stale, "adds or changes"), (&kept, "removes")] {
+        let mut patched = layout.clone();
+        let err = patched.patch(wrong, &diff).unwrap_err().to_string();
+        assert!(err.contains(what) && err.contains("the model"), "{err}");
+        assert!(patched == layout, "{what}: the layout changed");
+    }
+}
+
 /// What `lancet run --check` asks of a layout after cuts: nothing differs from a rebuild; and
 /// one wrong entry (a slot, a mass, a spring at a node) is found.
 #[rstest]

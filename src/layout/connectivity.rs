@@ -11,7 +11,7 @@ use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
 use crate::engine::Integrator;
 use crate::error::{Error, Result};
-use crate::model::{ModelDiff, PackedModel};
+use crate::model::{ModelDiff, PackedModel, PackedSpring};
 
 /// Per-node data shared by the node-centric layouts, in the layout's node order.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +77,89 @@ pub(crate) fn touched_neighbours(
             (t, list)
         })
         .collect()
+}
+
+/// The springs a diff adds or changes, by end pair, as the model holds them after it (a
+/// change wins over an addition, as in `PackedModel::apply`): with a touched node's slots from
+/// before the patch, all its new row needs ([`patched_row_slots`]).
+pub(crate) struct DiffSprings(rustc_hash::FxHashMap<[u32; 2], PackedSpring>);
+
+impl DiffSprings {
+    /// The springs `diff` adds or changes, checked against `model` (the model after it): each
+    /// must be there as the diff gives it, and each spring it removes (and does not add back)
+    /// gone. A search per spring the diff names, not per slot of every row it touches.
+    pub(crate) fn of(diff: &ModelDiff, model: &PackedModel) -> Result<Self> {
+        let mut map = rustc_hash::FxHashMap::default();
+        for s in diff.added_springs.iter().chain(&diff.changed_springs) {
+            let [a, b] = s.nodes;
+            map.insert([a.min(b), a.max(b)], *s);
+        }
+        let mismatch = |a: u32, b: u32, what: &str| {
+            Error::Model(format!(
+                "the diff {what} the spring between nodes {a} and {b}, but the model given \
+                 with it {}; give the model the diff was applied to",
+                if what == "removes" {
+                    "still has it"
+                } else {
+                    "does not have it so"
+                }
+            ))
+        };
+        for (&[a, b], s) in &map {
+            let held = model.spring_index(a, b).map(|i| &model.springs[i]);
+            let same = held.is_some_and(|h| {
+                h.rest_length == s.rest_length
+                    && h.stiffness == s.stiffness
+                    && h.damping == s.damping
+            });
+            if !same {
+                return Err(mismatch(a, b, "adds or changes"));
+            }
+        }
+        for &[a, b] in &diff.removed_springs {
+            let key = [a.min(b), a.max(b)];
+            if !map.contains_key(&key) && model.spring_index(a, b).is_some() {
+                return Err(mismatch(a, b, "removes"));
+            }
+        }
+        Ok(DiffSprings(map))
+    }
+}
+
+/// The slots of touched model node `node` after a diff, with neighbours `neighbours` (model
+/// indices, as [`touched_neighbours`] gives them), pointing at their layout indices `rank`,
+/// sorted by layout index: a spring the diff adds or changes from `springs`, any other from
+/// `old` (the node's slots before the patch, each with the model index of its other end),
+/// which holds it as it was. Equal to [`row_slots`] of the model after the diff, without a
+/// search of the model's springs per slot.
+pub(crate) fn patched_row_slots(
+    model: &PackedModel,
+    node: u32,
+    neighbours: &[u32],
+    old: &[(Slot, u32)],
+    springs: &DiffSprings,
+    rank: &[u32],
+) -> Result<Vec<Slot>> {
+    let mut row = neighbours
+        .iter()
+        .map(|&nb| {
+            let other = rank[nb as usize];
+            if let Some(s) = springs.0.get(&[node.min(nb), node.max(nb)]) {
+                return Ok(Slot::of(model, s, node, other));
+            }
+            old.iter()
+                .find(|e| e.1 == nb)
+                .map(|e| Slot { other, ..e.0 })
+                .ok_or_else(|| {
+                    Error::Model(format!(
+                        "the layout joins nodes {node} and {nb} but neither the layout nor the \
+                         diff has that spring; the diff does not match the layout"
+                    ))
+                })
+        })
+        .collect::<Result<Vec<Slot>>>()?;
+    row.sort_by_key(|s| s.other);
+    Ok(row)
 }
 
 /// The slots of model node `node` with neighbours `neighbours` (model indices), pointing at
@@ -427,6 +510,8 @@ impl ConnectivityLayout {
         let before = self.node_count();
         super::patch::check_model(before, diff, model)?;
         let k = self.capacity as usize;
+        // Checked before anything changes: on error the layout is as it was.
+        let springs = DiffSprings::of(diff, model)?;
         let mut patch = LayoutPatch::default();
         let mut dirty: Vec<u32> = Vec::new();
         let mut dirty_slots: Vec<u32> = Vec::new();
@@ -443,19 +528,31 @@ impl ConnectivityLayout {
                 .moves
                 .push(StateMove::added(node, a, &self.order.rank));
         }
-        let lists = touched_neighbours(diff, before, |t| {
-            self.row(self.order.rank[t as usize] as usize)
-                .iter()
-                .map(|s| self.order.order[s.other as usize])
-                .collect()
-        });
+        // The touched nodes' rows before the patch, with the model index of each slot's other
+        // end: the springs the diff leaves alone are taken from them.
+        let old_rows: BTreeMap<u32, Vec<(Slot, u32)>> = diff
+            .touched_nodes(before)
+            .into_iter()
+            .filter(|&t| (t as usize) < before)
+            .map(|t| {
+                let row = self
+                    .row(self.order.rank[t as usize] as usize)
+                    .into_iter()
+                    .map(|s| (s, self.order.order[s.other as usize]))
+                    .collect();
+                (t, row)
+            })
+            .collect();
+        let lists =
+            touched_neighbours(diff, before, |t| old_rows[&t].iter().map(|e| e.1).collect());
         for &t in lists.keys() {
             let row = self.order.rank[t as usize] as usize;
             self.nodes.inv_mass[row] = inv_mass_of(model, t);
         }
         for (&t, list) in &lists {
             let row = self.order.rank[t as usize] as usize;
-            let new = row_slots(model, t, list, &self.order.rank)?;
+            let old = old_rows.get(&t).map_or(&[][..], Vec::as_slice);
+            let new = patched_row_slots(model, t, list, old, &springs, &self.order.rank)?;
             self.write_row(row, &new, &mut dirty)?;
         }
         if self.overflow.len() > 64.max(self.node_count() / 8) {

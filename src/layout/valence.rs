@@ -8,8 +8,8 @@ use bytemuck::{Pod, Zeroable};
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::connectivity::{
-    inv_mass_of, node_update, row_slots, state_buffers, state_traffic, touched_neighbours,
-    NodeArrays, StepParams,
+    inv_mass_of, node_update, patched_row_slots, row_slots, state_buffers, state_traffic,
+    touched_neighbours, DiffSprings, NodeArrays, StepParams,
 };
 use super::patch::{LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
@@ -182,13 +182,24 @@ impl ValenceLayout {
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
         super::patch::check_model(before, diff, model)?;
+        // Checked before anything changes: on error the layout is as it was.
+        let springs = DiffSprings::of(diff, model)?;
         // Where added nodes' state comes from, in the order before the patch (nodes move below).
         let added_sources: Vec<StateMove> = diff
             .added_nodes
             .iter()
             .map(|a| StateMove::added(0, a, &self.order.rank))
             .collect();
-        let lists = touched_neighbours(diff, before, |t| self.neighbours(t));
+        // The touched nodes' rows before the patch, with the model index of each slot's other
+        // end: the springs the diff leaves alone are taken from them.
+        let old_rows: BTreeMap<u32, Vec<(Slot, u32)>> = diff
+            .touched_nodes(before)
+            .into_iter()
+            .filter(|&t| (t as usize) < before)
+            .map(|t| (t, self.row_of(t)))
+            .collect();
+        let lists =
+            touched_neighbours(diff, before, |t| old_rows[&t].iter().map(|e| e.1).collect());
         // Untouched neighbours of touched nodes: their rows are rewritten if a node they point
         // at moves, so their rows are read now, with the model index of each slot's other end
         // in the order before the patch. Their springs do not change: only where a slot points.
@@ -258,7 +269,8 @@ impl ValenceLayout {
         }
         // Rewrite the rows of touched nodes, and of neighbours that point at a moved node.
         for (&t, list) in &lists {
-            let row = row_slots(model, t, list, &self.order.rank)?;
+            let old = old_rows.get(&t).map_or(&[][..], Vec::as_slice);
+            let row = patched_row_slots(model, t, list, old, &springs, &self.order.rank)?;
             self.write_row(t, &row, model);
             rows.insert(self.order.rank[t as usize]);
         }
@@ -328,18 +340,6 @@ impl ValenceLayout {
         let at = (b.offset + (idx - b.first) * b.valence) as usize;
         self.slots[at..at + row.len()].copy_from_slice(row);
         self.nodes.inv_mass[idx as usize] = inv_mass_of(model, t);
-    }
-
-    /// Neighbours (model indices) of model node `t`, from its row.
-    fn neighbours(&self, t: u32) -> Vec<u32> {
-        let idx = self.order.rank[t as usize];
-        let b = self.buckets[self.bucket_of(idx)];
-        let at = (b.offset + (idx - b.first) * b.valence) as usize;
-        self.slots[at..at + b.valence as usize]
-            .iter()
-            .take_while(|s| s.other != Slot::EMPTY)
-            .map(|s| self.order.order[s.other as usize])
-            .collect()
     }
 
     /// The bucket holding layout index `idx`.
