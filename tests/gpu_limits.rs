@@ -24,6 +24,17 @@ fn box_model(cells: usize) -> lancet::model::PackedModel {
         .unwrap()
 }
 
+/// A device allowing only 10 workgroups per dimension: every pass of a few thousand nodes or
+/// springs folds into rows.
+fn narrow_device() -> GpuContext {
+    GpuContext::with_limits(|l| l.max_compute_workgroups_per_dimension = 10).unwrap()
+}
+
+/// Float bits, for comparisons that must be exact.
+fn bits(v: &[[f32; 4]]) -> Vec<[u32; 4]> {
+    v.iter().map(|x| x.map(f32::to_bits)).collect()
+}
+
 #[rstest]
 fn a_mesh_past_the_binding_limit_is_refused_with_a_clear_error(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
@@ -86,7 +97,7 @@ fn folded_dispatches_step_like_unfolded_ones(
     // 1,000 nodes (16 workgroups) and about 6,000 springs (94): both fold at 10.
     let model = box_model(9);
     assert!(model.springs.len() > 64 * 90);
-    let narrow = GpuContext::with_limits(|l| l.max_compute_workgroups_per_dimension = 10).unwrap();
+    let narrow = narrow_device();
     let config = SimConfig::new(2e-4);
     let run = |ctx: GpuContext| {
         let mut e = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
@@ -101,8 +112,6 @@ fn folded_dispatches_step_like_unfolded_ones(
         e.raw_state().unwrap()
     };
     let (a, b) = (run(narrow), run(GpuContext::new().unwrap()));
-    let bits =
-        |v: &[[f32; 4]]| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
     assert_eq!(bits(&a.0), bits(&b.0));
     assert_eq!(bits(&a.1), bits(&b.1));
     assert!(a.0.iter().any(|p| p[0] != 0.0), "the nodes moved");
@@ -140,7 +149,7 @@ fn folded_state_moves_match_unfolded_ones(
     }
     let mut next = model.clone();
     next.apply(&diff).unwrap();
-    let narrow = GpuContext::with_limits(|l| l.max_compute_workgroups_per_dimension = 10).unwrap();
+    let narrow = narrow_device();
     let config = SimConfig::new(2e-4);
     let run = |ctx: GpuContext| {
         let mut e = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
@@ -162,8 +171,6 @@ fn folded_state_moves_match_unfolded_ones(
     let (a, b) = (run(narrow), run(GpuContext::new().unwrap()));
     assert_eq!(a.0.len(), n + 700);
     assert_eq!((&a.0, &a.1), (&b.0, &b.1), "state right after the patch");
-    let bits =
-        |v: &[[f32; 4]]| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
     assert_eq!(bits(&a.2 .0), bits(&b.2 .0));
     assert_eq!(bits(&a.2 .1), bits(&b.2 .1));
     // The blended nodes started between their two sources, not at either (the source's
