@@ -548,6 +548,25 @@ impl GpuEngine {
             cost.copied_bytes = growth.copied;
             cost.buffers_grown = grown.len() + tables;
         }
+        // Submitted before anything else can fail: the host layout is patched already, and
+        // the device must follow it even if the moves cannot be staged (the error says so).
+        let moves = self.mover.stage(&self.ctx, &mut upload, &patch.moves);
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("patch"),
+            });
+        let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
+        if let Ok(count) = moves {
+            self.mover
+                .record(&self.ctx, &mut enc, &self.state.buffers(), count);
+        }
+        self.ctx.queue.submit([enc.finish()]);
+        if let Some(b) = staging {
+            self.staging.submitted(b);
+        }
+        moves?;
         if rebuild || !self.health.fits(self.dispatch.nodes) {
             // Bound to new buffers, or grown with the node dispatch.
             self.health = health_pass(
@@ -565,20 +584,6 @@ impl GpuEngine {
                 .expect("every layout uploads inverse masses");
             self.health
                 .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
-        }
-        let moves = self.mover.stage(&self.ctx, &mut upload, &patch.moves)?;
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("patch"),
-            });
-        let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
-        self.mover
-            .record(&self.ctx, &mut enc, &self.state.buffers(), moves);
-        self.ctx.queue.submit([enc.finish()]);
-        if let Some(b) = staging {
-            self.staging.submitted(b);
         }
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).

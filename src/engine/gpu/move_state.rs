@@ -38,11 +38,14 @@ impl MoveRecord {
 
     /// The record of `m`.
     pub fn of(m: &StateMove) -> Self {
+        // Without a source the node starts at zero whatever it would be mixed with, as
+        // `StateMove::apply_to` says.
+        let blend = m.blend.filter(|_| m.from.is_some());
         MoveRecord {
             to: m.to,
             from: m.from.unwrap_or(Self::NONE),
-            with: m.blend.map_or(Self::NONE, |b| b.with),
-            t: m.blend.map_or(0.0, |b| b.t),
+            with: blend.map_or(Self::NONE, |b| b.with),
+            t: blend.map_or(0.0, |b| b.t),
         }
     }
 }
@@ -168,5 +171,32 @@ impl MovePass {
             pass.set_pipeline(&self.scatter);
             pass.dispatch_workgroups(x, y, 1);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::patch::MoveBlend;
+
+    /// A move without a source starts at zero, as its CPU twin says, even when it names a
+    /// blend partner: the shader must not mix the partner in.
+    #[test]
+    fn a_move_without_a_source_mixes_nothing_in() {
+        let blend = Some(MoveBlend { with: 3, t: 0.5 });
+        let lone = StateMove {
+            to: 1,
+            from: None,
+            blend,
+        };
+        let r = MoveRecord::of(&lone);
+        assert_eq!((r.from, r.with), (MoveRecord::NONE, MoveRecord::NONE));
+        let old = [[1.0f32; 4], [2.0; 4], [3.0; 4], [4.0; 4]];
+        assert_eq!(lone.apply_to(&old), [0.0; 4]);
+        let mixed = MoveRecord::of(&StateMove {
+            from: Some(2),
+            ..lone
+        });
+        assert_eq!((mixed.from, mixed.with, mixed.t), (2, 3, 0.5));
     }
 }

@@ -90,8 +90,10 @@ impl Upload {
 /// faults in page by page (a queue write does the same): on lavapipe the page faults were a
 /// fifth of a patch's writes, and on a virtual machine an allocation from the driver can take
 /// milliseconds. A used buffer is mapped for writing again after its submission
-/// (`map_async`, which completes when the engine next polls the device, at the latest with
-/// the step that follows); a patch takes a mapped one large enough, or makes one.
+/// (`map_async`, which completes once the device is done with it, seen at the engine's next
+/// poll or submission); a patch takes a mapped one large enough, or makes one. Only buffers
+/// up to [`KEPT_SIZE`] are kept: a patch that writes a whole large array (a repack, a
+/// compaction) does not leave that much host-visible memory mapped for good.
 #[derive(Default)]
 pub struct StagingPool {
     /// Mapped and free.
@@ -116,6 +118,9 @@ const KEPT: usize = 4;
 /// Least size of a staging buffer: a local cut writes 2-40 kB.
 const LEAST: u64 = 64 << 10;
 
+/// Largest staging buffer kept for reuse.
+pub const KEPT_SIZE: u64 = 1 << 20;
+
 impl StagingPool {
     /// A mapped buffer of at least `size` bytes.
     fn take(&mut self, ctx: &GpuContext, size: u64) -> wgpu::Buffer {
@@ -137,6 +142,9 @@ impl StagingPool {
     /// Take back `buffer` after the submission that copies from it: it is mapped again when
     /// the device is done with it.
     pub fn submitted(&mut self, buffer: wgpu::Buffer) {
+        if buffer.size() > KEPT_SIZE {
+            return;
+        }
         let state = Arc::new(AtomicU8::new(PENDING));
         let set = state.clone();
         buffer.map_async(wgpu::MapMode::Write, .., move |r| {
@@ -144,12 +152,13 @@ impl StagingPool {
         });
         self.mapping.push((buffer, state));
         self.collect();
-        // Past the few kept (the device has not been polled for a while), the oldest go.
+        // Past the few kept (the device has not been polled for a while), those still waiting
+        // for their map go first, the oldest first: the mapped ones are ready for the next
+        // patch.
         let over = (self.ready.len() + self.mapping.len()).saturating_sub(KEPT);
-        let from_ready = over.min(self.ready.len());
-        self.ready.drain(..from_ready);
-        self.mapping
-            .drain(..(over - from_ready).min(self.mapping.len()));
+        let from_mapping = over.min(self.mapping.len());
+        self.mapping.drain(..from_mapping);
+        self.ready.drain(..over - from_mapping);
     }
 
     /// Move the buffers whose map completed to the ready ones; drop those whose map failed.
@@ -191,6 +200,11 @@ pub const WRITE_GAP: u64 = 256;
 pub fn merged_ranges(dirty: &[Dirty], gap: u64) -> Vec<(LayoutArray, Range<u64>)> {
     let mut out: Vec<(LayoutArray, Range<u64>)> = Vec::with_capacity(dirty.len());
     for d in dirty {
+        debug_assert!(
+            out.last()
+                .is_none_or(|(a, r)| *a != d.array || d.bytes.start >= r.start),
+            "dirty ranges out of order"
+        );
         match out.last_mut() {
             Some((a, r)) if *a == d.array && d.bytes.start <= r.end + gap => {
                 r.end = r.end.max(d.bytes.end);
