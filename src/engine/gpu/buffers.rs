@@ -304,8 +304,10 @@ pub fn write_changed<T: bytemuck::Pod + PartialEq>(
     Ok((written, false))
 }
 
-/// Write the elements `indices` of `host` (what `buffer` should hold) to `buffer`, one copy per
-/// run of consecutive indices. Returns the bytes written.
+/// Write the elements `indices` of `host` (what `buffer` should hold everywhere) to `buffer`,
+/// one write per run of indices less than [`super::WRITE_GAP`] bytes apart (the elements
+/// between go too: each write has a cost of its own, a staging buffer, that a few hundred bytes
+/// do not). Returns the bytes written.
 pub fn write_slots<T: bytemuck::Pod>(
     ctx: &GpuContext,
     buffer: &wgpu::Buffer,
@@ -315,14 +317,15 @@ pub fn write_slots<T: bytemuck::Pod>(
     indices.sort_unstable();
     indices.dedup();
     let elem = std::mem::size_of::<T>();
+    let gap = (super::WRITE_GAP as usize / elem.max(1)).max(1);
     let mut written = 0;
     let mut k = 0;
     while k < indices.len() {
         let start = indices[k] as usize;
         let mut end = start + 1;
-        while k + 1 < indices.len() && indices[k + 1] as usize == end {
+        while k + 1 < indices.len() && indices[k + 1] as usize <= end + gap {
             k += 1;
-            end += 1;
+            end = indices[k] as usize + 1;
         }
         k += 1;
         ctx.queue.write_buffer(
