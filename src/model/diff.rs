@@ -271,24 +271,22 @@ fn remove_sorted(springs: &mut Vec<PackedSpring>, gone: &[[u32; 2]]) {
 /// Insert `added` (sorted by end pair, none present) into `springs` (sorted), in place, merging
 /// from the back so that only the part after the first inserted spring moves.
 fn insert_sorted(springs: &mut Vec<PackedSpring>, added: &[PackedSpring]) {
-    let Some(first) = added.first() else {
+    if added.is_empty() {
         return;
-    };
-    let stop = springs.partition_point(|s| s.nodes < first.nodes);
+    }
     let old_len = springs.len();
-    springs.resize(old_len + added.len(), *first);
-    // Walking down from the end, the write index stays above the read index until every
-    // addition is placed, so no unread spring is overwritten.
-    let (mut read, mut write, mut next) = (old_len, old_len + added.len(), added.len());
-    while next > 0 {
-        write -= 1;
-        if read > stop && springs[read - 1].nodes > added[next - 1].nodes {
-            read -= 1;
-            springs[write] = springs[read];
-        } else {
-            next -= 1;
-            springs[write] = added[next];
-        }
+    springs.resize(old_len + added.len(), added[0]);
+    // Walking down from the end: each addition's place is found by a binary search below the
+    // last one's, and the block of old springs above it moves up as one (a memmove of the
+    // tail rather than a comparison and a copy per spring). The write position stays above
+    // every unread spring, so none is overwritten before it moves.
+    let mut top = old_len;
+    for (k, s) in added.iter().enumerate().rev() {
+        let at = springs[..top].partition_point(|o| o.nodes < s.nodes);
+        let shift = k + 1;
+        springs.copy_within(at..top, at + shift);
+        springs[at + k] = *s;
+        top = at;
     }
 }
 
