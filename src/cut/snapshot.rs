@@ -47,18 +47,13 @@ fn params(model: &SpringModel, e: &[NodeKey; 2]) -> Option<SpringParams> {
 impl Snapshot {
     /// Record the edges and corners of the given tets (their current nodes) before an edit.
     pub fn take(model: &SpringModel, tets: &[[NodeKey; 4]]) -> Self {
-        let mut snap = Snapshot::default();
-        for t in tets {
-            for [a, b] in crate::mesh::TET_EDGES {
-                let e = edge(t[a], t[b]);
-                snap.springs.entry(e).or_insert_with(|| params(model, &e));
-            }
-            for &n in t {
-                snap.nodes
-                    .entry(n)
-                    .or_insert_with(|| (model.mass(n), model.is_fixed(n)));
-            }
-        }
+        // Sized for the tets' edges and corners (each shared by a few tets), so that filling
+        // the maps does not rehash them as they grow.
+        let mut snap = Snapshot {
+            springs: FxHashMap::with_capacity_and_hasher(tets.len() * 2 + 8, Default::default()),
+            nodes: FxHashMap::with_capacity_and_hasher(tets.len() + 8, Default::default()),
+        };
+        snap.extend(model, tets, &|_| true);
         snap
     }
 
@@ -72,15 +67,18 @@ impl Snapshot {
         tets: &[[NodeKey; 4]],
         existed: &dyn Fn(NodeKey) -> bool,
     ) {
-        let more = Snapshot::take(model, tets);
-        for (e, p) in more.springs {
-            if existed(e[0]) && existed(e[1]) {
-                self.springs.entry(e).or_insert(p);
+        for t in tets {
+            for [a, b] in crate::mesh::TET_EDGES {
+                let e = edge(t[a], t[b]);
+                if existed(e[0]) && existed(e[1]) {
+                    // Looked up in the model only the first time the edge is seen.
+                    self.springs.entry(e).or_insert_with(|| params(model, &e));
+                }
             }
-        }
-        for (n, p) in more.nodes {
-            if existed(n) {
-                self.nodes.entry(n).or_insert(p);
+            for &n in t.iter().filter(|&&n| existed(n)) {
+                self.nodes
+                    .entry(n)
+                    .or_insert_with(|| (model.mass(n), model.is_fixed(n)));
             }
         }
     }
