@@ -149,7 +149,8 @@ pub struct Cutter {
     reach: f64,
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
-    on_cut: BTreeSet<NodeKey>,
+    /// (A secondary map: looked up for every edge near the sweep, and it grows with every cut.)
+    on_cut: SecondaryMap<NodeKey, ()>,
     /// Each tet's dense corners and the last cut that looked at it (the candidate scan).
     tet_table: tet_table::TetTable,
     epoch: u32,
@@ -207,7 +208,7 @@ impl Cutter {
             partners: resweep::CutPartners::default(),
             volume_removed: 0.0,
             snap,
-            on_cut: BTreeSet::new(),
+            on_cut: SecondaryMap::new(),
             tet_table,
             epoch: 0,
             read: ReadPositions::default(),

@@ -136,8 +136,8 @@ impl Cutter {
         // or snapped) crosses nothing new; counting it would pull its other end onto the cut
         // when the same sweep comes again.
         let old_cut = |[p, q]: [NodeKey; 2], c: &Crossing| {
-            (c.t < EDGE_SNAP && self.on_cut.contains(&p))
-                || (c.t > 1.0 - EDGE_SNAP && self.on_cut.contains(&q))
+            (c.t < EDGE_SNAP && self.on_cut.contains_key(p))
+                || (c.t > 1.0 - EDGE_SNAP && self.on_cut.contains_key(q))
         };
         crossed.retain(|&e, c| !old_cut(e, c));
         // Crossings an earlier cut left waiting for the blade to finish the tets around them
@@ -145,8 +145,8 @@ impl Cutter {
         // crosses a new edge (one off every cut that is not waiting already); else they go on
         // waiting, and a blade moved along its cut changes nothing.
         let fresh = crossed.keys().any(|e| {
-            !self.on_cut.contains(&e[0])
-                && !self.on_cut.contains(&e[1])
+            !self.on_cut.contains_key(e[0])
+                && !self.on_cut.contains_key(e[1])
                 && !self.pending.contains_key(e)
         });
         if fresh {
@@ -184,7 +184,7 @@ impl Cutter {
             let mut distance: BTreeMap<NodeKey, f64> = BTreeMap::new();
             for (&[p, q], c) in &crossed {
                 for n in [p, q] {
-                    if snapped.contains(&n) || self.on_cut.contains(&n) {
+                    if snapped.contains(&n) || self.on_cut.contains_key(n) {
                         continue;
                     }
                     let d = signed_plane(&self.classified(classify, n), &c.plane).abs();
@@ -198,7 +198,7 @@ impl Cutter {
                 }
             }
             loop {
-                let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
+                let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains_key(n);
                 let (waits, splits): (BTreeMap<_, _>, BTreeMap<_, _>) = crossed
                     .iter()
                     .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
@@ -212,7 +212,7 @@ impl Cutter {
                 waiting.extend(verdict.wait);
             }
         }
-        let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
+        let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains_key(n);
         self.pending.extend(
             crossed
                 .iter()
@@ -241,7 +241,7 @@ impl Cutter {
             .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .collect();
         let mut snapshot = Snapshot::take(&self.model, &before);
-        self.on_cut.extend(snapped.iter().copied());
+        self.on_cut.extend(snapped.iter().map(|&n| (n, ())));
 
         // 4. A node on each split edge, then each parent's sub-tets from all its marks.
         let mut extra: FxHashMap<NodeKey, Point3<f64>> = FxHashMap::default();
@@ -251,7 +251,7 @@ impl Cutter {
         for &([a, b], t) in &splits {
             let rest = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
             let k = self.add_node(rest);
-            self.on_cut.insert(k);
+            self.on_cut.insert(k, ());
             let (xa, xb) = (self.classified(classify, a), self.classified(classify, b));
             extra.insert(k, xa + (xb - xa) * t);
             // It starts where the deformed edge puts it, moving as the edge moves there.
@@ -302,7 +302,7 @@ impl Cutter {
                 continue;
             };
             for (local, f) in TET_FACES.iter().enumerate() {
-                if !f.iter().all(|&i| self.on_cut.contains(&tet.nodes[i])) {
+                if !f.iter().all(|&i| self.on_cut.contains_key(tet.nodes[i])) {
                     continue;
                 }
                 let Some(other) = self.faces.neighbour(tk, tet, local) else {
@@ -319,7 +319,7 @@ impl Cutter {
                         .iter()
                         .find(|n| !face.contains(n))
                         .expect("a tet has four");
-                    if self.on_cut.contains(&k) {
+                    if self.on_cut.contains_key(k) {
                         centroid(nodes.map(at))
                     } else {
                         at(k)
