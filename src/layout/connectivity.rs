@@ -42,13 +42,18 @@ pub(crate) fn inv_mass_of(model: &PackedModel, node: u32) -> f32 {
     }
 }
 
-/// The neighbours (model indices) of every node `diff` touches, in the model after the diff:
-/// `current(node)` gives a node's neighbours before it (empty for added nodes).
-pub(crate) fn touched_neighbours(
+/// The rows before a diff of the existing nodes it touches: each slot with the model index of
+/// its other end.
+pub(crate) type OldRows = BTreeMap<u32, Vec<(Slot, u32)>>;
+
+/// The rows of the existing nodes `diff` touches as they are before it (`row_of(node)`: a
+/// node's slots, each with the model index of its other end), and the neighbours (model
+/// indices) of every node it touches in the model after it (added nodes included).
+pub(crate) fn touched_rows(
     diff: &ModelDiff,
     nodes_before: usize,
-    mut current: impl FnMut(u32) -> Vec<u32>,
-) -> BTreeMap<u32, Vec<u32>> {
+    mut row_of: impl FnMut(u32) -> Vec<(Slot, u32)>,
+) -> (OldRows, BTreeMap<u32, Vec<u32>>) {
     let mut removed: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
     for &[a, b] in &diff.removed_springs {
         removed.entry(a).or_default().insert(b);
@@ -60,14 +65,17 @@ pub(crate) fn touched_neighbours(
         added.entry(a).or_default().push(b);
         added.entry(b).or_default().push(a);
     }
-    diff.touched_nodes(nodes_before)
+    let mut old_rows = OldRows::new();
+    let lists = diff
+        .touched_nodes(nodes_before)
         .into_iter()
         .map(|t| {
-            let mut list = if (t as usize) < nodes_before {
-                current(t)
-            } else {
-                Vec::new()
-            };
+            let mut list = Vec::new();
+            if (t as usize) < nodes_before {
+                let row = row_of(t);
+                list.extend(row.iter().map(|e| e.1));
+                old_rows.insert(t, row);
+            }
             if let Some(r) = removed.get(&t) {
                 list.retain(|x| !r.contains(x));
             }
@@ -76,7 +84,8 @@ pub(crate) fn touched_neighbours(
             }
             (t, list)
         })
-        .collect()
+        .collect();
+    (old_rows, lists)
 }
 
 /// The springs a diff adds or changes, by end pair, as the model holds them after it (a
@@ -94,15 +103,10 @@ impl DiffSprings {
             let [a, b] = s.nodes;
             map.insert([a.min(b), a.max(b)], *s);
         }
-        let mismatch = |a: u32, b: u32, what: &str| {
+        let mismatch = |a: u32, b: u32, what: &str, model_has: &str| {
             Error::Model(format!(
                 "the diff {what} the spring between nodes {a} and {b}, but the model given \
-                 with it {}; give the model the diff was applied to",
-                if what == "removes" {
-                    "still has it"
-                } else {
-                    "does not have it so"
-                }
+                 with it {model_has}; give the model the diff was applied to"
             ))
         };
         for (&[a, b], s) in &map {
@@ -113,13 +117,13 @@ impl DiffSprings {
                     && h.damping == s.damping
             });
             if !same {
-                return Err(mismatch(a, b, "adds or changes"));
+                return Err(mismatch(a, b, "adds or changes", "does not have it so"));
             }
         }
         for &[a, b] in &diff.removed_springs {
             let key = [a.min(b), a.max(b)];
             if !map.contains_key(&key) && model.spring_index(a, b).is_some() {
-                return Err(mismatch(a, b, "removes"));
+                return Err(mismatch(a, b, "removes", "still has it"));
             }
         }
         Ok(DiffSprings(map))
@@ -127,7 +131,7 @@ impl DiffSprings {
 }
 
 /// The slots of touched model node `node` after a diff, with neighbours `neighbours` (model
-/// indices, as [`touched_neighbours`] gives them), pointing at their layout indices `rank`,
+/// indices, as [`touched_rows`] gives them), pointing at their layout indices `rank`,
 /// sorted by layout index: a spring the diff adds or changes from `springs`, any other from
 /// `old` (the node's slots before the patch, each with the model index of its other end),
 /// which holds it as it was. Equal to [`row_slots`] of the model after the diff, without a
@@ -528,23 +532,14 @@ impl ConnectivityLayout {
                 .moves
                 .push(StateMove::added(node, a, &self.order.rank));
         }
-        // The touched nodes' rows before the patch, with the model index of each slot's other
-        // end: the springs the diff leaves alone are taken from them.
-        let old_rows: BTreeMap<u32, Vec<(Slot, u32)>> = diff
-            .touched_nodes(before)
-            .into_iter()
-            .filter(|&t| (t as usize) < before)
-            .map(|t| {
-                let row = self
-                    .row(self.order.rank[t as usize] as usize)
-                    .into_iter()
-                    .map(|s| (s, self.order.order[s.other as usize]))
-                    .collect();
-                (t, row)
-            })
-            .collect();
-        let lists =
-            touched_neighbours(diff, before, |t| old_rows[&t].iter().map(|e| e.1).collect());
+        // The touched nodes' rows before the patch: the springs the diff leaves alone are taken
+        // from them.
+        let (old_rows, lists) = touched_rows(diff, before, |t| {
+            self.row(self.order.rank[t as usize] as usize)
+                .into_iter()
+                .map(|s| (s, self.order.order[s.other as usize]))
+                .collect()
+        });
         for &t in lists.keys() {
             let row = self.order.rank[t as usize] as usize;
             self.nodes.inv_mass[row] = inv_mass_of(model, t);

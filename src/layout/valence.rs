@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use super::connectivity::{
     inv_mass_of, node_update, patched_row_slots, row_slots, state_buffers, state_traffic,
-    touched_neighbours, DiffSprings, NodeArrays, StepParams,
+    touched_rows, DiffSprings, NodeArrays, StepParams,
 };
 use super::patch::{LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
@@ -190,16 +190,9 @@ impl ValenceLayout {
             .iter()
             .map(|a| StateMove::added(0, a, &self.order.rank))
             .collect();
-        // The touched nodes' rows before the patch, with the model index of each slot's other
-        // end: the springs the diff leaves alone are taken from them.
-        let old_rows: BTreeMap<u32, Vec<(Slot, u32)>> = diff
-            .touched_nodes(before)
-            .into_iter()
-            .filter(|&t| (t as usize) < before)
-            .map(|t| (t, self.row_of(t)))
-            .collect();
-        let lists =
-            touched_neighbours(diff, before, |t| old_rows[&t].iter().map(|e| e.1).collect());
+        // The touched nodes' rows before the patch: the springs the diff leaves alone are taken
+        // from them.
+        let (old_rows, lists) = touched_rows(diff, before, |t| self.row_of(t));
         // Untouched neighbours of touched nodes: their rows are rewritten if a node they point
         // at moves, so their rows are read now, with the model index of each slot's other end
         // in the order before the patch. Their springs do not change: only where a slot points.

@@ -39,6 +39,7 @@ const SOURCE: &str = include_str!("../../shaders/device_copy.wgsl");
 #[cfg(feature = "gpu")]
 pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
     use crate::engine::gpu::buffers;
+    use wgpu::util::DeviceExt;
     // Engines dropped before this still hold their memory until the device is polled: free it
     // first, so that the arrays below are placed as on an idle device.
     ctx.device
@@ -59,14 +60,13 @@ pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
     };
     let src = storage("copy source", wgpu::BufferUsages::COPY_SRC);
     let dst = storage("copy destination", wgpu::BufferUsages::COPY_DST);
-    let n = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("copy count"),
-        size: 16,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    ctx.queue
-        .write_buffer(&n, 0, bytemuck::cast_slice(&[vec4s, 0, 0, 0]));
+    let n = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("copy count"),
+            contents: bytemuck::cast_slice(&[vec4s, 0, 0, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
     let layout = buffers::pass_layout(ctx, "device copy", &[true, false]);
     let pipeline = buffers::compute_pipeline(ctx, "device copy", SOURCE, &[&layout])?;
     let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

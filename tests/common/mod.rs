@@ -41,6 +41,7 @@ pub fn rounds_like_cpu() -> bool {
     static SAME: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *SAME.get_or_init(|| {
         use lancet::engine::gpu::buffers;
+        use wgpu::util::DeviceExt;
         let ctx = &gpu().expect("a GPU to probe");
         // SplitMix64: seeded, so a failure reproduces.
         let mut state = 0x05ee_d0ff_10a7_u64;
@@ -64,14 +65,13 @@ pub fn rounds_like_cpu() -> bool {
             .map(|v| [v[0] * v[1] + v[2], v[0] / v[1], v[3].sqrt(), 0.0])
             .collect();
         let n = [input.len() as u32, 0, 0, 0];
-        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("rounding probe n"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        ctx.queue
-            .write_buffer(&uniform, 0, bytemuck::cast_slice(&n));
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("rounding probe n"),
+                contents: bytemuck::cast_slice(&n),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
         let sizing = buffers::Sizing::Exact;
         let inp =
             buffers::storage_buffer(ctx, "probe in", bytemuck::cast_slice(&input), sizing).unwrap();

@@ -551,20 +551,23 @@ impl GpuEngine {
         // Submitted before anything else can fail: the host layout is patched already, and
         // the device must follow it even if the moves cannot be staged (the error says so).
         let moves = self.mover.stage(&self.ctx, &mut upload, &patch.moves);
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("patch"),
-            });
-        let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
-        if let Ok(count) = moves {
-            self.mover
-                .record(&self.ctx, &mut enc, &self.state.buffers(), count);
-        }
-        self.ctx.queue.submit([enc.finish()]);
-        if let Some(b) = staging {
-            self.staging.submitted(b);
+        // Nothing to write and no moves (the records are written too): nothing to submit.
+        if upload.bytes() > 0 {
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("patch"),
+                });
+            let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
+            if let Ok(count) = moves {
+                self.mover
+                    .record(&self.ctx, &mut enc, &self.state.buffers(), count);
+            }
+            self.ctx.queue.submit([enc.finish()]);
+            if let Some(b) = staging {
+                self.staging.submitted(b);
+            }
         }
         moves?;
         if rebuild || !self.health.fits(self.dispatch.nodes) {
