@@ -107,7 +107,9 @@ impl FaceIndex {
         for (tk, tet) in mesh.tets() {
             index.insert(tk, tet)?;
         }
-        index.journal.clear();
+        // Not `clear`: that keeps room for every face of the mesh, and each take would scan
+        // and reset all of it (tens of microseconds a cut on a 100k-tet mesh).
+        index.journal = FxHashMap::default();
         Ok(index)
     }
 
@@ -260,6 +262,12 @@ impl FaceIndex {
     pub fn take_boundary_changes(&mut self) -> BoundaryChanges {
         let mut changes = BoundaryChanges::default();
         let mut journal: Vec<_> = self.journal.drain().collect();
+        // A drain scans and resets the table's whole capacity: after an edit far larger than
+        // usual (a cut through a whole organ), give the room back rather than pay for it at
+        // every later cut.
+        if self.journal.capacity() > 4 * journal.len().max(1024) {
+            self.journal.shrink_to(journal.len());
+        }
         journal.sort_unstable_by_key(|(id, _)| *id);
         for (id, before) in journal {
             let after = self.boundary_triangle(&id);
