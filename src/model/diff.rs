@@ -226,8 +226,7 @@ impl PackedModel {
         added_sorted.sort_by_key(|s| s.nodes);
         let mut gone: Vec<[u32; 2]> = removed.into_iter().collect();
         gone.sort_unstable();
-        remove_sorted(&mut self.springs, &gone);
-        insert_sorted(&mut self.springs, &added_sorted);
+        edit_sorted(&mut self.springs, &gone, &added_sorted);
         for s in &diff.changed_springs {
             let i = self
                 .spring_index(s.nodes[0], s.nodes[1])
@@ -240,54 +239,77 @@ impl PackedModel {
 }
 
 /// Remove the springs with end pairs `gone` (sorted, all present) from `springs` (sorted by end
-/// pair), in place: only the part after the first removed spring moves, and nothing is
-/// allocated, so a cut that changes tens of springs of a model of hundreds of thousands costs a
-/// move of the tail, not a new array.
-fn remove_sorted(springs: &mut Vec<PackedSpring>, gone: &[[u32; 2]]) {
-    // Where each removed spring is (binary searches from the last one found), then the runs
-    // between them moved down as blocks: a memmove of the tail rather than a comparison and a
-    // copy per spring.
-    let mut at: Vec<usize> = Vec::with_capacity(gone.len());
+/// pair) and insert `added` (sorted, none present once `gone` is removed), in place. Nothing
+/// is allocated beyond the edit's own lists, and each spring moves at most once: a cut edits
+/// tens of springs of a model of hundreds of thousands, and moving the tail once for the
+/// removals and again for the additions was most of applying its diff.
+fn edit_sorted(springs: &mut Vec<PackedSpring>, gone: &[[u32; 2]], added: &[PackedSpring]) {
+    let len = springs.len();
+    // Where each removed spring is and where each added one goes (before the old spring at
+    // that index), by binary searches from the last one found.
+    let mut removed_at: Vec<usize> = Vec::with_capacity(gone.len());
     let mut lo = 0;
     for g in gone {
         lo += springs[lo..].partition_point(|s| s.nodes < *g);
         if springs.get(lo).is_some_and(|s| s.nodes == *g) {
-            at.push(lo);
+            removed_at.push(lo);
             lo += 1;
         }
     }
-    let Some(&first) = at.first() else {
-        return;
-    };
-    let mut write = first;
-    for (k, &i) in at.iter().enumerate() {
-        let end = at.get(k + 1).copied().unwrap_or(springs.len());
-        springs.copy_within(i + 1..end, write);
-        write += end - (i + 1);
+    let mut insert_at: Vec<usize> = Vec::with_capacity(added.len());
+    let mut lo = 0;
+    for a in added {
+        lo += springs[lo..].partition_point(|s| s.nodes < a.nodes);
+        insert_at.push(lo);
     }
-    springs.truncate(write);
-}
-
-/// Insert `added` (sorted by end pair, none present) into `springs` (sorted), in place, merging
-/// from the back so that only the part after the first inserted spring moves.
-fn insert_sorted(springs: &mut Vec<PackedSpring>, added: &[PackedSpring]) {
-    if added.is_empty() {
-        return;
+    // The old springs between two edits keep their order and all move by the same offset
+    // (additions before them less removals): runs (start, end, offset).
+    let mut runs: Vec<(usize, usize, isize)> = Vec::new();
+    let (mut pos, mut offset, mut r, mut a) = (0usize, 0isize, 0usize, 0usize);
+    while pos < len {
+        while insert_at.get(a) == Some(&pos) {
+            offset += 1;
+            a += 1;
+        }
+        if removed_at.get(r) == Some(&pos) {
+            offset -= 1;
+            r += 1;
+            pos += 1;
+            continue;
+        }
+        let next = [removed_at.get(r), insert_at.get(a)]
+            .into_iter()
+            .flatten()
+            .copied()
+            .fold(len, usize::min);
+        if offset != 0 {
+            runs.push((pos, next, offset));
+        }
+        pos = next;
     }
-    let old_len = springs.len();
-    springs.resize(old_len + added.len(), added[0]);
-    // Walking down from the end: each addition's place is found by a binary search below the
-    // last one's, and the block of old springs above it moves up as one (a memmove of the
-    // tail rather than a comparison and a copy per spring). The write position stays above
-    // every unread spring, so none is overwritten before it moves.
-    let mut top = old_len;
-    for (k, s) in added.iter().enumerate().rev() {
-        let at = springs[..top].partition_point(|o| o.nodes < s.nodes);
-        let shift = k + 1;
-        springs.copy_within(at..top, at + shift);
-        springs[at + k] = *s;
-        top = at;
+    let new_len = len + added.len() - removed_at.len();
+    if let Some(first) = added.first() {
+        springs.resize(new_len.max(len), *first);
     }
+    // A run's destination can only overlap the sources of runs moving the same way: those
+    // moving up go from the last, those moving down from the first, so that none is
+    // overwritten before it has moved.
+    for &(s, e, d) in runs.iter().rev().filter(|r| r.2 > 0) {
+        springs.copy_within(s..e, s + d as usize);
+    }
+    for &(s, e, d) in runs.iter().filter(|r| r.2 < 0) {
+        springs.copy_within(s..e, s - (-d) as usize);
+    }
+    // Each added spring lands after the additions before it and the old springs below its
+    // place that stay.
+    let mut r = 0;
+    for (k, (s, &at)) in added.iter().zip(&insert_at).enumerate() {
+        while removed_at.get(r).is_some_and(|&i| i < at) {
+            r += 1;
+        }
+        springs[at + k - r] = *s;
+    }
+    springs.truncate(new_len);
 }
 
 #[cfg(test)]
@@ -306,7 +328,8 @@ mod tests {
     }
 
     proptest! {
-        /// The in-place removal and merge give the sorted set a rebuild gives.
+        /// The in-place edit gives the sorted set a rebuild gives, removed springs added back
+        /// included.
         #[test]
         fn in_place_edits_equal_a_sorted_rebuild(
             start in proptest::collection::btree_set((0u32..40, 0u32..40), 0..200),
@@ -331,8 +354,7 @@ mod tests {
                 .map(|p| spring(p, 2.0))
                 .collect();
             let mut springs: Vec<PackedSpring> = start.iter().map(|&p| spring(p, 1.0)).collect();
-            remove_sorted(&mut springs, &gone);
-            insert_sorted(&mut springs, &added);
+            edit_sorted(&mut springs, &gone, &added);
             let mut expected: Vec<PackedSpring> = kept
                 .iter()
                 .map(|&p| spring(p, 1.0))
