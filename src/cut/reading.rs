@@ -63,6 +63,25 @@ pub fn float32_box(lo: [f64; 3], hi: [f64; 3]) -> ([f32; 3], [f32; 3]) {
     (lo.map(|v| (v - pad) as f32), hi.map(|v| (v + pad) as f32))
 }
 
+/// Put nodes found near a blade in ascending node order, as [`crate::engine::Engine::nodes_near`]
+/// gives them. The entries are 32 bytes: sorting 8-byte keys (node, place) and gathering once
+/// moves a quarter of the bytes a sort of the entries does (a cut reads about a thousand).
+pub fn sort_by_node(found: &mut Vec<(u32, [f64; 3])>) {
+    if found.windows(2).all(|w| w[0].0 <= w[1].0) {
+        return;
+    }
+    let mut keys: Vec<u64> = found
+        .iter()
+        .enumerate()
+        .map(|(i, e)| (u64::from(e.0) << 32) | i as u64)
+        .collect();
+    keys.sort_unstable();
+    *found = keys
+        .iter()
+        .map(|k| found[(k & 0xffff_ffff) as usize])
+        .collect();
+}
+
 /// The positions one cut read: `at` has an entry per node (dense order, as many as the mesh
 /// had when the cut began), valid where `known` carries the cut's stamp.
 #[derive(Debug, Clone, Default)]
@@ -214,6 +233,20 @@ mod tests {
         near.sort_by_key(|e| e.0);
         assert_eq!(near, vec![(1, x[1]), (2, x[2])]);
         assert!(s.of(&[3]).is_err());
+    }
+
+    #[test]
+    fn nodes_found_are_sorted_by_node_with_their_positions() {
+        let mut found: Vec<(u32, [f64; 3])> = [7u32, 3, 9, 0, 5]
+            .iter()
+            .map(|&i| (i, [i as f64, -(i as f64), 0.5 * i as f64]))
+            .collect();
+        sort_by_node(&mut found);
+        let nodes: Vec<u32> = found.iter().map(|e| e.0).collect();
+        assert_eq!(nodes, vec![0, 3, 5, 7, 9]);
+        assert!(found
+            .iter()
+            .all(|(i, p)| *p == [*i as f64, -(*i as f64), 0.5 * *i as f64]));
     }
 
     #[test]

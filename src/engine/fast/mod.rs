@@ -383,7 +383,7 @@ impl Engine for FastEngine {
                 out.push((self.order[i], x));
             }
         }
-        out.sort_unstable_by_key(|e| e.0);
+        crate::cut::reading::sort_by_node(&mut out);
         Ok(out)
     }
 

@@ -931,7 +931,7 @@ impl GpuEngine {
                     .collect()
             }
         };
-        out.sort_unstable_by_key(|e| e.0);
+        crate::cut::reading::sort_by_node(&mut out);
         Ok(out)
     }
 
