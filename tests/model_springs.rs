@@ -295,3 +295,59 @@ fn valid_materials_pass_validation() {
         m.validate().unwrap();
     }
 }
+
+/// The journal a cut's diff is made from: while recording, each spring and node is noted as
+/// it was before its first change, and nothing that did not change is noted.
+#[test]
+fn the_journal_notes_each_change_once_with_the_state_before_it() {
+    let mesh = BoxGrid {
+        cells: [4, 3, 2],
+        size: [0.04, 0.03, 0.02],
+        origin: [0.0; 3],
+        split: TetSplit::Five,
+    }
+    .build()
+    .unwrap();
+    let config = ModelConfig::new(material(StiffnessRule::BulkMatched));
+    let mut model = SpringModel::build(&mesh, &config).unwrap();
+    let before = model.clone();
+    // Two tets sharing corners: the second removal changes springs and nodes the first
+    // changed already, which must keep their first state.
+    let first = mesh.tets().nth(0).unwrap();
+    let shared = mesh
+        .tets()
+        .skip(1)
+        .find(|(_, t)| t.nodes.iter().filter(|n| first.1.nodes.contains(n)).count() == 3)
+        .expect("a face neighbour");
+    model.record_changes();
+    for (tk, _) in [first, shared] {
+        model.remove_tet(&mesh, tk).unwrap();
+    }
+    let changes = model.take_changes();
+    let mut edges = std::collections::BTreeSet::new();
+    let mut corners = std::collections::BTreeSet::new();
+    for (_, t) in [first, shared] {
+        corners.extend(t.nodes);
+        for [a, b] in lancet::mesh::TET_EDGES {
+            let (p, q) = (t.nodes[a], t.nodes[b]);
+            edges.insert(if p < q { [p, q] } else { [q, p] });
+        }
+    }
+    let noted: std::collections::BTreeSet<_> = changes.springs.keys().copied().collect();
+    assert_eq!(noted, edges, "every edge of the two tets, and nothing else");
+    for (e, was) in &changes.springs {
+        let s = before.spring_between(e[0], e[1]).expect("existed");
+        assert_eq!(*was, Some((s.rest_length, s.stiffness, s.damping)));
+    }
+    let noted: std::collections::BTreeSet<_> = changes.nodes.keys().copied().collect();
+    assert_eq!(noted, corners);
+    for (n, was) in &changes.nodes {
+        assert_eq!(*was, (before.mass(*n), before.is_fixed(*n)));
+        assert_ne!(model.mass(*n), before.mass(*n), "each corner lost mass");
+    }
+    // Recording stopped with the take.
+    let (tk, _) = mesh.tets().nth(30).unwrap();
+    model.remove_tet(&mesh, tk).unwrap();
+    let later = model.take_changes();
+    assert!(later.springs.is_empty() && later.nodes.is_empty());
+}

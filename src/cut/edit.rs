@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use petgraph::unionfind::UnionFind;
 
-use super::snapshot::{Snapshot, StateSource};
+use super::changes::{diff_of, StateSource};
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
 use crate::mesh::{NodeKey, TetKey};
@@ -17,7 +17,7 @@ impl Cutter {
             .iter()
             .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
             .collect();
-        let snapshot = Snapshot::take(&self.model, &before);
+        self.model.record_changes();
         for &tk in tets {
             outcome.volume_removed += self.mesh.tet_volume(tk);
             self.faces.remove(tk);
@@ -37,7 +37,8 @@ impl Cutter {
             .count();
         outcome.tets_touched = tets.len();
         outcome.tets_removed = tets.len();
-        outcome.diff = snapshot.diff(&self.mesh, &self.model, &[], &[], &self.dense);
+        let changes = self.model.take_changes();
+        outcome.diff = diff_of(changes, &self.mesh, &self.model, &[], &self.dense);
         Ok(())
     }
 
@@ -55,16 +56,12 @@ impl Cutter {
         if plan.copies.is_empty() {
             return Ok(());
         }
-        let before: Vec<[NodeKey; 4]> = plan
-            .replace
-            .keys()
-            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
-            .collect();
-        let snapshot = Snapshot::take(&self.model, &before);
-        let (added, after) = self.apply_split(&plan, &StateSource::Node)?;
+        self.model.record_changes();
+        let added = self.apply_split(&plan, &StateSource::Node)?;
         outcome.tets_touched = plan.replace.len();
         outcome.nodes_added = added.len();
-        outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
+        let changes = self.model.take_changes();
+        outcome.diff = diff_of(changes, &self.mesh, &self.model, &added, &self.dense);
         Ok(())
     }
 
@@ -136,7 +133,7 @@ impl Cutter {
         &mut self,
         plan: &SplitPlan,
         state_source: &dyn Fn(NodeKey) -> StateSource,
-    ) -> Result<(Copies, Vec<[NodeKey; 4]>)> {
+    ) -> Result<Copies> {
         let mut added = Vec::with_capacity(plan.copies.len());
         let mut new_keys = Vec::with_capacity(plan.copies.len());
         for &n in &plan.copies {
@@ -155,7 +152,6 @@ impl Cutter {
         for &t in plan.replace.keys() {
             self.faces.remove(t);
         }
-        let mut after = Vec::with_capacity(before.len());
         for ((&t, subs), old) in plan.replace.iter().zip(&before) {
             let mut new = *old;
             for &(n, c) in subs {
@@ -166,7 +162,6 @@ impl Cutter {
             self.mesh.set_tet_nodes(t, new)?;
             self.note_tet(t);
             self.model.renode_tet(t, *old, new)?;
-            after.push(new);
         }
         for &t in plan.replace.keys() {
             let tet = *self.mesh.tet(t).expect("a tet");
@@ -179,7 +174,7 @@ impl Cutter {
             let ta = mesh.tet(a).expect("a tet");
             (0..4).any(|l| faces.neighbour(a, ta, l) == Some(b))
         });
-        Ok((added, after))
+        Ok(added)
     }
 }
 

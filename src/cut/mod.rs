@@ -15,7 +15,7 @@
 //! - `subdivide.rs`, `template.rs`, `resubdivide.rs`, `floor.rs`: splitting tets along the
 //!   sweep, each tet by one template of its marked edges whatever order the blade marked them
 //!   in, families of sub-tets re-made as marks come, and the quality floor's trial.
-//! - `snapshot.rs`: what the edit changed, as a [`ModelDiff`].
+//! - `changes.rs`: what the edit changed (noted by the spring model), as a [`ModelDiff`].
 //! - `invariants.rs`: the checks a cut mesh must pass (volume, mass, closed fragment
 //!   surfaces, quality, agreement with a rebuild).
 //!
@@ -23,6 +23,7 @@
 //! removed, so the mesh's node storage order stays the packed model's dense order: a node left
 //! with no tet (carving) stays as a fixed node without springs.
 
+mod changes;
 mod classify;
 mod edit;
 pub mod exact;
@@ -32,7 +33,6 @@ pub mod invariants;
 pub mod reading;
 mod resubdivide;
 mod resweep;
-mod snapshot;
 pub mod subdivide;
 pub mod sweep;
 mod template;

@@ -65,8 +65,8 @@ use rustc_hash::{FxHashMap, FxHashSet};
 
 use nalgebra::Point3;
 
+use super::changes::{diff_of, StateSource};
 use super::exact::segment_crosses_triangle;
-use super::snapshot::{Snapshot, StateSource};
 use super::sweep::Sweep;
 use super::{CutOutcome, Cutter};
 use crate::error::Result;
@@ -98,7 +98,6 @@ impl Cutter {
         candidates: &[TetKey],
         outcome: &mut CutOutcome,
     ) -> Result<()> {
-        let nodes_before = self.dense.len() as u32;
         // 1. Crossed edges, where (parameter from the smaller key) and which sweep triangle.
         let mut crossed: BTreeMap<[NodeKey; 2], Crossing> = BTreeMap::new();
         // Waiting crossings on the candidates' edges: those around the tets the blade is in.
@@ -226,8 +225,9 @@ impl Cutter {
             .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]) && !waiting.contains(*e))
             .map(|(e, c)| (*e, c.t))
             .collect();
-        // 3. Record what the edit may change, before it: every sub-tet of the tets whose
-        //    subdivision changes, and the tets at snapped nodes.
+        // 3. What the edit may change (reported as touched): every sub-tet of the tets whose
+        //    subdivision changes, and the tets at snapped nodes. From here the spring model
+        //    notes what it changes, for the diff.
         let parents = self.parents_of(splits.iter().map(|s| s.0));
         let mut touched: BTreeSet<TetKey> = BTreeSet::new();
         for plan in parents.list.values() {
@@ -236,11 +236,7 @@ impl Cutter {
         for &n in &snapped {
             touched.extend(self.faces.tets_at(n).iter().copied());
         }
-        let before: Vec<[NodeKey; 4]> = touched
-            .iter()
-            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
-            .collect();
-        let mut snapshot = Snapshot::take(&self.model, &before);
+        self.model.record_changes();
         self.on_cut.extend(snapped.iter().map(|&n| (n, ())));
 
         // 4. A node on each split edge, then each parent's sub-tets from all its marks.
@@ -340,15 +336,8 @@ impl Cutter {
         let pairs: Vec<(TetKey, TetKey)> = pairs.into_iter().collect();
         outcome.faces_cut = pairs.len();
         let plan = self.plan_split(&pairs);
-        let renoded: Vec<[NodeKey; 4]> = plan
-            .replace
-            .keys()
-            .map(|&t| self.mesh.tet(t).expect("a tet").nodes)
-            .collect();
-        let dense = &self.dense;
-        snapshot.extend(&self.model, &renoded, &|n| dense[n] < nodes_before);
         let source_of = |n: NodeKey| source.get(&n).copied().unwrap_or(StateSource::Node(n));
-        let (copies, _) = self.apply_split(&plan, &source_of)?;
+        let copies = self.apply_split(&plan, &source_of)?;
         added.extend(copies);
         // Sub-tets whose corners were renamed, or whose face is cut, no longer follow their
         // parent's template: those families end.
@@ -366,13 +355,10 @@ impl Cutter {
             .chain(&touched)
             .copied()
             .collect();
-        let after: Vec<[NodeKey; 4]> = all
-            .iter()
-            .filter_map(|&t| self.mesh.tet(t).map(|t| t.nodes))
-            .collect();
         outcome.tets_touched = all.len();
         outcome.nodes_added = added.len();
-        outcome.diff = snapshot.diff(&self.mesh, &self.model, &after, &added, &self.dense);
+        let changes = self.model.take_changes();
+        outcome.diff = diff_of(changes, &self.mesh, &self.model, &added, &self.dense);
         Ok(())
     }
 

@@ -8,6 +8,7 @@
 
 pub mod constraints;
 pub mod diff;
+pub mod journal;
 pub mod material;
 pub mod stability;
 
@@ -23,6 +24,7 @@ use crate::mesh::{NodeKey, TetKey, TetMesh, TET_EDGES};
 
 pub use constraints::FixedSelector;
 pub use diff::{AddedNode, ModelDiff, NodeChange, StateBlend};
+pub use journal::{ModelJournal, SpringParams};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
 pub use stability::{stable_time_step, BoundUndo, StabilityBound};
 
@@ -107,6 +109,8 @@ pub struct SpringModel {
     fixed: SecondaryMap<NodeKey, ()>,
     shares: SecondaryMap<TetKey, TetShare>,
     config: ModelConfig,
+    /// What changed since [`SpringModel::record_changes`], while recording.
+    journal: Option<ModelJournal>,
 }
 
 fn edge_key(a: NodeKey, b: NodeKey) -> [NodeKey; 2] {
@@ -145,6 +149,7 @@ impl SpringModel {
             fixed: SecondaryMap::new(),
             shares: SecondaryMap::new(),
             config: config.clone(),
+            journal: None,
         };
         // Per-node and per-edge incidence counts, needed only by the "per node" and "per
         // spring" parameterisations, which split a given value equally among tets.
@@ -172,6 +177,48 @@ impl SpringModel {
             sel.select(mesh, &mut model.fixed)?;
         }
         Ok(model)
+    }
+
+    /// Start noting what changes (the state of each spring and node before its first
+    /// change), until [`SpringModel::take_changes`]; anything noted before is forgotten.
+    pub fn record_changes(&mut self) {
+        self.journal = Some(ModelJournal::default());
+    }
+
+    /// What changed since [`SpringModel::record_changes`] (empty if it was not called); stops
+    /// recording.
+    pub fn take_changes(&mut self) -> ModelJournal {
+        self.journal.take().unwrap_or_default()
+    }
+
+    /// Note spring `sk` before it changes, while recording.
+    fn note_spring(&mut self, sk: SpringKey) {
+        if let (Some(j), Some(s)) = (&mut self.journal, self.springs.get(sk)) {
+            j.spring(s.nodes, Some((s.rest_length, s.stiffness, s.damping)));
+        }
+    }
+
+    /// Note node `n` before its mass or fixed flag changes, while recording.
+    fn note_node(&mut self, n: NodeKey) {
+        if let Some(j) = &mut self.journal {
+            j.node(n, self.mass.get(n).copied(), self.fixed.contains_key(n));
+        }
+    }
+
+    /// Insert a spring on `key` with rest length `rest_length` and nothing of any tet yet.
+    fn new_spring(&mut self, key: [NodeKey; 2], rest_length: f64) -> SpringKey {
+        if let Some(j) = &mut self.journal {
+            j.spring(key, None);
+        }
+        let s = self.springs.insert(Spring {
+            nodes: key,
+            rest_length,
+            stiffness: 0.0,
+            damping: 0.0,
+            tets: 0,
+        });
+        self.by_edge.insert(key, s);
+        s
     }
 
     /// Compute what tet `tk` contributes (springs are created if missing), given how many tets
@@ -214,17 +261,7 @@ impl SpringModel {
             };
             let sk = match self.by_edge.get(&key) {
                 Some(&s) => s,
-                None => {
-                    let s = self.springs.insert(Spring {
-                        nodes: key,
-                        rest_length: l,
-                        stiffness: 0.0,
-                        damping: 0.0,
-                        tets: 0,
-                    });
-                    self.by_edge.insert(key, s);
-                    s
-                }
+                None => self.new_spring(key, l),
             };
             share.springs[e] = sk;
             share.stiffness[e] = k;
@@ -249,6 +286,7 @@ impl SpringModel {
             }
         };
         for e in 0..6 {
+            self.note_spring(share.springs[e]);
             if let Some(s) = self.springs.get_mut(share.springs[e]) {
                 s.stiffness += sign * share.stiffness[e];
                 s.damping += sign * share.damping[e];
@@ -257,6 +295,7 @@ impl SpringModel {
         }
         if let Some(t) = mesh.tet(tk) {
             for (i, n) in t.nodes.iter().enumerate() {
+                self.note_node(*n);
                 if let Some(m) = self.mass.entry(*n) {
                     *m.or_insert(0.0) += sign * share.mass[i];
                 }
@@ -323,6 +362,8 @@ impl SpringModel {
             if o == n {
                 continue;
             }
+            self.note_node(o);
+            self.note_node(n);
             if let Some(m) = self.mass.get_mut(o) {
                 *m -= share.mass[i];
             }
@@ -347,6 +388,7 @@ impl SpringModel {
             }
             let old_key = share.springs[e];
             let rest_length = self.springs.get(old_key).map_or(0.0, |s| s.rest_length);
+            self.note_spring(old_key);
             if let Some(s) = self.springs.get_mut(old_key) {
                 s.stiffness -= share.stiffness[e];
                 s.damping -= share.damping[e];
@@ -361,18 +403,9 @@ impl SpringModel {
             let key = edge_key(na, nb);
             let sk = match self.by_edge.get(&key) {
                 Some(&s) => s,
-                None => {
-                    let s = self.springs.insert(Spring {
-                        nodes: key,
-                        rest_length,
-                        stiffness: 0.0,
-                        damping: 0.0,
-                        tets: 0,
-                    });
-                    self.by_edge.insert(key, s);
-                    s
-                }
+                None => self.new_spring(key, rest_length),
             };
+            self.note_spring(sk);
             let s = &mut self.springs[sk];
             s.stiffness += share.stiffness[e];
             s.damping += share.damping[e];
