@@ -313,7 +313,7 @@ fn the_journal_notes_each_change_once_with_the_state_before_it() {
     let before = model.clone();
     // Two tets sharing corners: the second removal changes springs and nodes the first
     // changed already, which must keep their first state.
-    let first = mesh.tets().nth(0).unwrap();
+    let first = mesh.tets().next().unwrap();
     let shared = mesh
         .tets()
         .skip(1)
