@@ -901,9 +901,22 @@ impl GpuEngine {
         let mut out: Vec<(u32, [f64; 3])> = match surface.near.take_ahead(&self.ctx, lo32, hi32)? {
             Some(all) => {
                 self.near_reads.ahead += 1;
+                // In node order first (sorting 8-byte keys), so that the rest positions and
+                // fixed flags are then read in ascending order, not at random, and the list
+                // comes out sorted.
+                let mut keys: Vec<u64> = all
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, (slot, _))| {
+                        let old = *order.get(*slot as usize)?;
+                        Some((u64::from(old) << 32) | i as u64)
+                    })
+                    .collect();
+                keys.sort_unstable();
                 // Narrowed to this box by the pass's own test (rest and displacement added
                 // in float32), so the list is the one a read of its own would give.
-                all.iter()
+                keys.iter()
+                    .map(|k| &all[(k & 0xffff_ffff) as usize])
                     .filter_map(|(slot, u)| {
                         let (old, x, r) = node(*slot, u)?;
                         let x32 = [0, 1, 2].map(|c| r[c] as f32 + u[c]);
