@@ -400,12 +400,14 @@ impl Cutter {
             .collect();
         families.sort_unstable();
         families.dedup();
+        // Corners from the tet table (the scan has just read these entries), not the mesh's
+        // tets and the dense map: about seven thousand tets are looked at.
         let around = corners.into_iter().flat_map(move |n| {
             self.faces.tets_at(n).iter().flat_map(move |&t| {
                 std::iter::once(t)
                     .chain(self.partners.of(t).iter().map(|p| p.0))
-                    .filter_map(|t| self.mesh.tet(t))
-                    .flat_map(|tet| tet.nodes.map(|k| self.dense[k]))
+                    .filter_map(|t| self.tet_table.get(t))
+                    .flatten()
             })
         });
         let subdivided = families.into_iter().flat_map(move |f| {

@@ -80,6 +80,15 @@ impl TetTable {
         e.corners
     }
 
+    /// The dense corners of tet `tk`, or `None` if the table has no entry for it (a tet since
+    /// removed, or one whose slot a later tet took).
+    pub fn get(&self, tk: TetKey) -> Option<[u32; 4]> {
+        self.entries
+            .get(slot(tk))
+            .filter(|e| e.key == tk.data().as_ffi())
+            .map(|e| e.corners)
+    }
+
     /// Stamp tet `tk` with `epoch`; true if it was not stamped with it already (the first
     /// visit of this scan).
     pub fn first_visit(&mut self, tk: TetKey, epoch: u32) -> bool {
@@ -129,8 +138,11 @@ mod tests {
         t.forget(a);
         let b = keys.insert(());
         assert_eq!(slot(a), slot(b), "the slot is reused");
+        assert_eq!(t.get(a), None, "a forgotten tet has no entry");
         t.set(b, [5, 6, 7, 8]);
         assert_eq!(t.corners(b), [5, 6, 7, 8]);
+        assert_eq!(t.get(b), Some([5, 6, 7, 8]));
+        assert_eq!(t.get(a), None, "the slot's earlier tet is not read as the new one");
         assert!(t.first_visit(b, 7));
         // New corners keep the stamp of the same tet.
         t.set(b, [5, 6, 7, 9]);
