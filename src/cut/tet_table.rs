@@ -92,13 +92,13 @@ impl TetTable {
     /// Stamp tet `tk` with `epoch`; true if it was not stamped with it already (the first
     /// visit of this scan).
     pub fn first_visit(&mut self, tk: TetKey, epoch: u32) -> bool {
-        let i = slot(tk);
-        debug_assert_eq!(
-            self.entries[i].key,
-            tk.data().as_ffi(),
-            "a tet the table lacks"
+        let e = &mut self.entries[slot(tk)];
+        // Checked in every build, as `corners` is: the key sits beside the stamp, so the
+        // comparison costs no memory access of its own.
+        assert!(
+            e.key == tk.data().as_ffi(),
+            "tet {tk:?} is not in the cutter's tet table"
         );
-        let e = &mut self.entries[i];
         let first = e.stamp != epoch;
         e.stamp = epoch;
         first
@@ -142,7 +142,11 @@ mod tests {
         t.set(b, [5, 6, 7, 8]);
         assert_eq!(t.corners(b), [5, 6, 7, 8]);
         assert_eq!(t.get(b), Some([5, 6, 7, 8]));
-        assert_eq!(t.get(a), None, "the slot's earlier tet is not read as the new one");
+        assert_eq!(
+            t.get(a),
+            None,
+            "the slot's earlier tet is not read as the new one"
+        );
         assert!(t.first_visit(b, 7));
         // New corners keep the stamp of the same tet.
         t.set(b, [5, 6, 7, 9]);

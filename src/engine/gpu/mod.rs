@@ -506,6 +506,7 @@ impl GpuEngine {
         let mut rebuild = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
         if slots > self.state.capacity() {
             self.state = self.state.grown(&self.ctx, slots)?;
+            self.mover.forget_state();
             rebuild = true;
         }
         self.update_fixed_point(model);

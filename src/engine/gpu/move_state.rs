@@ -94,6 +94,12 @@ impl MovePass {
         })
     }
 
+    /// Drop the bind groups of the state buffers moved into last: the state was replaced (grown),
+    /// and the groups would keep the old buffers alive until the next patch with moves.
+    pub fn forget_state(&mut self) {
+        self.groups.get_mut().clear();
+    }
+
     /// Queue the records of `moves` on `upload` (growing the buffers they and their sources
     /// need), then, once the upload is recorded into `enc`, call [`MovePass::record`] with
     /// the count this returns.
