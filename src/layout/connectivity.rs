@@ -516,6 +516,20 @@ impl ConnectivityLayout {
         let k = self.capacity as usize;
         // Checked before anything changes: on error the layout is as it was.
         let springs = DiffSprings::of(diff, model)?;
+        // The most rows the patch can add: one per added node, and per touched node one more
+        // than the springs it gains (a spring added names two nodes). A table that could pass
+        // u32 slot indices is refused here, before anything changes, so that writing the rows
+        // below cannot fail halfway.
+        let most_rows = self.slots.len() / k
+            + diff.added_nodes.len()
+            + diff.touched_nodes(before).len()
+            + 2 * diff.added_springs.len();
+        if most_rows.saturating_mul(k) > u32::MAX as usize {
+            return Err(Error::Model(format!(
+                "a connectivity table of up to {most_rows} rows of {k} slots is too large for u32 \
+                 indices; use the valence or edge layout"
+            )));
+        }
         let mut patch = LayoutPatch::default();
         let mut dirty: Vec<u32> = Vec::new();
         let mut dirty_slots: Vec<u32> = Vec::new();
@@ -550,13 +564,20 @@ impl ConnectivityLayout {
             let new = patched_row_slots(model, t, list, old, &springs, &self.order.rank)?;
             self.write_row(row, &new, &mut dirty)?;
         }
-        if self.overflow.len() > 64.max(self.node_count() / 8) {
-            let widest = (0..self.node_count())
-                .map(|i| self.row(i).len() as u32)
-                .max()
-                .unwrap_or(0);
-            *self =
-                ConnectivityLayout::new(model, self.order.clone(), Some(row_size_class(widest)))?;
+        // A repack only makes the table faster to read: where the wider table would pass u32
+        // indices, the patched one (already valid) is kept.
+        let repacked = (self.overflow.len() > 64.max(self.node_count() / 8))
+            .then(|| {
+                let widest = (0..self.node_count())
+                    .map(|i| self.row(i).len() as u32)
+                    .max()
+                    .unwrap_or(0);
+                ConnectivityLayout::new(model, self.order.clone(), Some(row_size_class(widest)))
+                    .ok()
+            })
+            .flatten();
+        if let Some(repacked) = repacked {
+            *self = repacked;
             patch.repacked = true;
             patch.mark_all(LayoutArray::Slots, self.slots.len() as u64 * 32);
             patch.mark_all(LayoutArray::InvMass, self.nodes.inv_mass.len() as u64 * 4);
