@@ -21,6 +21,7 @@ pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod surface_nodes;
 pub mod timing;
 pub mod upload;
 
@@ -277,6 +278,8 @@ enum SurfaceSync {
 struct SurfaceCulling {
     /// Boundary triangles, model order.
     triangles: Vec<[u32; 3]>,
+    /// The triangles at each model node.
+    at_nodes: surface_nodes::TrianglesAtNodes,
     tool: broad_tool::ToolCuller,
     /// Nodes near a blade, over the culler's rest positions (built with it: a cut that reads
     /// them never waits for a pipeline).
@@ -704,6 +707,7 @@ impl GpuEngine {
                 s.tool.set_surface(&self.ctx, &tris, &rest, &self.state)?;
                 s.near.rebind(&self.ctx, s.tool.rest(), &self.state);
                 s.triangles = triangles.to_vec();
+                s.at_nodes = surface_nodes::TrianglesAtNodes::of(triangles, n);
                 s.self_contact = None;
             }
             None => {
@@ -711,6 +715,7 @@ impl GpuEngine {
                 let near = nodes_near::NodesNear::new(&self.ctx, tool.rest(), &self.state)?;
                 self.surface = Some(SurfaceCulling {
                     triangles: triangles.to_vec(),
+                    at_nodes: surface_nodes::TrianglesAtNodes::of(triangles, n),
                     tool,
                     near,
                     self_contact: None,
@@ -734,9 +739,10 @@ impl GpuEngine {
             SurfaceSync::Moved(slots) => slots.clone(),
             SurfaceSync::Current => Vec::new(),
         };
-        let Some(known) = self.surface.as_ref().map(|s| s.triangles.len()) else {
+        let Some(surface) = self.surface.as_ref() else {
             return self.set_surface(triangles);
         };
+        let known = surface.triangles.len();
         let n = self.rest.len();
         let mut slots: Vec<u32> = changed
             .iter()
@@ -763,15 +769,17 @@ impl GpuEngine {
                 .copied()
                 .filter(|&o| o != crate::layout::NodeOrder::HOLE)
         };
-        if !moved.is_empty() {
-            // Triangles at a node whose layout index changed hold stale indices.
-            let mut at_moved = vec![false; n];
-            for node in moved.iter().filter_map(|&slot| node_at(slot)) {
-                at_moved[node as usize] = true;
-            }
+        // Triangles at a node whose layout index changed hold stale indices. Those of the new
+        // list are the ones at the node before the edit (the index is of the last list) that
+        // the edit left alone, and changed ones, which are written anyway.
+        for node in moved.iter().filter_map(|&slot| node_at(slot)) {
             slots.extend(
-                (0..triangles.len() as u32)
-                    .filter(|&i| triangles[i as usize].iter().any(|&k| at_moved[k as usize])),
+                surface
+                    .at_nodes
+                    .at(node)
+                    .iter()
+                    .copied()
+                    .filter(|&i| (i as usize) < triangles.len()),
             );
         }
         slots.sort_unstable();
@@ -798,11 +806,26 @@ impl GpuEngine {
         {
             return self.set_surface(triangles);
         }
-        s.triangles.resize(triangles.len(), [0; 3]);
+        // Dropped slots leave the index; changed and appended ones are put in it anew.
+        for (i, t) in s.triangles.iter().enumerate().skip(triangles.len()) {
+            s.at_nodes.remove(i as u32, t);
+        }
+        s.triangles.resize(triangles.len(), [u32::MAX; 3]);
+        s.at_nodes.grow(n);
         for &i in &slots {
-            s.triangles[i as usize] = triangles[i as usize];
+            let (old, new) = (s.triangles[i as usize], triangles[i as usize]);
+            if old != new {
+                s.at_nodes.remove(i, &old);
+                s.at_nodes.add(i, &new);
+                s.triangles[i as usize] = new;
+            }
         }
         debug_assert_eq!(s.triangles, triangles, "the edit named every changed slot");
+        debug_assert!(
+            s.at_nodes
+                .same_as(&surface_nodes::TrianglesAtNodes::of(triangles, n)),
+            "the triangles at the nodes follow the edits"
+        );
         s.self_contact = None;
         self.surface_sync = SurfaceSync::Current;
         Ok(())
