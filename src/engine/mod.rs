@@ -10,8 +10,10 @@ pub mod fast;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod reference;
+mod surface_list;
 
 use std::collections::{HashMap, HashSet};
+use surface_list::surface_key;
 
 use serde::{Deserialize, Serialize};
 
@@ -469,13 +471,6 @@ fn verlet_precision_note(kind: EngineKind, config: &SimConfig, bound: f64) -> Op
                 config.dt / bound
             )
         })
-}
-
-/// A surface triangle's corners in ascending order: the same key whichever way it is oriented.
-fn surface_key(t: &[u32; 3]) -> [u32; 3] {
-    let mut k = *t;
-    k.sort_unstable();
-    k
 }
 
 /// An engine with safety checks around it.
@@ -1156,29 +1151,10 @@ impl Simulation {
                 )));
             }
         }
-        let old = triangles.clone();
-        // The slots whose triangle changed, so that the engine writes only those.
-        let mut changed = Vec::with_capacity(edit.removed.len() + edit.added.len());
-        for t in &edit.removed {
-            let slot = slots.remove(&key(t)).expect("validated") as usize;
-            triangles.swap_remove(slot);
-            if let Some(moved) = triangles.get(slot) {
-                slots.insert(key(moved), slot as u32);
-                changed.push(slot as u32);
-            }
-        }
-        for t in &edit.added {
-            slots.insert(key(t), triangles.len() as u32);
-            changed.push(triangles.len() as u32);
-            triangles.push(*t);
-        }
-        if let Err(e) = self.engine.edit_surface(triangles, &changed) {
-            *slots = old
-                .iter()
-                .enumerate()
-                .map(|(i, t)| (key(t), i as u32))
-                .collect();
-            *triangles = old;
+        // Edited in place; undone the same way if the engine refuses the edit.
+        let applied = surface_list::apply(triangles, slots, edit);
+        if let Err(e) = self.engine.edit_surface(triangles, &applied.changed) {
+            surface_list::undo(triangles, slots, edit, applied);
             return Err(e);
         }
         Ok(())
