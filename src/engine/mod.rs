@@ -122,8 +122,8 @@ pub trait Engine: Send {
     /// Find the nodes in the box `lo..=hi` (m) as the last pass of the next [`Engine::step`]
     /// and start reading them back with it, so that a [`Engine::nodes_near`] for a box inside
     /// this one, before the state changes again, needs no round trip of its own: the read
-    /// came back with the step. Engines whose state is in host memory have nothing to hide
-    /// and ignore it.
+    /// came back with the step. The fast CPU engine scans for them on the step's threads
+    /// after its last iteration; the reference engine ignores it.
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         let _ = (lo, hi);
     }
@@ -237,7 +237,8 @@ pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) 
 
 /// How an engine served [`Engine::nodes_near`]: from a read made ahead with the step before
 /// it ([`Engine::prefetch_near`]), or by a read of its own (a round trip to the device).
-/// Engines whose state is in host memory count neither.
+/// The fast CPU engine counts its scans made with a step and on their own; the reference engine
+/// counts neither.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct NearReads {
     /// Reads that came back with a step.
@@ -1257,13 +1258,16 @@ impl Simulation {
     /// [`crate::cut::Cutter::reading_box_ahead`] bounds) reads them without a round trip of its
     /// own. A later read for a box that this one does not hold, or after the state changed
     /// again (a further step, a position correction, a patch), reads from the device as
-    /// before; [`Simulation::near_reads`] counts which. The CPU engines ignore it.
+    /// before; [`Simulation::near_reads`] counts which. The fast CPU engine scans for them
+    /// after the step, on its threads, and the cut narrows that list instead of scanning every
+    /// node itself; the reference engine ignores it.
     pub fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         self.near_ahead = Some((lo, hi));
     }
 
     /// How the engine served reads of nodes near a blade: from a read made ahead with a step,
-    /// or with a round trip of their own (zero on the CPU engines).
+    /// or with a round trip (a scan, on the fast CPU engine) of their own (zero on the reference
+    /// engine).
     pub fn near_reads(&self) -> NearReads {
         self.near_reads
     }

@@ -34,6 +34,9 @@ type P = [f32; 4];
 /// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores.
 const BLOCK: usize = 1024;
 
+/// Nodes per task of a scan for the nodes near a blade made with a step.
+const NEAR_BLOCK: usize = 8192;
+
 /// One spring as seen from one of its ends.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(32))]
@@ -101,6 +104,20 @@ pub struct FastEngine {
     /// Output buffers of the next step (Verlet uses only `x_next`).
     x_next: Vec<P>,
     second_next: Vec<P>,
+    /// A box whose nodes the next step finds after its last iteration
+    /// ([`Engine::prefetch_near`]).
+    near_ahead: Option<([f64; 3], [f64; 3])>,
+    /// The nodes found in that box after the last step, until the state changes.
+    read_ahead: Option<ReadAhead>,
+    /// How reads of the nodes near a blade were served.
+    near_reads: super::NearReads,
+}
+
+/// Nodes found in a box after a step, in node order, with their positions.
+struct ReadAhead {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    found: Vec<(u32, [f64; 3])>,
 }
 
 impl FastEngine {
@@ -148,6 +165,9 @@ impl FastEngine {
             rank,
             rest_inner,
             rest: model.rest.clone(),
+            near_ahead: None,
+            read_ahead: None,
+            near_reads: Default::default(),
         };
         engine.order.reserve(spare(n));
         engine.rank.reserve(spare(n));
@@ -204,6 +224,60 @@ impl FastEngine {
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
         std::mem::swap(&mut self.second, &mut self.second_next);
+    }
+
+    /// The nodes among internal indices `range` whose position lies in the box `lo..=hi`, in
+    /// node order, with their positions as [`Engine::positions`] gives them.
+    fn scan_near(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        range: std::ops::Range<usize>,
+    ) -> Vec<(u32, [f64; 3])> {
+        // A scan of the engine's own arrays, in their order: no copy of every position. The box
+        // is first tested in float32 (rest and displacement side by side), grown by the
+        // rounding of that sum, which rejects most nodes without gathering their float64 rest.
+        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
+        let mut out = Vec::new();
+        for i in range {
+            let (r, u) = (self.rest_inner[i], self.x[i]);
+            // Without short circuits: no branch per coordinate, and most nodes are outside.
+            let x = [r[0] + u[0], r[1] + u[1], r[2] + u[2]];
+            let maybe = (x[0] >= lo32[0])
+                & (x[0] <= hi32[0])
+                & (x[1] >= lo32[1])
+                & (x[1] <= hi32[1])
+                & (x[2] >= lo32[2])
+                & (x[2] <= hi32[2]);
+            if !maybe && !self.graph.fixed[i] {
+                continue;
+            }
+            let x = self.position_at(i);
+            if crate::cut::reading::inside(&x, &lo, &hi) {
+                out.push((self.order[i], x));
+            }
+        }
+        crate::cut::reading::sort_by_node(&mut out);
+        out
+    }
+
+    /// [`FastEngine::scan_near`] over every node, on the step's threads (still awake from
+    /// the step: woken for a scan of its own, they would cost more than they save).
+    fn scan_near_parallel(&self, lo: [f64; 3], hi: [f64; 3]) -> Vec<(u32, [f64; 3])> {
+        let n = self.x.len();
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            let starts: Vec<usize> = (0..n).step_by(NEAR_BLOCK).collect();
+            let mut out: Vec<(u32, [f64; 3])> = starts
+                .into_par_iter()
+                .flat_map_iter(|s| self.scan_near(lo, hi, s..(s + NEAR_BLOCK).min(n)))
+                .collect();
+            crate::cut::reading::sort_by_node(&mut out);
+            out
+        }
+        #[cfg(not(feature = "parallel"))]
+        self.scan_near(lo, hi, 0..n)
     }
 
     /// Number of nodes.
@@ -340,15 +414,23 @@ impl Engine for FastEngine {
         model: &PackedModel,
         diff: &crate::model::ModelDiff,
     ) -> crate::Result<Option<super::PatchCost>> {
+        self.read_ahead = None;
         Ok(self.patch_in_place(model, diff))
     }
 
     fn step(&mut self, steps: u32) {
+        self.read_ahead = None;
         for _ in 0..steps {
             match self.integrator {
                 Integrator::Verlet => self.step_verlet(),
                 Integrator::SymplecticEuler => self.step_euler(),
             }
+        }
+        // The read the cut after this step will make, while the state is in cache and the
+        // threads are awake: the cut's own read is then a narrowing of it.
+        if let Some((lo, hi)) = self.near_ahead.take() {
+            let found = self.scan_near_parallel(lo, hi);
+            self.read_ahead = Some(ReadAhead { lo, hi, found });
         }
     }
 
@@ -361,30 +443,28 @@ impl Engine for FastEngine {
     }
 
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> crate::Result<Vec<(u32, [f64; 3])>> {
-        // A scan of the engine's own arrays, in their order: no copy of every position. The box
-        // is first tested in float32 (rest and displacement side by side), grown by the
-        // rounding of that sum, which rejects most nodes without gathering their float64 rest.
-        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
-        let mut out = Vec::new();
-        for (i, (r, u)) in self.rest_inner.iter().zip(&self.x).enumerate() {
-            // Without short circuits: no branch per coordinate, and most nodes are outside.
-            let x = [r[0] + u[0], r[1] + u[1], r[2] + u[2]];
-            let maybe = (x[0] >= lo32[0])
-                & (x[0] <= hi32[0])
-                & (x[1] >= lo32[1])
-                & (x[1] <= hi32[1])
-                & (x[2] >= lo32[2])
-                & (x[2] <= hi32[2]);
-            if !maybe && !self.graph.fixed[i] {
-                continue;
-            }
-            let x = self.position_at(i);
-            if crate::cut::reading::inside(&x, &lo, &hi) {
-                out.push((self.order[i], x));
+        if let Some(a) = &self.read_ahead {
+            if (0..3).all(|c| a.lo[c] <= lo[c] && hi[c] <= a.hi[c]) {
+                self.near_reads.ahead += 1;
+                // Narrowed by the exact test a scan of its own makes last: the same list.
+                return Ok(a
+                    .found
+                    .iter()
+                    .filter(|(_, x)| crate::cut::reading::inside(x, &lo, &hi))
+                    .copied()
+                    .collect());
             }
         }
-        crate::cut::reading::sort_by_node(&mut out);
-        Ok(out)
+        self.near_reads.direct += 1;
+        Ok(self.scan_near(lo, hi, 0..self.x.len()))
+    }
+
+    fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        self.near_ahead = Some((lo, hi));
+    }
+
+    fn near_reads(&self) -> super::NearReads {
+        self.near_reads
     }
 
     fn node_positions(&self, nodes: &[u32]) -> crate::Result<Vec<[f64; 3]>> {
@@ -396,6 +476,7 @@ impl Engine for FastEngine {
     }
 
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> crate::Result<()> {
+        self.read_ahead = None;
         super::check_correction(nodes, positions, self.order.len())?;
         let inv_h = 1.0 / self.params.h as f64;
         for (&o, p) in nodes.iter().zip(positions) {
@@ -416,6 +497,7 @@ impl Engine for FastEngine {
     }
 
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
+        self.read_ahead = None;
         let h = self.params.h as f64;
         for (i, &o) in self.order.iter().enumerate() {
             let o = o as usize;
