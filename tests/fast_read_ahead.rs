@@ -13,6 +13,9 @@ use models::{random_diff, random_model, random_state, Rng};
 
 type Found = Vec<(u32, [f64; 3])>;
 
+/// Something done to an engine between its step and a read.
+type Change = Box<dyn Fn(&mut FastEngine)>;
+
 fn engine(model: &PackedModel) -> FastEngine {
     let mut engine = FastEngine::new(model, SimConfig::new(2e-5));
     let (x, v) = random_state(model, 3);
@@ -95,7 +98,7 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     let mut rng = Rng(8);
     let x = engine.positions();
     let (inner, outer) = boxes(&mut rng, &x);
-    let changes: [(&str, Box<dyn Fn(&mut FastEngine)>); 5] = [
+    let changes: [(&str, Change); 5] = [
         ("a step", Box::new(|e: &mut FastEngine| e.step(1))),
         (
             "a correction",
