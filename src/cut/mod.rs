@@ -322,6 +322,10 @@ impl Cutter {
         // Put back whatever happens, so that the next cut reuses the arrays.
         let result = self.cut_reading(sweep, source, &mut read);
         self.read = read;
+        if result.is_err() {
+            // An edit that failed partway leaves the model recording: stop it.
+            self.model.take_changes();
+        }
         result
     }
 

@@ -507,8 +507,9 @@ impl ConnectivityLayout {
     /// rows of touched nodes are rewritten, continuing in overflow rows where they outgrow
     /// `capacity`. Only when the overflow rows outnumber an eighth of the nodes (and 64) is
     /// the table repacked, with the capacity grown to the next size class
-    /// ([`row_size_class`]) so that no row continues. The result equals (as [`PartialEq`]
-    /// compares, slot for slot in each node's order)
+    /// ([`row_size_class`]) so that no row continues (unless that table would pass u32 slot
+    /// indices: the patched one is kept). The result equals (as [`PartialEq`] compares, slot
+    /// for slot in each node's order)
     /// `ConnectivityLayout::new(model, self.order.clone(), Some(self.capacity))`.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.node_count();
@@ -572,10 +573,13 @@ impl ConnectivityLayout {
                     .map(|i| self.row(i).len() as u32)
                     .max()
                     .unwrap_or(0);
-                ConnectivityLayout::new(model, self.order.clone(), Some(row_size_class(widest)))
-                    .ok()
+                let class = row_size_class(widest);
+                // Its size is known first: a table that cannot fit is not built to be refused.
+                let fits = (self.node_count() as u64) * u64::from(class) <= u64::from(u32::MAX);
+                fits.then(|| ConnectivityLayout::new(model, self.order.clone(), Some(class)))
             })
-            .flatten();
+            .flatten()
+            .transpose()?;
         if let Some(repacked) = repacked {
             *self = repacked;
             patch.repacked = true;

@@ -226,8 +226,9 @@ impl FastEngine {
         std::mem::swap(&mut self.second, &mut self.second_next);
     }
 
-    /// The nodes among internal indices `range` whose position lies in the box `lo..=hi`, in
-    /// node order, with their positions as [`Engine::positions`] gives them.
+    /// The nodes among internal indices `range` whose position lies in the box `lo..=hi`, with
+    /// their positions as [`Engine::positions`] gives them, in internal order (callers sort
+    /// them into node order once, [`crate::cut::reading::sort_by_node`]).
     fn scan_near(
         &self,
         lo: [f64; 3],
@@ -257,11 +258,10 @@ impl FastEngine {
                 out.push((self.order[i], x));
             }
         }
-        crate::cut::reading::sort_by_node(&mut out);
         out
     }
 
-    /// [`FastEngine::scan_near`] over every node, on the step's threads (still awake from
+    /// [`FastEngine::scan_near`] over every node, in node order, on the step's threads (still awake from
     /// the step: woken for a scan of its own, they would cost more than they save).
     fn scan_near_parallel(&self, lo: [f64; 3], hi: [f64; 3]) -> Vec<(u32, [f64; 3])> {
         let n = self.x.len();
@@ -277,7 +277,11 @@ impl FastEngine {
             out
         }
         #[cfg(not(feature = "parallel"))]
-        self.scan_near(lo, hi, 0..n)
+        {
+            let mut out = self.scan_near(lo, hi, 0..n);
+            crate::cut::reading::sort_by_node(&mut out);
+            out
+        }
     }
 
     /// Number of nodes.
@@ -456,7 +460,9 @@ impl Engine for FastEngine {
             }
         }
         self.near_reads.direct += 1;
-        Ok(self.scan_near(lo, hi, 0..self.x.len()))
+        let mut out = self.scan_near(lo, hi, 0..self.x.len());
+        crate::cut::reading::sort_by_node(&mut out);
+        Ok(out)
     }
 
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
