@@ -9,7 +9,7 @@ mod models;
 use lancet::engine::fast::FastEngine;
 use lancet::engine::{Engine, SimConfig};
 use lancet::model::PackedModel;
-use models::{random_diff, random_model, random_state, Rng};
+use models::{boxes_near, random_diff, random_model, random_state, Rng};
 
 type Found = Vec<(u32, [f64; 3])>;
 
@@ -21,22 +21,6 @@ fn engine(model: &PackedModel) -> FastEngine {
     let (x, v) = random_state(model, 3);
     engine.set_state(&x, &v);
     engine
-}
-
-/// A box around a random node's position, and one holding it, grown by up to 5 mm a side.
-fn boxes(rng: &mut Rng, x: &[[f64; 3]]) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
-    let p = x[(rng.next() * x.len() as f64) as usize];
-    let half = [0, 1, 2].map(|_| 1e-3 * (1.0 + 20.0 * rng.next()));
-    let inner = [
-        [0, 1, 2].map(|c| p[c] - half[c]),
-        [0, 1, 2].map(|c| p[c] + half[c]),
-    ];
-    let grow = [0, 1, 2, 3, 4, 5].map(|_| 5e-3 * rng.next());
-    let outer = [
-        [0, 1, 2].map(|c| inner[0][c] - grow[c]),
-        [0, 1, 2].map(|c| inner[1][c] + grow[3 + c]),
-    ];
-    (inner, outer)
 }
 
 fn bits(found: &Found) -> Vec<(u32, [u64; 3])> {
@@ -65,7 +49,7 @@ fn a_read_ahead_gives_the_nodes_in_the_box_as_a_scan_of_its_own_does() {
     let mut found = 0;
     for round in 0..3 {
         for _ in 0..8 {
-            let (inner, outer) = boxes(&mut rng, &engine.positions());
+            let (inner, outer) = boxes_near(&mut rng, &engine.positions());
             engine.prefetch_near(outer[0], outer[1]);
             engine.step(1);
             let before = engine.near_reads();
@@ -97,7 +81,7 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
     let mut engine = engine(&model);
     let mut rng = Rng(8);
     let x = engine.positions();
-    let (inner, outer) = boxes(&mut rng, &x);
+    let (inner, outer) = boxes_near(&mut rng, &x);
     let changes: [(&str, Change); 5] = [
         ("a step", Box::new(|e: &mut FastEngine| e.step(1))),
         (

@@ -17,25 +17,11 @@ use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
-use models::{random_diff, random_model, random_state, Rng};
+use models::{boxes_near, random_diff, random_model, random_state, Rng};
 use nalgebra::Isometry3;
 use rstest::rstest;
 
 type Found = Vec<(u32, [f64; 3])>;
-
-/// A random box near a random node, and a box holding it (grown by up to 5 mm per side).
-fn boxes(rng: &mut Rng, x: &[[f64; 3]]) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
-    let p = x[(rng.next() * x.len() as f64) as usize];
-    let half = [0, 1, 2].map(|_| 1e-3 * (1.0 + 20.0 * rng.next()));
-    let lo = [0, 1, 2].map(|c| p[c] - half[c]);
-    let hi = [0, 1, 2].map(|c| p[c] + half[c]);
-    let grow = [0, 1, 2, 3, 4, 5].map(|_| 5e-3 * rng.next());
-    let outer = [
-        [0, 1, 2].map(|c| lo[c] - grow[c]),
-        [0, 1, 2].map(|c| hi[c] + grow[3 + c]),
-    ];
-    ([lo, hi], outer)
-}
 
 /// Every node whose position lies in the box is in `got`, each with the position a full
 /// readback gives, bit for bit; returns how many the box holds.
@@ -82,7 +68,7 @@ fn a_read_ahead_gives_what_a_read_of_its_own_gives(
     let mut found = 0;
     for round in 0..3 {
         for _ in 0..8 {
-            let (inner, outer) = boxes(&mut rng, &engine.positions());
+            let (inner, outer) = boxes_near(&mut rng, &engine.positions());
             engine.prefetch_near(outer[0], outer[1]);
             engine.step(1);
             let before = engine.near_reads();
@@ -142,7 +128,7 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
         return;
     };
     let mut rng = Rng(17);
-    let (inner, outer) = boxes(&mut rng, &engine.positions());
+    let (inner, outer) = boxes_near(&mut rng, &engine.positions());
 
     // A second step: the read ahead saw the state before it.
     engine.prefetch_near(outer[0], outer[1]);

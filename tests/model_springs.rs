@@ -152,6 +152,18 @@ fn rel_diff(a: f64, b: f64) -> f64 {
 /// five-tet split, tet 0 is the central tet of the corner cell (all its edges shared), tet 1 the
 /// corner tet at the box's corner node (its removal deletes springs and that node's mass), and
 /// so is the last tet, at the opposite corner.
+/// A box of 4 x 3 x 2 cells of 1 cm, five tets each, at the origin.
+fn five_tet_box() -> TetMesh {
+    BoxGrid {
+        cells: [4, 3, 2],
+        size: [0.04, 0.03, 0.02],
+        origin: [0.0; 3],
+        split: TetSplit::Five,
+    }
+    .build()
+    .unwrap()
+}
+
 #[rstest]
 #[case::central_tet_of_the_corner_cell(0, false)]
 #[case::corner_tet(1, true)]
@@ -161,14 +173,7 @@ fn removing_a_tets_share_gives_the_model_of_the_mesh_without_it(
     #[case] which: usize,
     #[case] deletes_springs: bool,
 ) {
-    let mut mesh = BoxGrid {
-        cells: [4, 3, 2],
-        size: [0.04, 0.03, 0.02],
-        origin: [0.0; 3],
-        split: TetSplit::Five,
-    }
-    .build()
-    .unwrap();
+    let mut mesh = five_tet_box();
     // Two materials so that shares differ across the region boundary. Only parameters that
     // come per tet (material stiffness, density, stiffness-proportional damping) have this
     // property: the per-spring and per-node values (`Stiffness::Spring`, `Mass::PerNode`,
@@ -300,14 +305,7 @@ fn valid_materials_pass_validation() {
 /// it was before its first change, and nothing that did not change is noted.
 #[test]
 fn the_journal_notes_each_change_once_with_the_state_before_it() {
-    let mesh = BoxGrid {
-        cells: [4, 3, 2],
-        size: [0.04, 0.03, 0.02],
-        origin: [0.0; 3],
-        split: TetSplit::Five,
-    }
-    .build()
-    .unwrap();
+    let mesh = five_tet_box();
     let config = ModelConfig::new(material(StiffnessRule::BulkMatched));
     let mut model = SpringModel::build(&mesh, &config).unwrap();
     let before = model.clone();

@@ -66,6 +66,21 @@ pub fn random_model(seed: u64, damped: bool) -> PackedModel {
     model
 }
 
+/// A random box around a random one of the positions `x` (1-21 mm half-widths), and a box
+/// holding it, grown by up to 5 mm a side: what a cut asks for and what was read ahead.
+pub fn boxes_near(rng: &mut Rng, x: &[[f64; 3]]) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
+    let p = x[(rng.next() * x.len() as f64) as usize];
+    let half = [0, 1, 2].map(|_| 1e-3 * (1.0 + 20.0 * rng.next()));
+    let lo = [0, 1, 2].map(|c| p[c] - half[c]);
+    let hi = [0, 1, 2].map(|c| p[c] + half[c]);
+    let grow = [0, 1, 2, 3, 4, 5].map(|_| 5e-3 * rng.next());
+    let outer = [
+        [0, 1, 2].map(|c| lo[c] - grow[c]),
+        [0, 1, 2].map(|c| hi[c] + grow[3 + c]),
+    ];
+    ([lo, hi], outer)
+}
+
 /// Random displacements of about 5% of a cell and random velocities, model order, with fixed
 /// nodes at rest.
 pub fn random_state(model: &PackedModel, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
