@@ -7,6 +7,8 @@ use bytemuck::{Pod, Zeroable};
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use rustc_hash::FxHashMap;
+
 use super::connectivity::{
     inv_mass_of, node_update, patched_row_slots, row_slots, state_buffers, state_traffic,
     touched_rows, DiffSprings, NodeArrays, StepParams,
@@ -193,17 +195,10 @@ impl ValenceLayout {
         // The touched nodes' rows before the patch: the springs the diff leaves alone are taken
         // from them.
         let (old_rows, lists) = touched_rows(diff, before, |t| self.row_of(t));
-        // Untouched neighbours of touched nodes: their rows are rewritten if a node they point
-        // at moves, so their rows are read now, with the model index of each slot's other end
-        // in the order before the patch. Their springs do not change: only where a slot points.
-        let mut others: BTreeMap<u32, Vec<(Slot, u32)>> = BTreeMap::new();
-        for list in lists.values() {
-            for &nb in list {
-                if !lists.contains_key(&nb) && !others.contains_key(&nb) {
-                    others.insert(nb, self.row_of(nb));
-                }
-            }
-        }
+        // Where each moved node was and where it goes (layout indices): the rows of untouched
+        // neighbours that point at one are remapped through it below. Their springs do not
+        // change, only where a slot points, and their rows stay where they are.
+        let mut remap: FxHashMap<u32, u32> = FxHashMap::default();
         let mut patch = LayoutPatch::default();
         let buckets_before = self.buckets.len();
         let mut moves: BTreeMap<u32, StateMove> = BTreeMap::new();
@@ -252,6 +247,9 @@ impl ValenceLayout {
             };
             let want = demand.get_mut(&v).expect("counted above");
             let (idx, table_changed) = self.place(v, *want, model.node_count());
+            if let Some(from) = source.from.filter(|_| !new_node) {
+                remap.insert(from, idx);
+            }
             *want -= 1;
             buckets_changed |= table_changed;
             self.order.order[idx as usize] = t;
@@ -271,16 +269,17 @@ impl ValenceLayout {
             .iter()
             .flat_map(|t| &lists[t])
             .copied()
-            .filter(|nb| others.contains_key(nb))
+            .filter(|nb| !lists.contains_key(nb))
             .collect();
         pointing.sort_unstable();
         pointing.dedup();
         for t in pointing {
-            let mut row: Vec<Slot> = others[&t]
+            let mut row: Vec<Slot> = self
+                .row_slots_of(t)
                 .iter()
-                .map(|&(slot, node)| Slot {
-                    other: self.order.rank[node as usize],
-                    ..slot
+                .map(|s| Slot {
+                    other: remap.get(&s.other).copied().unwrap_or(s.other),
+                    ..*s
                 })
                 .collect();
             // Sorted by layout index, as every packing sorts a row.
@@ -316,14 +315,23 @@ impl ValenceLayout {
 
     /// The slots of model node `t`'s row, each with the model index of its other end.
     fn row_of(&self, t: u32) -> Vec<(Slot, u32)> {
+        self.row_slots_of(t)
+            .iter()
+            .map(|s| (*s, self.order.order[s.other as usize]))
+            .collect()
+    }
+
+    /// The filled slots of model node `t`'s row.
+    fn row_slots_of(&self, t: u32) -> &[Slot] {
         let idx = self.order.rank[t as usize];
         let b = self.buckets[self.bucket_of(idx)];
         let at = (b.offset + (idx - b.first) * b.valence) as usize;
-        self.slots[at..at + b.valence as usize]
+        let row = &self.slots[at..at + b.valence as usize];
+        let filled = row
             .iter()
-            .take_while(|s| s.other != Slot::EMPTY)
-            .map(|s| (*s, self.order.order[s.other as usize]))
-            .collect()
+            .position(|s| s.other == Slot::EMPTY)
+            .unwrap_or(row.len());
+        &row[..filled]
     }
 
     /// Write `row` as model node `t`'s row (at its place after the patch) and its mass.
