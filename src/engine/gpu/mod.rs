@@ -514,10 +514,8 @@ impl GpuEngine {
         }
         self.update_fixed_point(model);
         self.dispatch = Dispatch::new(&self.ctx, slots as u32, spring_records(&self.layout));
+        let uniform_before = self.uniform_data;
         self.uniform_data = constants(self.uniform_data, &self.layout, self.dispatch);
-        self.ctx
-            .queue
-            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.uniform_data));
         let layout_bytes: u64 = LayoutArray::ALL
             .iter()
             .map(|&a| self.layout.array(a).len() as u64)
@@ -533,6 +531,11 @@ impl GpuEngine {
         // The dirty ranges and the state moves go up together: one staging buffer, one
         // submission.
         let mut upload = upload::Upload::new();
+        // With the patch's other writes (a queue write stages through a buffer of its own),
+        // and only when the dispatch sizes changed.
+        if bytemuck::bytes_of(&uniform_before) != bytemuck::bytes_of(&self.uniform_data) {
+            upload.write(&self.uniform, 0, bytemuck::bytes_of(&self.uniform_data));
+        }
         if rebuild {
             self.passes = build_passes(
                 &self.ctx,
