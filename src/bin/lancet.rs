@@ -72,7 +72,8 @@ enum BenchWhat {
         #[arg(long, default_value_t = lancet::report::cut_bench::INCISIONS)]
         incisions: usize,
         /// Do not read ahead: each cut reads the nodes near the blade with a round trip of its
-        /// own (on the GPU), instead of with the step before it.
+        /// own (on the GPU; a scan of every node on the fast CPU engine), instead of with the
+        /// step before it.
         #[arg(long)]
         no_read_ahead: bool,
         /// Print JSON on stdout.

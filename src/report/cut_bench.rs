@@ -147,7 +147,8 @@ pub struct CutBench {
     /// Whether the step before each cut event reads ahead what the cut will read, predicting
     /// the blade's sweep from its motion at the event before
     /// ([`crate::cut::Cutter::reading_box_ahead`]): on the GPU the cut's read then comes back
-    /// with the step instead of a round trip of its own. The CPU engines ignore it.
+    /// with the step instead of a round trip of its own, and the fast CPU engine scans for
+    /// it after the step; the reference engine ignores it.
     pub read_ahead: bool,
 }
 
