@@ -5,13 +5,14 @@
 
 #[path = "common/models.rs"]
 mod models;
+#[path = "common/read_ahead.rs"]
+mod read_ahead;
 
 use lancet::engine::fast::FastEngine;
 use lancet::engine::{Engine, SimConfig};
 use lancet::model::PackedModel;
 use models::{boxes_near, random_diff, random_model, random_state, Rng};
-
-type Found = Vec<(u32, [f64; 3])>;
+use read_ahead::{holds_the_box, reads_ahead_as_on_its_own};
 
 /// Something done to an engine between its step and a read.
 type Change = Box<dyn Fn(&mut FastEngine)>;
@@ -23,56 +24,10 @@ fn engine(model: &PackedModel) -> FastEngine {
     engine
 }
 
-fn bits(found: &Found) -> Vec<(u32, [u64; 3])> {
-    found
-        .iter()
-        .map(|(i, p)| (*i, p.map(f64::to_bits)))
-        .collect()
-}
-
-/// Every node in the box, from every position, in node order.
-fn in_box(engine: &FastEngine, [lo, hi]: [[f64; 3]; 2]) -> Found {
-    engine
-        .positions()
-        .into_iter()
-        .enumerate()
-        .filter(|(_, p)| (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]))
-        .map(|(i, p)| (i as u32, p))
-        .collect()
-}
-
 #[test]
 fn a_read_ahead_gives_the_nodes_in_the_box_as_a_scan_of_its_own_does() {
-    let mut model = random_model(11, false);
-    let mut engine = engine(&model);
-    let mut rng = Rng(4);
-    let mut found = 0;
-    for round in 0..3 {
-        for _ in 0..8 {
-            let (inner, outer) = boxes_near(&mut rng, &engine.positions());
-            engine.prefetch_near(outer[0], outer[1]);
-            engine.step(1);
-            let before = engine.near_reads();
-            let ahead = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(engine.near_reads().ahead, before.ahead + 1, "served ahead");
-            assert_eq!(bits(&ahead), bits(&in_box(&engine, inner)));
-            // A step of no steps drops the read and leaves the state: a scan of its own.
-            engine.step(0);
-            let own = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(engine.near_reads().direct, before.direct + 1);
-            assert_eq!(bits(&ahead), bits(&own));
-            found += ahead.len();
-        }
-        let diff = random_diff(&model, 40 + round);
-        let mut next = model.clone();
-        next.apply(&diff).unwrap();
-        engine.patch(&next, &diff).unwrap();
-        model = next;
-    }
-    assert!(
-        found > 100,
-        "the boxes held too few nodes to test ({found})"
-    );
+    let model = random_model(11, false);
+    reads_ahead_as_on_its_own(&mut engine(&model), model, 4);
 }
 
 #[test]
@@ -135,6 +90,6 @@ fn a_read_ahead_is_not_served_once_the_state_changed_or_for_a_box_it_does_not_ho
             before.ahead,
             "served after {what}"
         );
-        assert_eq!(bits(&got), bits(&in_box(&engine, asked)), "after {what}");
+        holds_the_box(&engine, asked, &got);
     }
 }

@@ -9,6 +9,8 @@
 mod common;
 #[path = "common/models.rs"]
 mod models;
+#[path = "common/read_ahead.rs"]
+mod read_ahead;
 
 use lancet::collide::ToolShape;
 use lancet::cut::{CutMethod, Cutter, Sweep};
@@ -18,34 +20,9 @@ use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
 use models::{boxes_near, random_diff, random_model, random_state, Rng};
+use read_ahead::{holds_the_box, reads_ahead_as_on_its_own, Found};
 use nalgebra::Isometry3;
 use rstest::rstest;
-
-type Found = Vec<(u32, [f64; 3])>;
-
-/// Every node whose position lies in the box is in `got`, each with the position a full
-/// readback gives, bit for bit; returns how many the box holds.
-fn holds_the_box(engine: &GpuEngine, [lo, hi]: [[f64; 3]; 2], got: &Found) -> usize {
-    let x = engine.positions();
-    for &(i, p) in got {
-        assert_eq!(
-            p.map(f64::to_bits),
-            x[i as usize].map(f64::to_bits),
-            "node {i}: not the position a full readback gives (a stale read?)"
-        );
-    }
-    let inside = |p: &[f64; 3]| (0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]);
-    let want: Vec<u32> = (0..x.len() as u32)
-        .filter(|&i| inside(&x[i as usize]))
-        .collect();
-    for i in &want {
-        assert!(
-            got.binary_search_by_key(i, |e| e.0).is_ok(),
-            "node {i} lies in the box but was not found"
-        );
-    }
-    want.len()
-}
 
 fn engine_on(model: &PackedModel, kind: LayoutKind) -> Option<GpuEngine> {
     let ctx = common::gpu()?;
@@ -60,51 +37,11 @@ fn engine_on(model: &PackedModel, kind: LayoutKind) -> Option<GpuEngine> {
 fn a_read_ahead_gives_what_a_read_of_its_own_gives(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
 ) {
-    let mut model = random_model(7, false);
+    let model = random_model(7, false);
     let Some(mut engine) = engine_on(&model, kind) else {
         return;
     };
-    let mut rng = Rng(5);
-    let mut found = 0;
-    for round in 0..3 {
-        for _ in 0..8 {
-            let (inner, outer) = boxes_near(&mut rng, &engine.positions());
-            engine.prefetch_near(outer[0], outer[1]);
-            engine.step(1);
-            let before = engine.near_reads();
-            let ahead = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(
-                engine.near_reads().ahead,
-                before.ahead + 1,
-                "served by the step"
-            );
-            // A box inside it: served by the same read.
-            let smaller = [inner[0].map(|v| v + 1e-4), inner[1].map(|v| v - 1e-4)];
-            let again = engine.nodes_near(smaller[0], smaller[1]).unwrap();
-            assert_eq!(engine.near_reads().ahead, before.ahead + 2);
-            holds_the_box(&engine, smaller, &again);
-            // The same box with a round trip of its own: a step of no steps drops the read
-            // ahead and leaves the state as it is.
-            engine.step(0);
-            let own = engine.nodes_near(inner[0], inner[1]).unwrap();
-            assert_eq!(engine.near_reads().direct, before.direct + 1);
-            assert_eq!(ahead.len(), own.len(), "the same nodes");
-            for (a, b) in ahead.iter().zip(&own) {
-                assert_eq!((a.0, a.1.map(f64::to_bits)), (b.0, b.1.map(f64::to_bits)));
-            }
-            found += holds_the_box(&engine, inner, &ahead);
-        }
-        // A cut-like change (nodes appended, rows moved, holes left) between reads.
-        let diff = random_diff(&model, 300 + round);
-        let mut next = model.clone();
-        next.apply(&diff).unwrap();
-        engine.patch(&next, &diff).unwrap();
-        model = next;
-    }
-    assert!(
-        found > 100,
-        "the boxes held too few nodes to test ({found})"
-    );
+    reads_ahead_as_on_its_own(&mut engine, model, 5);
 }
 
 /// The nodes in `inner`, read with a round trip of their own (no read ahead served), checked
