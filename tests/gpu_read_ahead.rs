@@ -20,8 +20,8 @@ use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
 use models::{boxes_near, random_diff, random_model, random_state, Rng};
-use read_ahead::{holds_the_box, reads_ahead_as_on_its_own, Found};
 use nalgebra::Isometry3;
+use read_ahead::{holds_the_box, reads_ahead_as_on_its_own, Found};
 use rstest::rstest;
 
 fn engine_on(model: &PackedModel, kind: LayoutKind) -> Option<GpuEngine> {

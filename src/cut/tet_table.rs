@@ -76,8 +76,8 @@ impl TetTable {
 
     /// The dense corners of tet `tk`, which must have been [`TetTable::set`] and not removed.
     pub fn corners(&self, tk: TetKey) -> [u32; 4] {
-        let e = self.entry(tk);
-        e.corners
+        self.get(tk)
+            .unwrap_or_else(|| panic!("tet {tk:?} is not in the cutter's tet table"))
     }
 
     /// The dense corners of tet `tk`, or `None` if the table has no entry for it (a tet since
@@ -109,15 +109,6 @@ impl TetTable {
         for e in &mut self.entries {
             e.stamp = 0;
         }
-    }
-
-    fn entry(&self, tk: TetKey) -> &Entry {
-        let e = &self.entries[slot(tk)];
-        assert!(
-            e.key == tk.data().as_ffi(),
-            "tet {tk:?} is not in the cutter's tet table"
-        );
-        e
     }
 }
 

@@ -518,12 +518,16 @@ impl ConnectivityLayout {
         // Checked before anything changes: on error the layout is as it was.
         let springs = DiffSprings::of(diff, model)?;
         // The most rows the patch can add: one per added node, and per touched node one more
-        // than the springs it gains (a spring added names two nodes). A table that could pass
-        // u32 slot indices is refused here, before anything changes, so that writing the rows
-        // below cannot fail halfway.
+        // than the springs it gains (a spring added names two nodes; every node a diff
+        // touches is an added or changed node or an end of a spring it names). A table that
+        // could pass u32 slot indices is refused here, before anything changes, so that
+        // writing the rows below cannot fail halfway.
+        let springs_named =
+            diff.removed_springs.len() + diff.added_springs.len() + diff.changed_springs.len();
+        let touched_most = diff.added_nodes.len() + diff.changed_nodes.len() + 2 * springs_named;
         let most_rows = self.slots.len() / k
             + diff.added_nodes.len()
-            + diff.touched_nodes(before).len()
+            + touched_most
             + 2 * diff.added_springs.len();
         if most_rows.saturating_mul(k) > u32::MAX as usize {
             return Err(Error::Model(format!(

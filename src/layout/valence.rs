@@ -288,9 +288,8 @@ impl ValenceLayout {
             rows.insert(self.order.rank[t as usize]);
         }
         for &idx in &rows {
-            let b = self.buckets[self.bucket_of(idx)];
-            let at = b.offset + (idx - b.first) * b.valence;
-            patch.mark(LayoutArray::Slots, at..at + b.valence, 1, 32);
+            let row = self.row_range(idx);
+            patch.mark(LayoutArray::Slots, row.start as u32..row.end as u32, 1, 32);
         }
         patch.mark(LayoutArray::InvMass, rows.iter().copied(), 1, 4);
         // Appended buckets go up whole (empty slots, zero masses), so the device mirrors the
@@ -323,10 +322,7 @@ impl ValenceLayout {
 
     /// The filled slots of model node `t`'s row.
     fn row_slots_of(&self, t: u32) -> &[Slot] {
-        let idx = self.order.rank[t as usize];
-        let b = self.buckets[self.bucket_of(idx)];
-        let at = (b.offset + (idx - b.first) * b.valence) as usize;
-        let row = &self.slots[at..at + b.valence as usize];
+        let row = &self.slots[self.row_range(self.order.rank[t as usize])];
         let filled = row
             .iter()
             .position(|s| s.other == Slot::EMPTY)
@@ -337,10 +333,16 @@ impl ValenceLayout {
     /// Write `row` as model node `t`'s row (at its place after the patch) and its mass.
     fn write_row(&mut self, t: u32, row: &[Slot], model: &PackedModel) {
         let idx = self.order.rank[t as usize];
-        let b = self.buckets[self.bucket_of(idx)];
-        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        let at = self.row_range(idx).start;
         self.slots[at..at + row.len()].copy_from_slice(row);
         self.nodes.inv_mass[idx as usize] = inv_mass_of(model, t);
+    }
+
+    /// The slots of layout index `idx`'s row (its bucket's valence of them).
+    fn row_range(&self, idx: u32) -> std::ops::Range<usize> {
+        let b = self.buckets[self.bucket_of(idx)];
+        let at = (b.offset + (idx - b.first) * b.valence) as usize;
+        at..at + b.valence as usize
     }
 
     /// The bucket holding layout index `idx`.
@@ -351,8 +353,8 @@ impl ValenceLayout {
     /// Turn layout index `idx` into a hole: no node, no springs, no mass.
     fn vacate(&mut self, idx: u32) {
         let b = self.buckets[self.bucket_of(idx)];
-        let at = (b.offset + (idx - b.first) * b.valence) as usize;
-        self.slots[at..at + b.valence as usize].fill(Slot::empty());
+        let row = self.row_range(idx);
+        self.slots[row].fill(Slot::empty());
         self.nodes.inv_mass[idx as usize] = 0.0;
         self.order.order[idx as usize] = NodeOrder::HOLE;
         self.free.entry(b.valence).or_default().insert(idx);

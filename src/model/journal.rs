@@ -4,7 +4,7 @@
 //! A cut's diff is the difference between the model before and after its edit. Recording the
 //! state of everything an edit might touch beforehand (every edge and corner of the tets around
 //! the blade) costs a lookup in maps over the whole model for each, cache misses that made up
-//! about a quarter of a subdividing cut; the model notes each spring and node at the moment it
+//! a quarter to a third of a subdividing edit; the model notes each spring and node at the moment it
 //! changes instead, when its entry is already at hand, and only those.
 
 use rustc_hash::FxHashMap;

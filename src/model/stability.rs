@@ -253,8 +253,7 @@ impl StabilityBound {
         self.per_node.truncate(undo.len);
         self.k_sum.truncate(undo.len);
         self.c_sum.truncate(undo.len);
-        let restored: Vec<usize> = undo.saved.iter().map(|s| s.0).collect();
-        self.refresh_blocks(restored.into_iter(), grown.min(undo.len));
+        self.refresh_blocks(undo.saved.iter().map(|s| s.0), grown.min(undo.len));
         (self.dt, self.node, self.omega_max) = (undo.dt, undo.node, undo.omega_max);
     }
 }

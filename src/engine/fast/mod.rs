@@ -227,8 +227,7 @@ impl FastEngine {
     }
 
     /// The nodes among internal indices `range` whose position lies in the box `lo..=hi`, with
-    /// their positions as [`Engine::positions`] gives them, in internal order (callers sort
-    /// them into node order once, [`crate::cut::reading::sort_by_node`]).
+    /// their positions as [`Engine::positions`] gives them, in internal order.
     fn scan_near(
         &self,
         lo: [f64; 3],
@@ -261,27 +260,29 @@ impl FastEngine {
         out
     }
 
-    /// [`FastEngine::scan_near`] over every node, in node order, on the step's threads (still awake from
-    /// the step: woken for a scan of its own, they would cost more than they save).
-    fn scan_near_parallel(&self, lo: [f64; 3], hi: [f64; 3]) -> Vec<(u32, [f64; 3])> {
+    /// [`FastEngine::scan_near`] over every node, in node order: on the step's threads when
+    /// `parallel` (they are awake right after a step; woken for a scan of their own, they
+    /// would cost more than they save).
+    fn scan_near_sorted(&self, lo: [f64; 3], hi: [f64; 3], parallel: bool) -> Vec<(u32, [f64; 3])> {
         let n = self.x.len();
         #[cfg(feature = "parallel")]
-        {
+        let mut out: Vec<(u32, [f64; 3])> = if parallel {
             use rayon::prelude::*;
             let starts: Vec<usize> = (0..n).step_by(NEAR_BLOCK).collect();
-            let mut out: Vec<(u32, [f64; 3])> = starts
+            starts
                 .into_par_iter()
                 .flat_map_iter(|s| self.scan_near(lo, hi, s..(s + NEAR_BLOCK).min(n)))
-                .collect();
-            crate::cut::reading::sort_by_node(&mut out);
-            out
-        }
+                .collect()
+        } else {
+            self.scan_near(lo, hi, 0..n)
+        };
         #[cfg(not(feature = "parallel"))]
-        {
-            let mut out = self.scan_near(lo, hi, 0..n);
-            crate::cut::reading::sort_by_node(&mut out);
-            out
-        }
+        let mut out = {
+            let _ = parallel;
+            self.scan_near(lo, hi, 0..n)
+        };
+        crate::cut::reading::sort_by_node(&mut out);
+        out
     }
 
     /// Number of nodes.
@@ -433,7 +434,7 @@ impl Engine for FastEngine {
         // The read the cut after this step will make, while the state is in cache and the
         // threads are awake: the cut's own read is then a narrowing of it.
         if let Some((lo, hi)) = self.near_ahead.take() {
-            let found = self.scan_near_parallel(lo, hi);
+            let found = self.scan_near_sorted(lo, hi, true);
             self.read_ahead = Some(ReadAhead { lo, hi, found });
         }
     }
@@ -460,9 +461,7 @@ impl Engine for FastEngine {
             }
         }
         self.near_reads.direct += 1;
-        let mut out = self.scan_near(lo, hi, 0..self.x.len());
-        crate::cut::reading::sort_by_node(&mut out);
-        Ok(out)
+        Ok(self.scan_near_sorted(lo, hi, false))
     }
 
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
