@@ -59,12 +59,12 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
     );
     let c = s.cuts.as_ref().unwrap();
     assert!(c.cuts > 0);
-    // A blade that touched the tissue at the step before is read ahead with the step: only
-    // the first read of each stroke (and one after a time-step change rebuilt the engine)
-    // makes a round trip of its own.
+    // A blade that touched the tissue at the step before, or was about to, is read ahead with
+    // the step: in these scenes no read makes a round trip of its own, not even a stroke's
+    // first.
     let r = c.near_reads;
     assert!(
-        r.ahead > 2 * r.direct,
+        r.ahead >= c.cuts as u64 && r.direct == 0,
         "{name} {layout:?} {method}: {} reads ahead, {} on their own",
         r.ahead,
         r.direct
@@ -121,6 +121,17 @@ fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() 
                 s.volume_ratio,
                 c.cuts,
                 c.nodes_added
+            );
+            // The step before a cut read what the cut reads (a stroke's first cut included, the
+            // blade's motion extrapolated), but for a read in a hundred: where the tissue
+            // moves into the blade's path, or the blade changes its motion, the extrapolation
+            // can miss, and that cut reads on its own.
+            let r = c.near_reads;
+            assert!(
+                r.ahead >= c.cuts as u64 && r.direct <= r.ahead / 100,
+                "{name} {method}: {} reads ahead, {} on their own",
+                r.ahead,
+                r.direct
             );
             // Each cut is listed, in step order, and the totals are their sums.
             let e = &c.events;

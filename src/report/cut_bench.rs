@@ -49,9 +49,9 @@ pub struct CutRow {
     /// Median nodes whose positions a cut event read back (of `nodes` and those added).
     pub nodes_read: f64,
     /// Cut events whose read came back with the step before them (GPU engines reading ahead,
-    /// see [`crate::Simulation::prefetch_near`], from the blade's motion at the event before;
-    /// an incision's first event has none to go by); the others waited for a read of their
-    /// own.
+    /// see [`crate::Simulation::prefetch_near`], from the blade's motion at the event before,
+    /// or at an incision's first event from the motion it arrives with); the others waited for
+    /// a read of their own.
     pub reads_ahead: usize,
     /// Median of the step before each cut event, waited for, ms (not part of the latency: the
     /// simulation steps anyway; it shows what reading ahead adds to the step).
@@ -430,16 +430,19 @@ fn one(row: &Row) -> Result<CutRow> {
     let sites = incision_sites(n, length / h, incisions);
     for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
-        let mut last_motion = None;
+        // The blade arrives moving as it goes on to cut: a tracked tool's velocity is known
+        // before it touches the tissue (the scene runner extrapolates it the same way, see
+        // `CutStage::after_step`), so an incision's first event is predicted as well.
+        let mut last_motion =
+            Some(pose(top - 0.2 * h).translation.vector - pose(top).translation.vector);
         for k in 0..steps {
             let z0 = top + 0.1 * h - 0.2 * h * k as f64;
             let sweep =
                 Sweep::of_blade(&blade, &pose(z0), &pose(z0 - 0.2 * h)).expect("a blade sweeps");
             // A simulator extrapolates the blade's motion and reads ahead, with the step, what
             // the cut after it will read: here the blade is predicted to move as it moved at
-            // the last event (none at an incision's first, which reads on its own); a sweep
-            // that strayed more than the margin from the prediction would read with a round
-            // trip of its own.
+            // the last event; a sweep that strayed more than the margin from the prediction
+            // would read with a round trip of its own.
             let predicted = last_motion.and_then(|d: nalgebra::Vector3<f64>| {
                 let at = pose(z0);
                 let to = Isometry3::from_parts((at.translation.vector + d).into(), at.rotation);

@@ -6,6 +6,7 @@
 
 use std::time::Instant;
 
+use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
 use super::schema::Scene;
@@ -206,6 +207,10 @@ pub struct CutStage {
     bound_fraction: f64,
     /// Whether a blade touched the tissue at the last step (it may be wholly inside now).
     touching: Vec<bool>,
+    /// Whether a blade, moving on as it moved at the last step, would reach the tissue's
+    /// surface at the next (true before the first step): its first cut is then read ahead
+    /// like the others.
+    approaching: Vec<bool>,
     latencies: Vec<f64>,
     /// Each node a cut created, with the node it copies (dense indices).
     copies: Vec<(u32, u32)>,
@@ -254,6 +259,9 @@ impl CutStage {
             cutter: Cutter::new(mesh.clone(), model.clone(), method)?
                 .with_quality_floor(settings.quality_floor),
             touching: vec![false; blades.len()],
+            // Nothing is known of the blades' motion before the first step: read ahead for
+            // each then (a blade may start in contact).
+            approaching: vec![true; blades.len()],
             blade_names: blades
                 .iter()
                 .map(|&i| scene.tools[i].name.clone())
@@ -292,14 +300,15 @@ impl CutStage {
 
     /// Before a step (`tools` posed for its end): have the step read ahead what the cuts after
     /// it will read, the boxes of the sweeps of the blades that touched the tissue at the last
-    /// step (one box holding them all), so that on the GPU those reads come back with the step.
+    /// step or were about to (one box holding them all), so that on the GPU those reads come
+    /// back with the step.
     pub fn before_step(&self, sim: &mut Simulation, tools: &[Tool]) {
         let boxes = self
             .blades
             .iter()
-            .zip(&self.touching)
-            .filter(|(_, &touching)| touching)
-            .filter_map(|(&i, _)| {
+            .enumerate()
+            .filter(|&(slot, _)| self.touching[slot] || self.approaching[slot])
+            .filter_map(|(_, &i)| {
                 let tool = &tools[i];
                 let sweep = Sweep::of_blade(&tool.shape, tool.previous_pose(), tool.pose())?;
                 self.cutter.reading_box(&sweep)
@@ -326,14 +335,15 @@ impl CutStage {
                 continue;
             };
             // Only read the state back when the blade's bounds meet the surface, or met it at
-            // the last step (a blade can be wholly inside the tissue).
+            // the last step (a blade can be wholly inside the tissue). The same cull asks
+            // whether the blade, moving on as it moved, would meet it at the next step.
             let b = tool.step_bounds(0.0);
-            let near = !sim
-                .cull_tools(&[ToolBox::containing(
-                    b.min.coords.into(),
-                    b.max.coords.into(),
-                )])?
-                .is_empty();
+            let next = tool.swept_aabb(tool.pose(), &extrapolated(tool), 0.0);
+            let culled = sim.cull_tools(
+                &[b, next].map(|b| ToolBox::containing(b.min.coords.into(), b.max.coords.into())),
+            )?;
+            let near = culled.iter().any(|&[_, k]| k == 0);
+            self.approaching[slot] = culled.iter().any(|&[_, k]| k == 1);
             let was = std::mem::replace(&mut self.touching[slot], near);
             if !(near || was) {
                 continue;
@@ -500,4 +510,12 @@ impl CutStage {
         self.report.volume_removed_fraction = self.cutter.volume_removed() / self.volume_before;
         (self.cutter.mesh().clone(), self.report)
     }
+}
+
+/// Where `tool` would be after one more step moving as it moved over the last one (its last
+/// motion applied again). A blade that strays from it reaches the tissue with a read of its
+/// own, as without the prediction.
+fn extrapolated(tool: &Tool) -> Isometry3<f64> {
+    let motion = tool.pose() * tool.previous_pose().inverse();
+    motion * tool.pose()
 }
