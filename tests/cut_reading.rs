@@ -260,9 +260,9 @@ fn the_energy_reference_follows_the_cut_from_what_it_read(
 
 /// Carving tissue stretched to three and five times its length: every tet a small sweep meets
 /// (the exact test over every tet at the stretched positions) is carved. The candidates are
-/// the tets with any corner within twice the longest rest edge of the sweep, which holds a
-/// corner of every tet the sweep meets while the tet's nearest corner is that close; a scan
-/// that listed each tet only at one fixed corner lost a sixth of them at four times.
+/// the tets with any corner within the longest rest edge of the sweep plus how far apart the
+/// displacements read near it are; a scan that listed each tet only at one fixed corner lost
+/// a sixth of them at four times, and one that left the displacements out misses some at five.
 #[rstest]
 fn carving_strongly_stretched_tissue_misses_no_tet_the_sweep_meets(
     #[values(3.0, 5.0)] stretch: f64,

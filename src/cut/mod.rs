@@ -145,7 +145,10 @@ pub struct Cutter {
     volume_removed: f64,
     /// Nodes displaced less than this from rest are classified at rest (m).
     snap: f64,
-    /// Twice the longest rest edge: how far from the sweep a corner of a tet it meets can be.
+    /// Twice the longest rest edge: how far from the sweep the box a cut reads reaches, with
+    /// half as much again (see [`Cutter::reading_box_ahead`]); the scan for the tets the sweep
+    /// meets looks only as far as the tissue near the blade is stretched
+    /// ([`Cutter::scan_reach`]).
     reach: f64,
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
@@ -445,6 +448,20 @@ impl Cutter {
         read.settle(|i| mesh.rest(keys[i as usize]), self.snap * self.snap);
     }
 
+    /// How far from the sweep's bounds (at current positions) the corners of a tet it may meet
+    /// lie, given the nodes `read` in the box: a tet is at most its longest rest edge across
+    /// plus how far apart its corners' displacements are (bounded by
+    /// [`ReadPositions::displacement_spread`] where they were all read), its bounds may meet
+    /// the sweep's a snap distance off, and a corner's current position lies within a snap
+    /// distance of where it is classified. In tissue near rest this is about half the fixed
+    /// reach it replaces (twice the longest rest edge), and the scan visits a fifth of the
+    /// tets; stretched tissue widens it, up to the box read (a tet meeting the blade with a
+    /// corner outside that box is stretched past three rest edges, and is not looked for).
+    fn scan_reach(&self, read: &ReadPositions) -> f64 {
+        let longest_rest = 0.5 * self.reach;
+        (longest_rest + read.displacement_spread() + 2.0 * self.snap).min(1.5 * self.reach)
+    }
+
     /// The positions the last cut read: valid at the nodes it read, stale elsewhere.
     pub fn positions_read(&self) -> &ReadPositions {
         &self.read
@@ -469,6 +486,7 @@ impl Cutter {
             self.epoch = 1;
         }
         let keys = &self.keys;
+        let reach = self.scan_reach(read);
         let near = {
             let at = read.positions();
             let nodes = read
@@ -476,7 +494,7 @@ impl Cutter {
                 .iter()
                 .map(|&i| (keys[i as usize], at[i as usize]));
             let (table, epoch) = (&mut self.tet_table, self.epoch);
-            classify::tets_near(&self.faces, nodes, self.reach, sweep, |tk| {
+            classify::tets_near(&self.faces, nodes, reach, sweep, |tk| {
                 table.first_visit(tk, epoch)
             })
         };

@@ -99,6 +99,10 @@ pub struct ReadPositions {
     stamp: u32,
     /// How many of `read` came from the box around the sweep (the first ones).
     near: usize,
+    /// Bounds of the classification displacements (classification position less rest) of the
+    /// nodes settled: see [`ReadPositions::displacement_spread`].
+    moved_lo: [f64; 3],
+    moved_hi: [f64; 3],
 }
 
 impl ReadPositions {
@@ -127,6 +131,8 @@ impl ReadPositions {
             self.stamp = 1;
         }
         self.near = 0;
+        self.moved_lo = [f64::INFINITY; 3];
+        self.moved_hi = [f64::NEG_INFINITY; 3];
     }
 
     /// Take what the source gave for the box.
@@ -183,13 +189,31 @@ impl ReadPositions {
     pub(super) fn settle(&mut self, rest: impl Fn(u32) -> Point3<f64>, snap2: f64) {
         for &i in &self.read[self.settled..] {
             let (x, r) = (Point3::from(self.at[i as usize]), rest(i));
-            self.class[i as usize] = if (x - r).norm_squared() <= snap2 {
+            let class = if (x - r).norm_squared() <= snap2 {
                 r
             } else {
                 x
             };
+            self.class[i as usize] = class;
+            for c in 0..3 {
+                let u = class[c] - r[c];
+                self.moved_lo[c] = self.moved_lo[c].min(u);
+                self.moved_hi[c] = self.moved_hi[c].max(u);
+            }
         }
         self.settled = self.read.len();
+    }
+
+    /// How far apart the classification displacements (classification position less rest) of
+    /// the nodes settled so far can be: the diagonal of their bounds (0 before any). An edge
+    /// between two of them is at most this much longer at its classification positions than
+    /// at rest, so a tet whose corners were all read is at most its rest diameter plus this
+    /// across: how near the blade the cut must look for the tets it meets.
+    pub(super) fn displacement_spread(&self) -> f64 {
+        (0..3)
+            .map(|c| (self.moved_hi[c] - self.moved_lo[c]).max(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt()
     }
 
     /// The classification position of node `i` (read and settled by this cut).
@@ -261,5 +285,29 @@ mod tests {
         r.begin(3);
         assert!(!r.knows(0) && !r.knows(1) && !r.knows(2));
         assert!(r.take_near(vec![(3, x[0])]).is_err());
+    }
+
+    /// The spread is the diagonal of the bounds of the classification displacements of the
+    /// nodes settled: a node within the snap distance of rest counts as not displaced, and a
+    /// new cut starts from nothing.
+    #[test]
+    fn the_displacement_spread_bounds_the_classified_displacements() {
+        let rest = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        // Displaced by (0.3, 0, 0), (0, -0.4, 0) and, within the snap distance, (1e-4, 0, 0).
+        let x = [[0.3, 0.0, 0.0], [1.0, -0.4, 0.0], [1e-4, 1.0, 0.0]];
+        let at_rest = |i: u32| Point3::from(rest[i as usize]);
+        let mut r = ReadPositions::default();
+        r.begin(3);
+        assert_eq!(r.displacement_spread(), 0.0);
+        r.take_near(vec![(0, x[0]), (2, x[2])]).unwrap();
+        r.settle(at_rest, 1e-6);
+        // (0.3, 0, 0) and the snapped (0, 0, 0).
+        assert!((r.displacement_spread() - 0.3).abs() < 1e-12);
+        r.complete([1], &mut AllPositions(&x)).unwrap();
+        r.settle(at_rest, 1e-6);
+        let want = (0.3f64.powi(2) + 0.4f64.powi(2)).sqrt();
+        assert!((r.displacement_spread() - want).abs() < 1e-12);
+        r.begin(3);
+        assert_eq!(r.displacement_spread(), 0.0);
     }
 }

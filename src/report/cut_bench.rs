@@ -280,7 +280,7 @@ const CELL: f64 = 0.01;
 /// than the box).
 fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
     if count <= INCISIONS {
-        let x = 0.5 * n as f64;
+        let x = middle_cell(n);
         return incision_planes(n)
             .into_iter()
             .take(count)
@@ -289,7 +289,7 @@ fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
     }
     let half = 0.5 * length.min(n as f64);
     let fits_x = |x: f64| x - half >= 1.0 - 1e-9 && x + half <= n as f64 - 1.0 + 1e-9;
-    let middle = 0.5 * n as f64;
+    let middle = middle_cell(n);
     let mut xs = vec![middle];
     let step = length + 2.0;
     for k in 1.. {
@@ -301,7 +301,7 @@ fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
     }
     // Planes two cells apart: the default ones first, then outwards in turn.
     let mut ys = incision_planes(n);
-    let (y_middle, first) = (0.5 * n as f64 + 0.3, 0.5 * (INCISIONS - 1) as f64);
+    let (y_middle, first) = (middle_cell(n) + 0.3, 0.5 * (INCISIONS - 1) as f64);
     for k in 0..n {
         let reach = 2.0 * (first + 1.0 + k as f64);
         ys.extend(
@@ -322,11 +322,18 @@ fn incision_sites(n: usize, length: f64, count: usize) -> Vec<(f64, f64)> {
     sites
 }
 
+/// The middle of the cell at the centre of a box `n` cells across (the centre itself for odd
+/// `n`), in cells: incisions sit at the same place among the grid's cells in every box, so
+/// that boxes of different sizes are cut alike and their latencies compare.
+fn middle_cell(n: usize) -> f64 {
+    (n / 2) as f64 + 0.5
+}
+
 /// Where the incisions go in a box `n` cells across: the `y` of each plane, in cells, that
 /// lies at least a cell from both sides of the box. Two cells apart around the middle, off the
-/// grid by 0.3 of a cell.
+/// grid by 0.3 of a cell past the middle of a cell.
 fn incision_planes(n: usize) -> Vec<f64> {
-    let middle = 0.5 * n as f64 + 0.3;
+    let middle = middle_cell(n) + 0.3;
     (0..INCISIONS)
         .map(|j| middle + 2.0 * (j as f64 - 0.5 * (INCISIONS - 1) as f64))
         .filter(|y| (1.0..=n as f64 - 1.0).contains(y))
@@ -576,9 +583,35 @@ mod tests {
                 let sites = incision_sites(n, length, INCISIONS);
                 let planes: Vec<(f64, f64)> = incision_planes(n)
                     .into_iter()
-                    .map(|y| (0.5 * n as f64, y))
+                    .map(|y| (middle_cell(n), y))
                     .collect();
                 assert_eq!(sites, planes, "n {n}, length {length}");
+            }
+        }
+    }
+
+    /// Boxes of every size are cut at the same places among their cells (measured against the
+    /// cell at the centre), so that latencies against mesh size compare like with like: odd
+    /// and even boxes once put the blade's ends on grid planes in one and mid-cell in the
+    /// other, which cut twice as many tets.
+    #[test]
+    fn incisions_sit_alike_among_the_cells_of_every_box() {
+        let relative = |n: usize| -> Vec<(f64, f64)> {
+            let c = (n / 2) as f64;
+            incision_sites(n, 3.0, INCISIONS)
+                .into_iter()
+                .map(|(x, y)| (x - c, y - c))
+                .collect()
+        };
+        let first = cube_fitting_all_incisions();
+        for n in first..60 {
+            let (a, b) = (relative(n), relative(first));
+            assert_eq!(a.len(), b.len(), "n {n}");
+            for (p, q) in a.iter().zip(&b) {
+                assert!(
+                    (p.0 - q.0).abs() < 1e-9 && (p.1 - q.1).abs() < 1e-9,
+                    "n {n}: {a:?}"
+                );
             }
         }
     }
@@ -594,7 +627,7 @@ mod tests {
                 let half = 0.5 * length.min(n as f64);
                 for (i, &(x, y)) in sites.iter().enumerate() {
                     assert!((1.0..=n as f64 - 1.0).contains(&y), "n {n}: plane {y}");
-                    if x != 0.5 * n as f64 {
+                    if x != middle_cell(n) {
                         assert!(x - half >= 1.0 - 1e-9 && x + half <= n as f64 - 1.0 + 1e-9);
                     }
                     for &(x2, y2) in &sites[i + 1..] {
