@@ -145,11 +145,13 @@ pub struct Cutter {
     volume_removed: f64,
     /// Nodes displaced less than this from rest are classified at rest (m).
     snap: f64,
-    /// Twice the longest rest edge: how far from the sweep the box a cut reads reaches, with
-    /// half as much again (see [`Cutter::reading_box_ahead`]); the scan for the tets the sweep
-    /// meets looks only as far as the tissue near the blade is stretched
-    /// ([`Cutter::scan_reach`]).
-    reach: f64,
+    /// The mesh's longest rest edge: with how far apart the displacements near the blade are,
+    /// it bounds how far from a sweep the tets it meets reach ([`Cutter::scan_reach`]).
+    longest_rest: f64,
+    /// How far apart the displacements the last cut read were
+    /// ([`ReadPositions::displacement_spread`]); `None` before the first cut. The box the next
+    /// cut reads is sized by it ([`Cutter::reading_pad`]).
+    spread: Option<f64>,
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
     /// may open.
     /// (A secondary map: looked up for every edge near the sweep, and it grows with every cut.)
@@ -184,11 +186,10 @@ impl Cutter {
         let snap = mesh
             .bounds()
             .map_or(0.0, |(lo, hi)| SNAP_RELATIVE * (hi - lo).norm());
-        let reach = 2.0
-            * model
-                .springs()
-                .map(|(_, s)| s.rest_length)
-                .fold(0.0, f64::max);
+        let longest_rest = model
+            .springs()
+            .map(|(_, s)| s.rest_length)
+            .fold(0.0, f64::max);
         let surface_area = faces
             .boundary()
             .into_iter()
@@ -200,7 +201,8 @@ impl Cutter {
             .sum();
         Ok(Cutter {
             surface_area,
-            reach,
+            longest_rest,
+            spread: None,
             mesh,
             model,
             faces,
@@ -333,8 +335,9 @@ impl Cutter {
     }
 
     /// The box of current positions a cut with `sweep` asks its source for
-    /// ([`Cutter::cut_from`]): the sweep's bounds grown by three of the mesh's longest rest
-    /// edges. `None` for an empty sweep.
+    /// ([`Cutter::cut_from`]): the sweep's bounds grown by twice the mesh's longest rest edge
+    /// and the spread of the displacements the last cut read, with room (three longest rest
+    /// edges before the first cut). `None` for an empty sweep.
     pub fn reading_box(&self, sweep: &Sweep) -> Option<([f64; 3], [f64; 3])> {
         self.reading_box_ahead(sweep, 0.0)
     }
@@ -351,10 +354,7 @@ impl Cutter {
         margin: f64,
     ) -> Option<([f64; 3], [f64; 3])> {
         let b = predicted.aabb()?;
-        // The candidates' nodes lie within `reach` of the sweep's bounds, the tets around them
-        // within two edges more: as much again while edges are at rest length, with room for
-        // stretching by half (past that, what the box missed is fetched by the cut).
-        let pad = 1.5 * self.reach + margin.max(0.0);
+        let pad = self.reading_pad() + margin.max(0.0);
         Some((
             [0, 1, 2].map(|c| b.min[c] - pad),
             [0, 1, 2].map(|c| b.max[c] + pad),
@@ -458,8 +458,22 @@ impl Cutter {
     /// tets; stretched tissue widens it, up to the box read (a tet meeting the blade with a
     /// corner outside that box is stretched past three rest edges, and is not looked for).
     fn scan_reach(&self, read: &ReadPositions) -> f64 {
-        let longest_rest = 0.5 * self.reach;
-        (longest_rest + read.displacement_spread() + 2.0 * self.snap).min(1.5 * self.reach)
+        (self.longest_rest + read.displacement_spread() + 2.0 * self.snap).min(self.reading_pad())
+    }
+
+    /// How far the box a cut reads reaches past its sweep's bounds. The candidates' corners
+    /// lie within [`Cutter::scan_reach`] of the sweep, and the tets around them (which a cut
+    /// also reads: face neighbours, a subdivision's trial splits) within as much again: twice
+    /// the longest rest edge and the displacements' spread, taken from the last cut with half
+    /// as much again for room, but no more than half the longest rest edge (before the first
+    /// cut, that half): between two and three rest edges in all. The spread over a box grows
+    /// with the box in stretched tissue, so a box sized by it alone would grow from cut to
+    /// cut. What the box misses where the tissue stretched more is fetched by the cut, with a
+    /// round trip of its own on the GPU.
+    fn reading_pad(&self) -> f64 {
+        let half = 0.5 * self.longest_rest;
+        let spread = self.spread.map_or(half, |d| (1.5 * d).min(half));
+        2.0 * (self.longest_rest + spread) + 2.0 * self.snap
     }
 
     /// The positions the last cut read: valid at the nodes it read, stale elsewhere.
@@ -528,6 +542,11 @@ impl Cutter {
         let before = Instant::now();
         read.complete(self.ring_of(&candidates), source)?;
         self.settle(read);
+        if !read.near().is_empty() {
+            // What sizes the next cut's box: this one's box held nodes (a blade in the air
+            // says nothing about the tissue's strain).
+            self.spread = Some(read.displacement_spread());
+        }
         let read_s = read_near_s + before.elapsed().as_secs_f64();
         let (mesh, table) = (&self.mesh, &self.tet_table);
         let known = &*read;
