@@ -480,6 +480,12 @@ fn one(row: &Row) -> Result<CutRow> {
             let t3 = Instant::now();
             sim.edit_surface(&outcome.surface)?;
             let t4 = Instant::now();
+            // A cut that made lighter nodes (subdividing, with a low quality floor) can lower
+            // the stable bound below the step: follow it, as a scene's `Substep` policy does,
+            // outside the cut's time (a rare event), so that the tissue does not diverge.
+            if sim.config().dt > sim.bound().dt {
+                sim.set_time_step(0.5 * sim.bound().dt)?;
+            }
             total.push((t4 - t0).as_secs_f64() * 1e3);
             step.push(stepped);
             reads_ahead += (sim.near_reads().ahead > ahead_before) as usize;
