@@ -681,7 +681,8 @@ impl GpuEngine {
         let mut grown = 0;
         if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&mut self.passes, &self.layout) {
             if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
-                grown += p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row) as usize;
+                let stage = |table: &wgpu::Buffer, bytes: &[u8]| upload.write(table, 0, bytes);
+                grown += p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row, stage) as usize;
                 written += v.buckets.len() as u64 * 16;
             }
         }

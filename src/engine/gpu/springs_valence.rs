@@ -88,7 +88,9 @@ impl ValencePass {
             table,
             dispatches: Vec::new(),
         };
-        pass.set_buckets(ctx, &layout.buckets, row);
+        pass.set_buckets(ctx, &layout.buckets, row, |table, bytes| {
+            ctx.queue.write_buffer(table, 0, bytes)
+        });
         Ok(pass)
     }
 
@@ -108,10 +110,18 @@ impl ValencePass {
             .collect())
     }
 
-    /// Write the bucket table and recompute the dispatches (after a patch moved nodes between
+    /// Write the bucket table with `write` (given the table's buffer and its bytes from offset
+    /// 0: a patch stages it with its other writes, so that the device makes no staging buffer
+    /// of its own for it) and recompute the dispatches (after a patch moved nodes between
     /// buckets). A table without room for that many buckets is first replaced by one of the
     /// next size class, rebound in place (the pipeline is kept). Returns whether it was.
-    pub fn set_buckets(&mut self, ctx: &GpuContext, buckets: &[Bucket], row: u32) -> bool {
+    pub fn set_buckets(
+        &mut self,
+        ctx: &GpuContext,
+        buckets: &[Bucket],
+        row: u32,
+        write: impl FnOnce(&wgpu::Buffer, &[u8]),
+    ) -> bool {
         let stride = bucket_stride(ctx);
         let grow = buckets.len() as u64 * stride > self.table.size();
         if grow {
@@ -124,7 +134,7 @@ impl ValencePass {
             table[at..at + 16].copy_from_slice(bytemuck::bytes_of(bucket));
         }
         if !table.is_empty() {
-            ctx.queue.write_buffer(&self.table, 0, &table);
+            write(&self.table, &table);
         }
         let per_row = (row / WORKGROUP).max(1);
         self.dispatches = buckets
