@@ -118,5 +118,50 @@ fn cut_events(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, cut_events);
+/// Applying a small diff to the packed model (10 springs removed at one node's run, as a carving
+/// cut does) at the start of its spring array and at its end. The springs stay sorted by end
+/// pair, so every spring after the edit moves: an edit near the end (the top of these boxes,
+/// where `bench cut` and `cut_event` cut) moves little, one near the start moves the whole
+/// array, which grows with the mesh (4 MB at 104,544 tets, 14 MB at 375,000).
+fn packed_apply(c: &mut Criterion) {
+    let mut group = c.benchmark_group("packed_apply");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(2));
+    for n in [33usize, 50] {
+        let mesh = BoxGrid::cube_cells([n, n, n / 2], H)
+            .build()
+            .expect("box builds");
+        let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))
+            .expect("model builds");
+        let packed = model.pack(&mesh).expect("model packs");
+        let last = packed.springs.len() - 1;
+        for (place, at) in [("start", 0), ("end", last - 40)] {
+            let mut diff = lancet::model::ModelDiff::default();
+            // The springs of the node at `at` whose other ends are the next ten of its run.
+            let node = packed.springs[at].nodes[0];
+            diff.removed_springs = packed.springs[at..]
+                .iter()
+                .take_while(|s| s.nodes[0] == node)
+                .take(10)
+                .map(|s| s.nodes)
+                .collect();
+            group.bench_function(
+                BenchmarkId::new(place, format!("{} tets", mesh.tet_count())),
+                |b| {
+                    b.iter_batched(
+                        || packed.clone(),
+                        |mut p| {
+                            p.apply(&diff).expect("the springs exist");
+                            p
+                        },
+                        criterion::BatchSize::LargeInput,
+                    )
+                },
+            );
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, cut_events, packed_apply);
 criterion_main!(benches);
