@@ -135,6 +135,10 @@ pub struct Cutter {
     dense: SecondaryMap<NodeKey, u32>,
     /// The key of each dense index (the inverse of `dense`).
     keys: Vec<NodeKey>,
+    /// The rest position of each dense index (the mesh's, which never changes once a node is
+    /// made): a cut settles each node it read against it, in ascending order, instead of
+    /// looking each up in the mesh's node map.
+    rest: Vec<Point3<f64>>,
     method: CutMethod,
     /// Face-neighbour pairs a sweep has crossed whose face is still shared: the crack front of
     /// a partial cut. They stay cut when the blade moves on.
@@ -179,6 +183,7 @@ impl Cutter {
         let faces = FaceIndex::of(&mesh)?;
         let nodes = mesh.dense_nodes();
         let (dense, keys) = (nodes.index, nodes.keys);
+        let rest = keys.iter().map(|&k| mesh.rest(k)).collect();
         let mut tet_table = tet_table::TetTable::default();
         for (tk, t) in mesh.tets() {
             tet_table.set(tk, t.nodes.map(|k| dense[k]));
@@ -208,6 +213,7 @@ impl Cutter {
             faces,
             dense,
             keys,
+            rest,
             method,
             crack: BTreeSet::new(),
             partners: resweep::CutPartners::default(),
@@ -438,14 +444,15 @@ impl Cutter {
         let k = self.mesh.add_node(rest);
         self.dense.insert(k, self.keys.len() as u32);
         self.keys.push(k);
+        self.rest.push(rest);
         k
     }
 
     /// Work out where the cut classifies the nodes `read` has read since the last call: at
     /// rest within the snap distance of it, else where they are.
     fn settle(&self, read: &mut ReadPositions) {
-        let (mesh, keys) = (&self.mesh, &self.keys);
-        read.settle(|i| mesh.rest(keys[i as usize]), self.snap * self.snap);
+        let rest = &self.rest;
+        read.settle(|i| rest[i as usize], self.snap * self.snap);
     }
 
     /// How far from the sweep's bounds (at current positions) the corners of a tet it may meet
