@@ -138,8 +138,8 @@ impl Cutter {
         let mut new_keys = Vec::with_capacity(plan.copies.len());
         for &n in &plan.copies {
             let k = self.add_node(self.mesh.rest(n));
-            if self.on_cut.contains_key(n) {
-                self.on_cut.insert(k, ());
+            if self.on_cut.contains(&n) {
+                self.on_cut.insert(k);
             }
             added.push((k, state_source(n)));
             new_keys.push(k);

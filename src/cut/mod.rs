@@ -41,6 +41,8 @@ mod tet_table;
 use std::collections::BTreeSet;
 use std::time::Instant;
 
+use rustc_hash::FxHashSet;
+
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 use slotmap::SecondaryMap;
@@ -157,9 +159,11 @@ pub struct Cutter {
     /// cut reads is sized by it ([`Cutter::reading_pad`]).
     spread: Option<f64>,
     /// Nodes on a cut surface (subdividing: made on crossed edges, or snapped), whose faces
-    /// may open.
-    /// (A secondary map: looked up for every edge near the sweep, and it grows with every cut.)
-    on_cut: SecondaryMap<NodeKey, ()>,
+    /// may open. Looked up for every edge near the sweep, and it grows with every cut: a hash
+    /// set, not an ordered one (a tree walk per edge), nor a secondary map (sized to the
+    /// largest node key on a cut, it grew to the whole mesh at the first cut near its last
+    /// nodes, a pause on a large mesh).
+    on_cut: FxHashSet<NodeKey>,
     /// Each tet's dense corners and the last cut that looked at it (the candidate scan).
     tet_table: tet_table::TetTable,
     epoch: u32,
@@ -183,7 +187,13 @@ impl Cutter {
         let faces = FaceIndex::of(&mesh)?;
         let nodes = mesh.dense_nodes();
         let (dense, keys) = (nodes.index, nodes.keys);
-        let rest = keys.iter().map(|&k| mesh.rest(k)).collect();
+        // Room for an eighth more nodes, as the engines' buffers have: a cut that adds nodes
+        // does not move every key and rest position to a larger array.
+        let keys_len = keys.len();
+        let mut keys = keys;
+        keys.reserve(keys_len / 8);
+        let mut rest = Vec::with_capacity(keys_len + keys_len / 8);
+        rest.extend(keys.iter().map(|&k| mesh.rest(k)));
         let mut tet_table = tet_table::TetTable::default();
         for (tk, t) in mesh.tets() {
             tet_table.set(tk, t.nodes.map(|k| dense[k]));
@@ -219,10 +229,10 @@ impl Cutter {
             partners: resweep::CutPartners::default(),
             volume_removed: 0.0,
             snap,
-            on_cut: SecondaryMap::new(),
+            on_cut: FxHashSet::default(),
             tet_table,
             epoch: 0,
-            read: ReadPositions::default(),
+            read: ReadPositions::for_nodes(keys_len),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
             families: template::Families::default(),
             pending: Default::default(),

@@ -11,7 +11,7 @@
 //! in between cancel, so a cut across a turned flap is still a new cut.
 
 use nalgebra::{Matrix3, Point3, Vector3};
-use slotmap::SecondaryMap;
+use rustc_hash::FxHashMap;
 
 use super::exact::{segment_crosses_triangle, side};
 use super::sweep::Sweep;
@@ -70,12 +70,16 @@ impl RestPlane {
 /// For each tet, the tets a cut separated from it (across a face it opened or left on the crack
 /// front), each with the blade's plane pulled back into the tet's rest frame at that cut.
 #[derive(Debug, Clone, Default)]
-pub struct CutPartners(SecondaryMap<TetKey, Vec<(TetKey, Option<RestPlane>)>>);
+///
+/// A hash map, not a secondary map: few tets are ever cut, and a secondary map sized to the
+/// largest key cut so far grows to the whole mesh at the first cut near its last tets (a
+/// pause of milliseconds on a large mesh, most of it the kernel's first touch of the pages).
+pub struct CutPartners(FxHashMap<TetKey, Vec<(TetKey, Option<RestPlane>)>>);
 
 impl CutPartners {
     /// Record that a cut separated `a` (with the blade's plane in its rest frame) from `b`.
     pub fn record(&mut self, a: TetKey, b: TetKey, plane: Option<RestPlane>) {
-        match self.0.get_mut(a) {
+        match self.0.get_mut(&a) {
             Some(list) => match list.iter_mut().find(|(t, _)| *t == b) {
                 Some(entry) => entry.1 = plane,
                 None => list.push((b, plane)),
@@ -88,7 +92,7 @@ impl CutPartners {
 
     /// The tets a cut separated from `t`, with the plane of that cut in `t`'s rest frame.
     pub fn of(&self, t: TetKey) -> &[(TetKey, Option<RestPlane>)] {
-        self.0.get(t).map_or(&[], Vec::as_slice)
+        self.0.get(&t).map_or(&[], Vec::as_slice)
     }
 }
 

@@ -135,8 +135,8 @@ impl Cutter {
         // or snapped) crosses nothing new; counting it would pull its other end onto the cut
         // when the same sweep comes again.
         let old_cut = |[p, q]: [NodeKey; 2], c: &Crossing| {
-            (c.t < EDGE_SNAP && self.on_cut.contains_key(p))
-                || (c.t > 1.0 - EDGE_SNAP && self.on_cut.contains_key(q))
+            (c.t < EDGE_SNAP && self.on_cut.contains(&p))
+                || (c.t > 1.0 - EDGE_SNAP && self.on_cut.contains(&q))
         };
         crossed.retain(|&e, c| !old_cut(e, c));
         // Crossings an earlier cut left waiting for the blade to finish the tets around them
@@ -144,8 +144,8 @@ impl Cutter {
         // crosses a new edge (one off every cut that is not waiting already); else they go on
         // waiting, and a blade moved along its cut changes nothing.
         let fresh = crossed.keys().any(|e| {
-            !self.on_cut.contains_key(e[0])
-                && !self.on_cut.contains_key(e[1])
+            !self.on_cut.contains(&e[0])
+                && !self.on_cut.contains(&e[1])
                 && !self.pending.contains_key(e)
         });
         if fresh {
@@ -183,7 +183,7 @@ impl Cutter {
             let mut distance: BTreeMap<NodeKey, f64> = BTreeMap::new();
             for (&[p, q], c) in &crossed {
                 for n in [p, q] {
-                    if snapped.contains(&n) || self.on_cut.contains_key(n) {
+                    if snapped.contains(&n) || self.on_cut.contains(&n) {
                         continue;
                     }
                     let d = signed_plane(&self.classified(classify, n), &c.plane).abs();
@@ -197,7 +197,7 @@ impl Cutter {
                 }
             }
             loop {
-                let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains_key(n);
+                let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
                 let (waits, splits): (BTreeMap<_, _>, BTreeMap<_, _>) = crossed
                     .iter()
                     .filter(|(e, _)| !on_cut(e[0]) && !on_cut(e[1]))
@@ -211,7 +211,7 @@ impl Cutter {
                 waiting.extend(verdict.wait);
             }
         }
-        let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains_key(n);
+        let on_cut = |n: NodeKey| snapped.contains(&n) || self.on_cut.contains(&n);
         self.pending.extend(
             crossed
                 .iter()
@@ -237,7 +237,7 @@ impl Cutter {
             touched.extend(self.faces.tets_at(n).iter().copied());
         }
         self.model.record_changes();
-        self.on_cut.extend(snapped.iter().map(|&n| (n, ())));
+        self.on_cut.extend(snapped.iter().copied());
 
         // 4. A node on each split edge, then each parent's sub-tets from all its marks.
         let mut extra: FxHashMap<NodeKey, Point3<f64>> = FxHashMap::default();
@@ -247,7 +247,7 @@ impl Cutter {
         for &([a, b], t) in &splits {
             let rest = self.mesh.rest(a) + (self.mesh.rest(b) - self.mesh.rest(a)) * t;
             let k = self.add_node(rest);
-            self.on_cut.insert(k, ());
+            self.on_cut.insert(k);
             let (xa, xb) = (self.classified(classify, a), self.classified(classify, b));
             extra.insert(k, xa + (xb - xa) * t);
             // It starts where the deformed edge puts it, moving as the edge moves there.
@@ -298,7 +298,7 @@ impl Cutter {
                 continue;
             };
             for (local, f) in TET_FACES.iter().enumerate() {
-                if !f.iter().all(|&i| self.on_cut.contains_key(tet.nodes[i])) {
+                if !f.iter().all(|&i| self.on_cut.contains(&tet.nodes[i])) {
                     continue;
                 }
                 let Some(other) = self.faces.neighbour(tk, tet, local) else {
@@ -315,7 +315,7 @@ impl Cutter {
                         .iter()
                         .find(|n| !face.contains(n))
                         .expect("a tet has four");
-                    if self.on_cut.contains_key(k) {
+                    if self.on_cut.contains(&k) {
                         centroid(nodes.map(at))
                     } else {
                         at(k)

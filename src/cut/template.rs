@@ -20,7 +20,8 @@
 use std::cmp::Ordering;
 
 use nalgebra::Point3;
-use slotmap::{new_key_type, SecondaryMap, SlotMap};
+use rustc_hash::{FxHashMap, FxHashSet};
+use slotmap::{new_key_type, SlotMap};
 
 use crate::mesh::{NodeKey, TetKey, TET_EDGES};
 
@@ -49,20 +50,22 @@ pub(super) struct Family {
 #[derive(Debug, Clone, Default)]
 pub(super) struct Families {
     families: SlotMap<FamilyKey, Family>,
-    of: SecondaryMap<TetKey, FamilyKey>,
-    loose: SecondaryMap<TetKey, ()>,
+    /// Hash maps, not secondary maps, for the reason `CutPartners` gives: few tets are ever
+    /// subdivided.
+    of: FxHashMap<TetKey, FamilyKey>,
+    loose: FxHashSet<TetKey>,
 }
 
 impl Families {
     /// The family holding `t`, if any.
     pub fn of(&self, t: TetKey) -> Option<(FamilyKey, &Family)> {
-        let f = *self.of.get(t)?;
+        let f = *self.of.get(&t)?;
         Some((f, &self.families[f]))
     }
 
     /// Whether `t` is a sub-tet of an ended family: its faces may be parts of a parent's face.
     pub fn is_loose(&self, t: TetKey) -> bool {
-        self.loose.contains_key(t)
+        self.loose.contains(&t)
     }
 
     pub fn get(&self, f: FamilyKey) -> &Family {
@@ -79,7 +82,7 @@ impl Families {
             whole: !self.is_loose(t),
         });
         self.of.insert(t, f);
-        self.loose.remove(t);
+        self.loose.remove(&t);
         f
     }
 
@@ -94,18 +97,18 @@ impl Families {
     /// Give `f` its new sub-tets.
     pub fn set_children(&mut self, f: FamilyKey, children: Vec<TetKey>) {
         for &t in &self.families[f].children {
-            self.of.remove(t);
+            self.of.remove(&t);
         }
         for &t in &children {
             self.of.insert(t, f);
-            self.loose.remove(t);
+            self.loose.remove(&t);
         }
         self.families[f].children = children;
     }
 
     /// End the family holding `t`, if any: its sub-tets stand alone from now on.
     pub fn end_family_of(&mut self, t: TetKey) {
-        if let Some(&f) = self.of.get(t) {
+        if let Some(&f) = self.of.get(&t) {
             self.end(f);
         }
     }
@@ -114,12 +117,12 @@ impl Families {
     pub fn end(&mut self, f: FamilyKey) {
         if let Some(family) = self.families.remove(f) {
             for t in family.children {
-                self.of.remove(t);
+                self.of.remove(&t);
                 // A sub-tet that is its parent whole is no part of another's face.
                 if family.marks.is_empty() && family.whole {
                     continue;
                 }
-                self.loose.insert(t, ());
+                self.loose.insert(t);
             }
         }
     }
