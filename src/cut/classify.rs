@@ -20,9 +20,9 @@ pub type Corners = [Point3<f64>; 4];
 /// of the sweep's bounds, each once, in no order: where the candidates of the exact tests are
 /// looked for ([`overlapping`] keeps them). A tet meeting the sweep has a corner within its
 /// longest edge of it, so `reach` must be at least the longest current edge near the blade;
-/// the cutter bounds it by the longest rest edge and how far apart the displacements it read
-/// are. Scanning nodes rather than tets reads one
-/// position per node; `first_visit` (true the first time it is asked about a tet in this
+/// the cutter bounds it, for the tets whose corners it read, by the longest rest edge and how
+/// far apart the displacements it read are. Scanning nodes rather than tets reads one position
+/// per node; `first_visit` (true the first time it is asked about a tet in this
 /// scan) lists each tet once.
 pub fn tets_near(
     faces: &FaceIndex,

@@ -327,8 +327,8 @@ impl Cutter {
     }
 
     /// Cut with `sweep` as [`Cutter::cut`] does, reading from `source` only the positions the
-    /// cut looks at: the nodes in a box around the sweep (its bounds grown by three of the
-    /// mesh's longest rest edges), then any node of a tet around a candidate that the box missed. A
+    /// cut looks at: the nodes in a box around the sweep ([`Cutter::reading_box`]), then any
+    /// node of a tet around a candidate that the box missed. A
     /// simulation is such a source ([`crate::Simulation::nodes_near`]): on the GPU this reads
     /// back a few hundred nodes instead of all of them. The outcome is the same as
     /// [`Cutter::cut`] with every position; what was read stays in
@@ -351,9 +351,9 @@ impl Cutter {
     }
 
     /// The box of current positions a cut with `sweep` asks its source for
-    /// ([`Cutter::cut_from`]): the sweep's bounds grown by twice the mesh's longest rest edge
-    /// and the spread of the displacements the last cut read, with room (three longest rest
-    /// edges before the first cut). `None` for an empty sweep.
+    /// ([`Cutter::cut_from`]): the sweep's bounds grown by two to three of the mesh's longest
+    /// rest edges, as strained as the tissue the last cut read was (three before the first
+    /// cut; [`Cutter::reading_pad`]). `None` for an empty sweep.
     pub fn reading_box(&self, sweep: &Sweep) -> Option<([f64; 3], [f64; 3])> {
         self.reading_box_ahead(sweep, 0.0)
     }
@@ -472,8 +472,10 @@ impl Cutter {
     /// the sweep's a snap distance off, and a corner's current position lies within a snap
     /// distance of where it is classified. In tissue near rest this is about half the fixed
     /// reach it replaces (twice the longest rest edge), and the scan visits a fifth of the
-    /// tets; stretched tissue widens it, up to the box read (a tet meeting the blade with a
-    /// corner outside that box is stretched past three rest edges, and is not looked for).
+    /// tets; stretched tissue widens it, up to the box read. The bound holds for tets whose
+    /// corners were all read: a tet with a corner outside the box (pulled more than about a
+    /// rest edge past it) is found only where a corner that was read lies within the reach,
+    /// which the fixed reach allowed a rest edge further (see docs/ROADMAP.md, item 14).
     fn scan_reach(&self, read: &ReadPositions) -> f64 {
         (self.longest_rest + read.displacement_spread() + 2.0 * self.snap).min(self.reading_pad())
     }

@@ -1,8 +1,8 @@
 //! The current positions a cut reads. A cut only looks at the tissue near the blade, so it asks
 //! its [`PositionSource`] for the nodes in a box around the sweep (on the GPU, one pass over the
 //! nodes and a readback of just those) instead of every node's position, then for the few
-//! nodes around its candidates that the box missed (tissue stretched past twice its rest
-//! edges). What it read sits in a [`ReadPositions`]: an array over every node, valid only where
+//! nodes around its candidates that the box missed (tissue stretched further than the box
+//! allowed for). What it read sits in a [`ReadPositions`]: an array over every node, valid only where
 //! this cut read, which is all the cut and [`crate::Simulation::apply_at`] look at.
 
 use nalgebra::Point3;

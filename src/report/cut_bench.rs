@@ -482,7 +482,9 @@ fn one(row: &Row) -> Result<CutRow> {
             let t4 = Instant::now();
             // A cut that made lighter nodes (subdividing, with a low quality floor) can lower
             // the stable bound below the step: follow it, as a scene's `Substep` policy does,
-            // outside the cut's time (a rare event), so that the tissue does not diverge.
+            // outside the cut's time (a rare event), so that the tissue does not diverge. The
+            // engine is rebuilt for the new step: that upload is not in the row's bytes, and
+            // the next cut reads without a read made ahead.
             if sim.config().dt > sim.bound().dt {
                 sim.set_time_step(0.5 * sim.bound().dt)?;
             }
