@@ -35,6 +35,7 @@ type P = [f32; 4];
 const BLOCK: usize = 1024;
 
 /// Nodes per task of a scan for the nodes near a blade made with a step.
+#[cfg(feature = "parallel")]
 const NEAR_BLOCK: usize = 8192;
 
 /// One spring as seen from one of its ends.
