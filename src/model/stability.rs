@@ -101,14 +101,16 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         .map(|b| block_min(&per_node, b))
         .collect();
     let (dt, node) = smallest_block(&blocks);
+    // Cuts append nodes: room made now, not by moving every node's entry at the first.
+    use crate::engine::room::with_room;
     StabilityBound {
         dt,
         node,
         omega_max,
-        per_node,
-        k_sum,
-        c_sum,
-        blocks,
+        per_node: with_room(per_node),
+        k_sum: with_room(k_sum),
+        c_sum: with_room(c_sum),
+        blocks: with_room(blocks),
     }
 }
 
