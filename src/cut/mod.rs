@@ -43,6 +43,8 @@ use std::time::Instant;
 
 use rustc_hash::FxHashSet;
 
+use crate::model::room::with_room;
+
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 use slotmap::SecondaryMap;
@@ -187,13 +189,10 @@ impl Cutter {
         let faces = FaceIndex::of(&mesh)?;
         let nodes = mesh.dense_nodes();
         let (dense, keys) = (nodes.index, nodes.keys);
-        // Room for an eighth more nodes, as the engines' buffers have: a cut that adds nodes
-        // does not move every key and rest position to a larger array.
-        let keys_len = keys.len();
-        let mut keys = keys;
-        keys.reserve(keys_len / 8);
-        let mut rest = Vec::with_capacity(keys_len + keys_len / 8);
-        rest.extend(keys.iter().map(|&k| mesh.rest(k)));
+        // Room for the nodes cuts add (see `model::room`).
+        let node_count = keys.len();
+        let keys = with_room(keys);
+        let rest = with_room(keys.iter().map(|&k| mesh.rest(k)).collect());
         let mut tet_table = tet_table::TetTable::default();
         for (tk, t) in mesh.tets() {
             tet_table.set(tk, t.nodes.map(|k| dense[k]));
@@ -232,7 +231,7 @@ impl Cutter {
             on_cut: FxHashSet::default(),
             tet_table,
             epoch: 0,
-            read: ReadPositions::for_nodes(keys_len),
+            read: ReadPositions::for_nodes(node_count),
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
             families: template::Families::default(),
             pending: Default::default(),

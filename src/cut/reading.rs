@@ -106,12 +106,13 @@ pub struct ReadPositions {
 }
 
 impl ReadPositions {
-    /// Arrays for a mesh of `nodes` nodes, with room for an eighth more, written once: made
-    /// with the cutter, so that its first cut does not pay for them (the kernel's first touch
-    /// of every page: milliseconds on a mesh of a few hundred thousand nodes), nor an early
-    /// cut for moving them all when the mesh grows past them.
+    /// Arrays for a mesh of `nodes` nodes, with room for the nodes cuts add
+    /// ([`crate::model::room::spare`]), written once: made with the cutter, so that its first
+    /// cut does not pay for them (the kernel's first touch of every page: milliseconds on a
+    /// mesh of a few hundred thousand nodes), nor an early cut for moving them all when the
+    /// mesh grows past them.
     pub(super) fn for_nodes(nodes: usize) -> Self {
-        let room = nodes + nodes / 8;
+        let room = nodes + crate::model::room::spare(nodes);
         let mut r = ReadPositions {
             at: Vec::with_capacity(room),
             class: Vec::with_capacity(room),

@@ -69,11 +69,11 @@ impl RestPlane {
 
 /// For each tet, the tets a cut separated from it (across a face it opened or left on the crack
 /// front), each with the blade's plane pulled back into the tet's rest frame at that cut.
-#[derive(Debug, Clone, Default)]
 ///
 /// A hash map, not a secondary map: few tets are ever cut, and a secondary map sized to the
 /// largest key cut so far grows to the whole mesh at the first cut near its last tets (a
 /// pause of milliseconds on a large mesh, most of it the kernel's first touch of the pages).
+#[derive(Debug, Clone, Default)]
 pub struct CutPartners(FxHashMap<TetKey, Vec<(TetKey, Option<RestPlane>)>>);
 
 impl CutPartners {

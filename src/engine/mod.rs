@@ -10,7 +10,6 @@ pub mod fast;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod reference;
-pub(crate) mod room;
 mod surface_list;
 
 use std::collections::{HashMap, HashSet};
@@ -548,12 +547,13 @@ impl Simulation {
     /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or is above the
     /// stable bound (unless `config.allow_unstable`).
     pub fn new(mut model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
-        // Cuts append nodes and springs: room made now (see `room`).
-        room::reserve_room(&mut model.node_keys);
-        room::reserve_room(&mut model.rest);
-        room::reserve_room(&mut model.mass);
-        room::reserve_room(&mut model.fixed);
-        room::reserve_room(&mut model.springs);
+        // Cuts append nodes and springs: room made now (see `model::room`).
+        use crate::model::room::reserve_room;
+        reserve_room(&mut model.node_keys);
+        reserve_room(&mut model.rest);
+        reserve_room(&mut model.mass);
+        reserve_room(&mut model.fixed);
+        reserve_room(&mut model.springs);
         if !(config.dt.is_finite() && config.dt > 0.0) {
             return Err(Error::Model(format!(
                 "time step {} must be finite and positive",

@@ -10,6 +10,7 @@ pub mod constraints;
 pub mod diff;
 pub mod journal;
 pub mod material;
+pub(crate) mod room;
 pub mod stability;
 
 use std::collections::BTreeMap;

@@ -102,7 +102,7 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         .collect();
     let (dt, node) = smallest_block(&blocks);
     // Cuts append nodes: room made now, not by moving every node's entry at the first.
-    use crate::engine::room::with_room;
+    use super::room::with_room;
     StabilityBound {
         dt,
         node,

@@ -25,6 +25,7 @@
 mod patch;
 
 use super::{Engine, Integrator, SimConfig};
+use crate::model::room::{copy_with_room, spare};
 use crate::model::{PackedModel, PackedSpring};
 
 /// A position or velocity, padded to 16 bytes so that a node is one aligned load.
@@ -144,7 +145,7 @@ impl FastEngine {
             gravity: [g[0] as f32, g[1] as f32, g[2] as f32],
             alpha: model.mass_damping as f32,
         };
-        // Node arrays keep room for cuts' new nodes (see `spare`).
+        // Node arrays keep room for cuts' new nodes (see `model::room::spare`).
         let zeros = || {
             let mut v: Vec<P> = Vec::with_capacity(n + spare(n));
             v.resize(n, [0.0; 4]);
@@ -165,14 +166,13 @@ impl FastEngine {
             order,
             rank,
             rest_inner,
-            rest: model.rest.clone(),
+            rest: copy_with_room(&model.rest),
             near_ahead: None,
             read_ahead: None,
             near_reads: Default::default(),
         };
         engine.order.reserve(spare(n));
         engine.rank.reserve(spare(n));
-        engine.rest.reserve(spare(n));
         engine.rest_inner.reserve(spare(n));
         engine.graph.inv_mass.reserve(spare(n));
         engine.graph.fixed.reserve(spare(n));
@@ -584,14 +584,6 @@ fn entry_of(s: &PackedSpring, end: usize, other: u32, rest: &[[f64; 3]]) -> (Ent
     (e, s.damping as f32)
 }
 
-/// Room kept in an array of `n` entries for what cuts add (nodes, springs): growing a vector
-/// of megabytes copies it into fresh pages, a pause of 6-35 ms at 100,000 tets, where a cut
-/// otherwise costs under one. A quarter: 350 subdividing cut events into a 104,544-tet box add
-/// 16% nodes and 17% springs.
-fn spare(n: usize) -> usize {
-    n / 4
-}
-
 /// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
 /// forwards.
 fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
@@ -603,7 +595,7 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
         rows_of[b as usize].push(entry_of(s, 1, a, &model.rest));
     }
     // Holes are compacted in place before the adjacency grows, so only live rows use the
-    // room (see `spare`).
+    // room (see `model::room::spare`).
     let mut rows = Vec::with_capacity(n + spare(n));
     let entries = 2 * model.springs.len();
     let mut adj = Vec::with_capacity(entries + spare(entries));

@@ -13,7 +13,7 @@ impl TrianglesAtNodes {
     /// The index of `triangles` (model node indices) over `nodes` nodes.
     pub fn of(triangles: &[[u32; 3]], nodes: usize) -> Self {
         let mut index = TrianglesAtNodes {
-            at: crate::engine::room::with_room(vec![Vec::new(); nodes]),
+            at: crate::model::room::with_room(vec![Vec::new(); nodes]),
         };
         for (i, t) in triangles.iter().enumerate() {
             index.add(i as u32, t);
