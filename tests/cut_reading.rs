@@ -311,3 +311,106 @@ fn carving_strongly_stretched_tissue_misses_no_tet_the_sweep_meets(
     }
     assert!(met > 30, "the sweeps met only {met} tets");
 }
+
+/// Carving next to a node pulled far out of tissue otherwise at rest (a grasper's pull: the
+/// node's tets become a tent over the surface), after a first cut near rest that leaves the
+/// smallest box: every tet a small sweep in the tent meets is carved, as long as it has a
+/// corner in the box the cut reads. Such a tet's corners on the surface lie further from the
+/// sweep than the scan's reach (the longest rest edge and the spread of the displacements
+/// read), and where the box holds only the pulled node, so does that node: before the cut
+/// looked at the tets of the nodes read beyond its reach, it missed tets in both cases (and
+/// the fixed reach of twice the longest rest edge it replaced missed some too). A tet with no
+/// corner in the box (a sweep in the air halfway up a tent taller than two boxes) is beyond
+/// any cut that reads near its blade; those sweeps are counted apart.
+#[rstest]
+fn carving_next_to_a_pulled_node_misses_no_tet_the_sweep_meets(
+    #[values(0.0, 1.0, 2.0)] width: f64,
+    #[values(4.0, 6.0, 9.0)] height: f64,
+) {
+    let mesh = BoxGrid::cube_cells([12, 12, 4], H).build().unwrap();
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
+    let mut base = Cutter::new(mesh, model, CutMethod::Remove).unwrap();
+    let top = nalgebra::Point3::new(8.0 * H, 8.0 * H, 4.0 * H);
+    let lift = height * H;
+    // The pulled node alone (width 0), or a bump a rest edge or two wide around it.
+    let x: Vec<[f64; 3]> = base
+        .mesh()
+        .nodes()
+        .map(|(_, n)| {
+            let d2 = (n.rest - top).norm_squared();
+            let up = if d2 < 1e-12 {
+                lift
+            } else if width > 0.0 {
+                lift * (-d2 / (width * H).powi(2)).exp()
+            } else {
+                0.0
+            };
+            [n.rest.x, n.rest.y, n.rest.z + up]
+        })
+        .collect();
+    let small = |p: nalgebra::Point3<f64>| {
+        let d = 0.05 * H;
+        [
+            p,
+            p + Vector3::new(d, 0.0, 0.0),
+            p + Vector3::new(0.0, d, d),
+        ]
+    };
+    // A first cut near rest, far enough from the pull that it reads none of it.
+    let first = base
+        .cut(
+            &Sweep::from_triangles(vec![small(nalgebra::Point3::new(
+                1.3 * H,
+                1.2 * H,
+                0.45 * H,
+            ))]),
+            &x,
+        )
+        .unwrap();
+    assert!(first.tets_removed > 0);
+    let mut rng = models::Rng(777);
+    let (mut met, mut beyond) = (0, 0);
+    for _ in 0..40 {
+        let t = 0.2 + 0.7 * rng.next();
+        let s = 1.0 - t;
+        let p = nalgebra::Point3::new(
+            top.x + s * (rng.next() - 0.5) * H,
+            top.y + s * (rng.next() - 0.5) * H,
+            top.z + t * lift,
+        );
+        let sweep = Sweep::from_triangles(vec![small(p)]);
+        let mut cutter = base.clone();
+        let (lo, hi) = cutter.reading_box(&sweep).unwrap();
+        let (mut want, mut in_box) = (0, 0);
+        for (_, tet) in cutter.mesh().tets() {
+            let q = tet
+                .nodes
+                .map(|k| nalgebra::Point3::from(x[cutter.dense_index(k).unwrap() as usize]));
+            if lancet::cut::exact::triangle_meets_tet(&sweep.triangles[0], &q) {
+                want += 1;
+                let inside =
+                    |q: &nalgebra::Point3<f64>| (0..3).all(|c| q[c] >= lo[c] && q[c] <= hi[c]);
+                in_box += usize::from(q.iter().any(inside));
+            }
+        }
+        let got = cutter.cut(&sweep, &x).unwrap().tets_removed;
+        let at = format!("pulled {height} cells up, {width} wide: a sweep at {p:?}");
+        assert!(got <= want, "{at}: {got} tets carved of {want} met");
+        if in_box == want {
+            assert_eq!(got, want, "{at}");
+            met += want;
+        } else {
+            beyond += 1;
+        }
+    }
+    assert!(
+        met > 20,
+        "the sweeps met only {met} tets with a corner in the box"
+    );
+    // Only where the box holds no node: the tallest tent of the pulled node alone.
+    assert!(
+        beyond == 0 || (width == 0.0 && height == 9.0),
+        "{beyond} sweeps met tets with no corner in the box"
+    );
+}

@@ -31,6 +31,7 @@ pub mod faces;
 mod floor;
 pub mod invariants;
 pub mod reading;
+mod rest_index;
 mod resubdivide;
 mod resweep;
 pub mod subdivide;
@@ -143,6 +144,9 @@ pub struct Cutter {
     /// made): a cut settles each node it read against it, in ascending order, instead of
     /// looking each up in the mesh's node map.
     rest: Vec<Point3<f64>>,
+    /// The dense indices by rest position: where a cut looks for nodes pulled out of the box
+    /// it read ([`Cutter::pulled_out`]).
+    rest_index: rest_index::RestIndex,
     method: CutMethod,
     /// Face-neighbour pairs a sweep has crossed whose face is still shared: the crack front of
     /// a partial cut. They stay cut when the blade moves on.
@@ -192,7 +196,7 @@ impl Cutter {
         // Room for the nodes cuts add (see `model::room`).
         let node_count = keys.len();
         let keys = with_room(keys);
-        let rest = with_room(keys.iter().map(|&k| mesh.rest(k)).collect());
+        let rest: Vec<Point3<f64>> = with_room(keys.iter().map(|&k| mesh.rest(k)).collect());
         let mut tet_table = tet_table::TetTable::default();
         for (tk, t) in mesh.tets() {
             tet_table.set(tk, t.nodes.map(|k| dense[k]));
@@ -204,6 +208,7 @@ impl Cutter {
             .springs()
             .map(|(_, s)| s.rest_length)
             .fold(0.0, f64::max);
+        let rest_index = rest_index::RestIndex::of(&rest, longest_rest);
         let surface_area = faces
             .boundary()
             .into_iter()
@@ -223,6 +228,7 @@ impl Cutter {
             dense,
             keys,
             rest,
+            rest_index,
             method,
             crack: BTreeSet::new(),
             partners: resweep::CutPartners::default(),
@@ -452,6 +458,7 @@ impl Cutter {
     fn add_node(&mut self, rest: Point3<f64>) -> NodeKey {
         let k = self.mesh.add_node(rest);
         self.dense.insert(k, self.keys.len() as u32);
+        self.rest_index.insert(self.keys.len() as u32, rest);
         self.keys.push(k);
         self.rest.push(rest);
         k
@@ -471,12 +478,44 @@ impl Cutter {
     /// the sweep's a snap distance off, and a corner's current position lies within a snap
     /// distance of where it is classified. In tissue near rest this is about half the fixed
     /// reach it replaces (twice the longest rest edge), and the scan visits a fifth of the
-    /// tets; stretched tissue widens it, up to the box read. The bound holds for tets whose
-    /// corners were all read: a tet with a corner outside the box (pulled more than about a
-    /// rest edge past it) is found only where a corner that was read lies within the reach,
-    /// which the fixed reach allowed a rest edge further (see docs/ROADMAP.md, item 14).
+    /// tets; stretched tissue widens it, up to the box read.
+    ///
+    /// The bound holds for tets whose corners were all read. At the nodes read beyond the
+    /// reach, the cut looks for the others: a tet with a corner the box missed although the
+    /// tissue around a corner it read, moved as that corner did, would have put it well inside
+    /// the box (a node pulled out of tissue otherwise at rest, whose tets stretch across the
+    /// box). What no cut that reads near its blade finds is a tet with no corner in the box,
+    /// or one that reaches into it only from its edge: stretched across more than the box.
     fn scan_reach(&self, read: &ReadPositions) -> f64 {
         (self.longest_rest + read.displacement_spread() + 2.0 * self.snap).min(self.reading_pad())
+    }
+
+    /// The nodes pulled out of the box read for `sweep`: not read, though their rest positions
+    /// lie far enough inside the box that, displaced as any node read was (within the bounds of
+    /// the displacements read, per axis, and two snap distances), they would lie in it. Their
+    /// tets may stretch across the sweep from outside the box, with no corner within the
+    /// scan's reach ([`Cutter::scan_reach`]). In tissue moved as a whole, or smoothly, there
+    /// are none.
+    fn pulled_out(&self, sweep: &Sweep, read: &ReadPositions) -> Vec<u32> {
+        let (Some((lo, hi)), Some((moved_lo, moved_hi))) =
+            (self.reading_box(sweep), read.displacement_bounds())
+        else {
+            return Vec::new();
+        };
+        let margin = 2.0 * self.snap;
+        let lo = [0, 1, 2].map(|c| lo[c] - moved_lo[c] + margin);
+        let hi = [0, 1, 2].map(|c| hi[c] - moved_hi[c] - margin);
+        // Nearly always every node there was read: counted, not looked up one by one.
+        let rest = &self.rest;
+        let read_there = read
+            .all()
+            .iter()
+            .filter(|&&i| reading::inside(&rest[i as usize].into(), &lo, &hi))
+            .count();
+        if read_there == self.rest_index.count_within(lo, hi) {
+            return Vec::new();
+        }
+        self.rest_index.within(lo, hi, |i| !read.knows(i))
     }
 
     /// How far the box a cut reads reaches past its sweep's bounds. The candidates' corners
@@ -535,6 +574,15 @@ impl Cutter {
         // others (stretched tissue), which are read first.
         let mut candidates = Vec::new();
         let mut missed = Vec::new();
+        // Tets stretched into the box from a node pulled out of it are read with those the box
+        // missed a corner of.
+        for x in self.pulled_out(sweep, read) {
+            for &tk in self.faces.tets_at(self.keys[x as usize]) {
+                if self.tet_table.first_visit(tk, self.epoch) {
+                    missed.push(tk);
+                }
+            }
+        }
         if let Some(b) = sweep.aabb() {
             for tk in near {
                 let c = self.dense_corners(tk);

@@ -233,6 +233,12 @@ impl ReadPositions {
             .sqrt()
     }
 
+    /// The bounds, per axis, of the classification displacements of the nodes settled so far
+    /// (`None` before any).
+    pub(super) fn displacement_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        (self.settled > 0).then_some((self.moved_lo, self.moved_hi))
+    }
+
     /// The classification position of node `i` (read and settled by this cut).
     pub(super) fn class(&self, i: u32) -> Point3<f64> {
         debug_assert!(self.knows(i), "node {i} was not read");
@@ -242,6 +248,11 @@ impl ReadPositions {
     /// The nodes read in the box around the sweep.
     pub fn near(&self) -> &[u32] {
         &self.read[..self.near]
+    }
+
+    /// Every node read so far, in the order read.
+    pub fn all(&self) -> &[u32] {
+        &self.read
     }
 
     /// How many nodes were read afterwards because the box missed them.
