@@ -480,12 +480,12 @@ impl Cutter {
     /// reach it replaces (twice the longest rest edge), and the scan visits a fifth of the
     /// tets; stretched tissue widens it, up to the box read.
     ///
-    /// The bound holds for tets whose corners were all read. At the nodes read beyond the
-    /// reach, the cut looks for the others: a tet with a corner the box missed although the
-    /// tissue around a corner it read, moved as that corner did, would have put it well inside
-    /// the box (a node pulled out of tissue otherwise at rest, whose tets stretch across the
-    /// box). What no cut that reads near its blade finds is a tet with no corner in the box,
-    /// or one that reaches into it only from its edge: stretched across more than the box.
+    /// The bound holds for tets whose corners were all read. A tet with a corner the box
+    /// missed is longer: the cut finds those whose missing corner was pulled out of the box,
+    /// its rest position lying well inside ([`Cutter::pulled_out`]: a node pulled out of quiet
+    /// tissue, whose tets stretch across the box). What no cut that reads near its blade finds
+    /// is a tet with no corner in the box, or one that reaches into it only from its edge:
+    /// stretched across more than the box.
     fn scan_reach(&self, read: &ReadPositions) -> f64 {
         (self.longest_rest + read.displacement_spread() + 2.0 * self.snap).min(self.reading_pad())
     }
