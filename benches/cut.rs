@@ -119,10 +119,10 @@ fn cut_events(c: &mut Criterion) {
 }
 
 /// Applying a small diff to the packed model (three springs removed, as a carving cut removes
-/// some) at the start of its spring array and near its end. The springs stay sorted by end
-/// pair, so every spring after the edit moves: an edit near the end (the top of these boxes,
-/// where `bench cut` and `cut_event` cut) moves little, one near the start moves the whole
-/// array, which grows with the mesh (4 MB at 104,544 tets, 14 MB at 375,000).
+/// some) at the start of its spring array and near its end. A removed spring's place takes the
+/// last spring, so both cost what the diff holds; when the array was kept sorted by end pair,
+/// an edit near the start moved the whole array, which grows with the mesh (4 MB at 104,544
+/// tets, 14 MB at 375,000).
 fn packed_apply(c: &mut Criterion) {
     let mut group = c.benchmark_group("packed_apply");
     group.sample_size(10);

@@ -76,6 +76,7 @@ fn a_dropped_spring_moves_the_twin_past_the_tolerance(
     for k in 0..model.springs.len() {
         let mut less = model.clone();
         less.springs.remove(k);
+        less.reindex();
         let other = models::fresh(&less, &layout);
         let t = twin(&other, &less, config, &raw, steps);
         let d = common::relative_difference(&t.0, &base.0, &raw.0)

@@ -553,7 +553,7 @@ impl Simulation {
         reserve_room(&mut model.rest);
         reserve_room(&mut model.mass);
         reserve_room(&mut model.fixed);
-        reserve_room(&mut model.springs);
+        model.reserve_springs(crate::model::room::spare(model.springs.len()));
         if !(config.dt.is_finite() && config.dt > 0.0) {
             return Err(Error::Model(format!(
                 "time step {} must be finite and positive",
@@ -582,7 +582,7 @@ impl Simulation {
         // a larger array (a pause of milliseconds at 100,000 tets): a quarter, as the fast
         // engine keeps (350 subdividing cut events into a 104,544-tet box add 17% springs).
         let mut model = model;
-        model.springs.reserve(model.springs.len() / 4);
+        model.reserve_springs(model.springs.len() / 4);
         let extra = model.node_count() / 4;
         model.rest.reserve(extra);
         model.mass.reserve(extra);

@@ -257,7 +257,7 @@ impl ConnectivityLayout {
         let mut fill = vec![0u32; n];
         // Rows wider than `k`, gathered whole and written as chains below.
         let mut wide: BTreeMap<usize, Vec<Slot>> = BTreeMap::new();
-        // Springs are sorted by their node pair, so each row fills in neighbour order.
+        // In the springs' order (none in particular after a cut); each row is sorted below.
         for s in &model.springs {
             for (from, to) in [(s.nodes[0], s.nodes[1]), (s.nodes[1], s.nodes[0])] {
                 let slot = Slot::of(model, s, from, order.rank[to as usize]);

@@ -175,6 +175,11 @@ pub fn spring_graph(model: &PackedModel) -> (Vec<u32>, Vec<u32>) {
         cols[fill[b as usize] as usize] = a;
         fill[b as usize] += 1;
     }
+    // Each row in ascending order, whatever the springs' order (a cut leaves them in none):
+    // the locality order's start node is the first of least degree it meets.
+    for i in 0..n {
+        cols[rows[i] as usize..rows[i + 1] as usize].sort_unstable();
+    }
     (rows, cols)
 }
 

@@ -532,6 +532,7 @@ impl SpringModel {
             rest,
             mass,
             fixed,
+            index: diff::SpringIndex::of(&springs),
             springs,
             gravity: self.config.gravity,
             mass_damping: self.config.mass_damping,
@@ -563,12 +564,18 @@ pub struct PackedModel {
     pub mass: Vec<f64>,
     /// Whether each node is held at its rest position.
     pub fixed: Vec<bool>,
-    /// The springs.
+    /// The springs: sorted by end pair when packed; a diff removes springs by moving the last
+    /// one into the hole and appends what it adds ([`PackedModel::apply`]), so after a cut
+    /// they are in no particular order. Found by end pair with [`PackedModel::spring_index`];
+    /// after changing this array other than in the springs' parameters, call
+    /// [`PackedModel::reindex`].
     pub springs: Vec<PackedSpring>,
     /// Gravity, m/s^2.
     pub gravity: [f64; 3],
     /// Mass-proportional damping, 1/s.
     pub mass_damping: f64,
+    /// Where each spring is in `springs`, by end pair.
+    index: diff::SpringIndex,
 }
 
 impl PackedModel {
@@ -609,7 +616,7 @@ impl PackedModel {
                 damping: c,
             });
         }
-        // Engines and diffs rely on springs sorted by end pair (`PackedModel::spring_index`).
+        // Sorted by end pair, as `SpringModel::pack` gives them (and to find duplicates).
         packed.sort_by_key(|s| s.nodes);
         if let Some(w) = packed.windows(2).find(|w| w[0].nodes == w[1].nodes) {
             let [a, b] = w[0].nodes;
@@ -622,6 +629,7 @@ impl PackedModel {
             fixed: vec![false; n],
             rest,
             mass,
+            index: diff::SpringIndex::of(&packed),
             springs: packed,
             gravity: [0.0; 3],
             mass_damping: 0.0,
