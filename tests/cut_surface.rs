@@ -214,3 +214,105 @@ fn an_edit_that_does_not_fit_changes_nothing() {
     assert_eq!(after[0], before[before.len() - 1]);
     drop(cutter);
 }
+
+/// A surface edit past the room of the culler's triangle buffer grows it on the device,
+/// keeping what it held, after cuts that added more nodes than the first upload left room for
+/// (the layout's growth brings the culler up to date in full once): the device then holds
+/// what an upload from scratch would, and culls as the float64 brute force does, the new
+/// nodes' triangles included.
+#[rstest]
+fn a_surface_edit_past_the_buffers_room_grows_them(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+) {
+    if common::gpu().is_none() {
+        return;
+    }
+    let mesh = BoxGrid::cube_cells([14, 14, 7], 0.01).build().unwrap();
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3))).unwrap();
+    let packed = model.pack(&mesh).unwrap();
+    let n = packed.node_count() as u32;
+    let config = SimConfig {
+        layout,
+        ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
+    };
+    let mut sim = Simulation::new(packed, EngineKind::Gpu, config).unwrap();
+    let boundary = Cutter::new(mesh, model, CutMethod::Separate)
+        .unwrap()
+        .surface();
+    // 1,568 triangles; the first upload of 100 leaves room for about 1,100 (16 KiB).
+    assert!(boundary.len() > 1500);
+    sim.set_surface(boundary[..100].to_vec()).unwrap();
+    // 1,200 nodes more, 100 a cut (more than the first upload left room for: 16 KiB, 1,024
+    // nodes), in a sheet above the box, fixed and without springs; each cut's edit adds
+    // triangles over the new row, each node with its neighbours along x and y.
+    for round in 0..12u32 {
+        let added: Vec<lancet::model::diff::AddedNode> = (0..100)
+            .map(|i| {
+                let k = 100 * round + i;
+                lancet::model::diff::AddedNode {
+                    key: Default::default(),
+                    rest: [0.001 * (k % 40) as f64, 0.001 * (k / 40) as f64, 0.09],
+                    mass: 1e-3,
+                    fixed: true,
+                    state_from: None,
+                    blend: None,
+                }
+            })
+            .collect();
+        sim.apply(&lancet::model::ModelDiff {
+            added_nodes: added,
+            ..Default::default()
+        })
+        .unwrap();
+        let rows = (100 * round.saturating_sub(1)..100 * round)
+            .filter(|k| k % 40 < 39)
+            .map(|k| [n + k, n + k + 1, n + k + 40]);
+        let edit = SurfaceEdit {
+            removed: vec![],
+            added: rows.take(25).collect(),
+        };
+        if !edit.is_empty() {
+            sim.edit_surface(&edit).unwrap();
+            let diffs = sim.differences_from_rebuild().unwrap();
+            assert!(
+                diffs.is_empty(),
+                "after {} nodes: {diffs:?}",
+                100 * (round + 1)
+            );
+        }
+    }
+    let sheet = sim.surface().unwrap().len() - 100;
+    assert_eq!(sheet, 11 * 25);
+    // Then the rest of the box's boundary: more triangles than the first upload left room for.
+    let edit = SurfaceEdit {
+        removed: vec![],
+        added: boundary[100..].to_vec(),
+    };
+    sim.edit_surface(&edit).unwrap();
+    let edited = sim.surface().unwrap().to_vec();
+    assert_eq!(edited.len(), boundary.len() + sheet);
+    let diffs = sim.differences_from_rebuild().unwrap();
+    assert!(diffs.is_empty(), "{diffs:?}");
+    let x = sim.positions();
+    let exact_boxes = [
+        ([0.005, 0.005, 0.085], [0.02, 0.02, 0.095]),
+        ([-0.01, -0.01, -0.01], [0.15, 0.15, 0.08]),
+    ];
+    let boxes: Vec<ToolBox> = exact_boxes
+        .iter()
+        .map(|&(lo, hi)| ToolBox::containing(lo, hi))
+        .collect();
+    let named = |c: Vec<[u32; 2]>| -> BTreeSet<([u32; 3], u32)> {
+        c.into_iter()
+            .map(|[t, b]| (canonical(edited[t as usize]), b))
+            .collect()
+    };
+    let got = named(sim.cull_tools(&boxes).unwrap());
+    let exact = named(cull_exact(&x, &edited, &exact_boxes));
+    assert!(
+        exact.iter().filter(|(_, b)| *b == 0).count() > 20,
+        "the box over the sheet met few triangles"
+    );
+    assert_eq!(got, exact);
+}

@@ -59,6 +59,33 @@ pub struct ToolCuller {
     bind_groups: Vec<wgpu::BindGroup>,
 }
 
+/// Write the elements `indices` of `host` (what `buffer` should hold) to `buffer`, or, where
+/// `host` outgrew it, replace it by a grown copy ([`buffers::grown`]: the elements written
+/// and those past the old buffer go up, the rest is copied on the device). Returns whether the
+/// buffer was replaced.
+fn write_or_grow<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    label: &str,
+    buffer: &mut wgpu::Buffer,
+    host: &[T],
+    indices: &mut Vec<u32>,
+) -> Result<bool> {
+    let bytes: &[u8] = bytemuck::cast_slice(host);
+    if bytes.len() as u64 <= buffer.size() {
+        buffers::write_slots(ctx, buffer, host, indices);
+        return Ok(false);
+    }
+    indices.sort_unstable();
+    indices.dedup();
+    let elem = std::mem::size_of::<T>() as u64;
+    let dirty: Vec<std::ops::Range<u64>> = indices
+        .iter()
+        .map(|&i| i as u64 * elem..(i as u64 + 1) * elem)
+        .collect();
+    *buffer = buffers::grown(ctx, label, buffer, bytes, &dirty)?.0;
+    Ok(true)
+}
+
 impl ToolCuller {
     /// Upload the surface (`triangles` in layout order, `rest` positions in layout order) and
     /// build the pass over the node state.
@@ -150,8 +177,11 @@ impl ToolCuller {
 
     /// Write only what an edit changed: the surface has `count` triangles, of which those in
     /// `triangles` (slot, layout-order corners) are new, and the layout `slots` node slots, of
-    /// which those in `rest` (slot, position) are new. Returns false, writing nothing, when a
-    /// buffer is too small: then give the whole surface to [`ToolCuller::set_surface`].
+    /// which those in `rest` (slot, position) are new. A buffer too small is replaced by one of
+    /// the next size class holding the old contents (copied on the device) and the new (see
+    /// [`buffers::grown`]), and the pass bound to `state` anew: a surface that carving grows
+    /// past the first upload's room is not compared and uploaded whole. Returns whether the
+    /// rest positions moved to a new buffer (passes sharing them must bind it).
     pub fn edit(
         &mut self,
         ctx: &GpuContext,
@@ -159,26 +189,39 @@ impl ToolCuller {
         triangles: &[(u32, [u32; 3])],
         slots: usize,
         rest: &[(u32, [f32; 4])],
-    ) -> bool {
-        if (count * 16) as u64 > self.triangles.size() || (slots * 16) as u64 > self.rest.size() {
-            return false;
-        }
+        state: &NodeState,
+    ) -> Result<bool> {
         self.triangles_host.resize(count, [0; 4]);
         let mut written: Vec<u32> = Vec::with_capacity(triangles.len());
         for &(i, t) in triangles {
             self.triangles_host[i as usize] = [t[0], t[1], t[2], 0];
             written.push(i);
         }
-        buffers::write_slots(ctx, &self.triangles, &self.triangles_host, &mut written);
+        let tris_moved = write_or_grow(
+            ctx,
+            "surface triangles",
+            &mut self.triangles,
+            &self.triangles_host,
+            &mut written,
+        )?;
         self.rest_host.resize(slots, [0.0; 4]);
         written.clear();
         for &(i, r) in rest {
             self.rest_host[i as usize] = r;
             written.push(i);
         }
-        buffers::write_slots(ctx, &self.rest, &self.rest_host, &mut written);
+        let rest_moved = write_or_grow(
+            ctx,
+            "rest positions",
+            &mut self.rest,
+            &self.rest_host,
+            &mut written,
+        )?;
         self.triangle_count = count as u32;
-        true
+        if tris_moved || rest_moved {
+            self.rebind(ctx, state);
+        }
+        Ok(rest_moved)
     }
 
     /// Read back the first `count` triangles and `slots` rest positions (a check).

@@ -735,8 +735,9 @@ impl GpuEngine {
     /// triangles it removed and appended those it added, as [`crate::Simulation::edit_surface`]
     /// does). Writes only those triangles, those at nodes a patch moved in the layout, and the
     /// rest positions of the moved and added nodes: a cut costs what it changed, not a pass
-    /// over the surface and every node. Falls back to [`GpuEngine::set_surface`] (which
-    /// compares everything) when a buffer must grow or the layout was rebuilt.
+    /// over the surface and every node (a buffer the edit outgrows is grown by a copy on the
+    /// device). Falls back to [`GpuEngine::set_surface`] (which compares everything) when the
+    /// layout was rebuilt.
     pub fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
         let moved = match &self.surface_sync {
             SurfaceSync::Full => return self.set_surface(triangles),
@@ -804,11 +805,16 @@ impl GpuEngine {
             .collect();
         let slots_total = self.layout.node_slots();
         let s = self.surface.as_mut().expect("checked above");
-        if !s
-            .tool
-            .edit(&self.ctx, triangles.len(), &tris, slots_total, &rest)
-        {
-            return self.set_surface(triangles);
+        let rest_moved = s.tool.edit(
+            &self.ctx,
+            triangles.len(),
+            &tris,
+            slots_total,
+            &rest,
+            &self.state,
+        )?;
+        if rest_moved {
+            s.near.rebind(&self.ctx, s.tool.rest(), &self.state);
         }
         // Dropped slots leave the index; changed and appended ones are put in it anew.
         for (i, t) in s.triangles.iter().enumerate().skip(triangles.len()) {
