@@ -134,10 +134,13 @@ fn packed_apply(c: &mut Criterion) {
         let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3)))
             .expect("model builds");
         let packed = model.pack(&mesh).expect("model packs");
-        let last = packed.springs.len() - 1;
+        let last = packed.springs().len() - 1;
         for (place, at) in [("start", 0), ("end", last - 40)] {
             let diff = lancet::model::ModelDiff {
-                removed_springs: packed.springs[at..at + 3].iter().map(|s| s.nodes).collect(),
+                removed_springs: packed.springs()[at..at + 3]
+                    .iter()
+                    .map(|s| s.nodes)
+                    .collect(),
                 ..Default::default()
             };
             group.bench_function(

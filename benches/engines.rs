@@ -16,7 +16,7 @@ fn engines(c: &mut Criterion) {
             .expect("cube builds");
         let model = bench_model(&mesh).expect("model builds");
         let dt = 0.9 * stable_time_step(&model).dt;
-        group.throughput(Throughput::Elements(model.springs.len() as u64));
+        group.throughput(Throughput::Elements(model.springs().len() as u64));
         for kind in [EngineKind::Reference, EngineKind::Fast] {
             let mut sim =
                 Simulation::new(model.clone(), kind, SimConfig::new(dt)).expect("stable dt");

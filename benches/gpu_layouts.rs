@@ -52,7 +52,7 @@ fn gpu_layouts(c: &mut Criterion) {
             .expect("cube builds");
         let model = bench_model(&mesh).expect("model builds");
         let dt = 0.9 * stable_time_step(&model).dt;
-        group.throughput(Throughput::Elements(model.springs.len() as u64));
+        group.throughput(Throughput::Elements(model.springs().len() as u64));
         for (name, layout, accumulation) in variants {
             let config = SimConfig {
                 layout,

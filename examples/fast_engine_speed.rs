@@ -42,7 +42,7 @@ fn main() -> lancet::Result<()> {
                 "{integrator:?}, damped {damped}: {} nodes, {} springs, bandwidth {}: \
                  {:.0} steps/s wall, {:.0} steps per CPU-second",
                 packed.node_count(),
-                packed.springs.len(),
+                packed.springs().len(),
                 engine.bandwidth(),
                 steps as f64 / secs,
                 steps as f64 / cpu

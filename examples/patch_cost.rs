@@ -42,7 +42,7 @@ fn cut(model: &PackedModel, split: f64) -> ModelDiff {
             });
         }
     }
-    for s in &model.springs {
+    for s in model.springs() {
         let [a, b] = s.nodes;
         let (xa, xb) = (model.rest[a as usize][0], model.rest[b as usize][0]);
         // A spring from a split node to the +x side moves to the copy; springs lying in the
@@ -81,7 +81,7 @@ fn main() -> lancet::Result<()> {
     println!(
         "cube {cells}^3: {} nodes, {} springs; the cut splits {} nodes and moves {} springs",
         model.node_count(),
-        model.springs.len(),
+        model.springs().len(),
         diff.added_nodes.len(),
         diff.added_springs.len()
     );

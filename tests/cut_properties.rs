@@ -168,14 +168,14 @@ fn extended(positions: &[[f64; 3]], rest: &[[f64; 3]], diff: &ModelDiff) -> Vec<
 /// The packed model kept by diffs carries exactly the cutter's springs and masses.
 fn assert_packed_matches(packed: &PackedModel, cutter: &Cutter) {
     let model = cutter.model();
-    assert_eq!(packed.springs.len(), model.spring_count());
+    assert_eq!(packed.springs().len(), model.spring_count());
     for (_, s) in model.springs() {
         let (a, b) = (
             cutter.dense_index(s.nodes[0]).unwrap(),
             cutter.dense_index(s.nodes[1]).unwrap(),
         );
         let i = packed.spring_index(a, b).expect("every spring is packed");
-        let p = packed.springs[i];
+        let p = packed.springs()[i];
         assert_eq!(
             (p.rest_length, p.stiffness, p.damping),
             (s.rest_length, s.stiffness, s.damping)

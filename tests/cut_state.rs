@@ -101,7 +101,7 @@ fn cut_stretched_box(kind: EngineKind, layout: LayoutKind) {
         1e-5
     };
     let mut worst = 0.0f64;
-    for s in &m.springs {
+    for s in m.springs() {
         let [a, b] = s.nodes.map(|i| x[i as usize]);
         let l = (0..3).map(|c| (b[c] - a[c]).powi(2)).sum::<f64>().sqrt();
         worst = worst.max((l / s.rest_length - 1.0 - STRAIN).abs());

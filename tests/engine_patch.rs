@@ -96,7 +96,7 @@ fn a_change_that_makes_the_step_unstable_is_refused_and_changes_nothing() {
     let bound = sim.bound().clone();
     // A spring a thousand times stiffer than any other across a free node.
     let s = model
-        .springs
+        .springs()
         .iter()
         .find(|s| !model.fixed[s.nodes[0] as usize] && !model.fixed[s.nodes[1] as usize])
         .unwrap();

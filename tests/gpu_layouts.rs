@@ -302,11 +302,11 @@ fn padding_is_the_share_of_empty_slots() {
     let model = random_model(1, false);
     let layout = ConnectivityLayout::new(&model, NodeOrder::locality(&model), Some(20)).unwrap();
     let (stats, _) = layout.memory(Integrator::Verlet);
-    let empty = (20 * model.node_count() - 2 * model.springs.len()) as u64;
+    let empty = (20 * model.node_count() - 2 * model.springs().len()) as u64;
     assert_eq!(stats.padding, empty * 32);
     // Each spring appears once in each end's row.
     let used = layout.slots.iter().filter(|s| s.other != u32::MAX).count();
-    assert_eq!(used, 2 * model.springs.len());
+    assert_eq!(used, 2 * model.springs().len());
 }
 
 #[test]
@@ -367,11 +367,11 @@ fn valence_buckets_cover_every_node_without_padding() {
     }
     assert_eq!(next_node as usize, n);
     // Exactly two slots per spring, none empty: no padding.
-    assert_eq!(layout.slots.len(), 2 * model.springs.len());
+    assert_eq!(layout.slots.len(), 2 * model.springs().len());
     assert!(layout.slots.iter().all(|s| s.other != u32::MAX));
     // Each node's table lists exactly its springs' other ends.
     let mut expected: Vec<Vec<u32>> = vec![Vec::new(); n];
-    for s in &model.springs {
+    for s in model.springs() {
         let (a, b) = (
             layout.order.rank[s.nodes[0] as usize],
             layout.order.rank[s.nodes[1] as usize],
@@ -404,7 +404,7 @@ fn valence_buckets_cover_every_node_without_padding() {
 fn edge_incidence_lists_every_spring_once_from_each_end() {
     let model = random_model(4, false);
     let layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
-    assert_eq!(layout.springs.len(), model.springs.len());
+    assert_eq!(layout.springs.len(), model.springs().len());
     let mut seen = vec![(0u32, 0u32); layout.springs.len()];
     for i in 0..layout.node_count() {
         let [lo, hi] = layout.incidence_rows[i];

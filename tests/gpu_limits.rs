@@ -96,7 +96,7 @@ fn folded_dispatches_step_like_unfolded_ones(
     }
     // 1,000 nodes (16 workgroups) and about 6,000 springs (94): both fold at 10.
     let model = box_model(9);
-    assert!(model.springs.len() > 64 * 90);
+    assert!(model.springs().len() > 64 * 90);
     let narrow = narrow_device();
     let config = SimConfig::new(2e-4);
     let run = |ctx: GpuContext| {
@@ -135,7 +135,7 @@ fn folded_state_moves_match_unfolded_ones(
     let model = box_model(8);
     let n = model.node_count();
     let mut diff = models::floating_ring(&model, 700, 1);
-    assert!(model.springs.len() + 700 < 64 * 100);
+    assert!(model.springs().len() + 700 < 64 * 100);
     for (k, a) in diff
         .added_nodes
         .iter_mut()

@@ -104,7 +104,7 @@ fn each_spring_appears_once_with_its_ends_and_rest_vector() {
     let layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
     let order = &layout.order;
     let mut expected: Vec<(u32, u32)> = model
-        .springs
+        .springs()
         .iter()
         .map(|s| {
             let (a, b) = (s.nodes[0].min(s.nodes[1]), s.nodes[0].max(s.nodes[1]));
@@ -127,7 +127,7 @@ fn each_spring_appears_once_with_its_ends_and_rest_vector() {
         .collect();
     expected.sort();
     got.sort();
-    assert_eq!(got.len(), model.springs.len());
+    assert_eq!(got.len(), model.springs().len());
     assert_eq!(got, expected);
     // Records stream by their ends in layout order.
     assert!(layout
@@ -352,7 +352,7 @@ fn fixed_point_twin_agrees_with_the_gather_within_its_resolution(
 fn memory_stats_sum_their_buffers_for_every_variant() {
     let model = random_model(2, false);
     let layout = EdgeLayout::new(&model, NodeOrder::locality(&model));
-    let (n, m) = (model.node_count() as u64, model.springs.len() as u64);
+    let (n, m) = (model.node_count() as u64, model.springs().len() as u64);
     for integrator in [Integrator::Verlet, Integrator::SymplecticEuler] {
         let state = match integrator {
             Integrator::Verlet => 3 * 16 * n,
@@ -480,7 +480,7 @@ fn a_row_that_outgrows_its_room_moves_alone_to_the_end() {
         .filter(|&i| !model.fixed[i as usize])
         .max_by_key(|&i| {
             model
-                .springs
+                .springs()
                 .iter()
                 .filter(|s| s.nodes.contains(&i))
                 .count()

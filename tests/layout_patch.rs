@@ -79,18 +79,18 @@ fn a_model_that_does_not_match_the_diff_is_refused_and_the_layout_kept(
     let mut stale = next.clone();
     let c = diff.changed_springs[0];
     let i = stale.spring_index(c.nodes[0], c.nodes[1]).unwrap();
-    stale.springs[i].stiffness =
-        model.springs[model.spring_index(c.nodes[0], c.nodes[1]).unwrap()].stiffness;
+    stale.springs_mut()[i].stiffness =
+        model.springs()[model.spring_index(c.nodes[0], c.nodes[1]).unwrap()].stiffness;
     assert_ne!(
-        stale.springs[i].stiffness, c.stiffness,
+        stale.springs()[i].stiffness,
+        c.stiffness,
         "the diff changes the stiffness"
     );
     // A removed spring put back.
     let mut kept = next.clone();
     let [a, b] = diff.removed_springs[0];
-    let gone = model.springs[model.spring_index(a, b).unwrap()];
-    kept.springs.push(gone);
-    kept.reindex();
+    let gone = model.springs()[model.spring_index(a, b).unwrap()];
+    kept.springs_mut().push(gone);
     for (wrong, what) in [(&stale, "adds or changes"), (&kept, "removes")] {
         let mut patched = layout.clone();
         let err = patched.patch(wrong, &diff).unwrap_err().to_string();
@@ -284,10 +284,10 @@ fn a_small_cut_dirties_a_small_part_of_each_layout() {
     .pack(&mesh)
     .unwrap();
     // Remove three springs of one node: a few rows change.
-    let node = model.springs[40].nodes[0];
+    let node = model.springs()[40].nodes[0];
     let diff = ModelDiff {
         removed_springs: model
-            .springs
+            .springs()
             .iter()
             .filter(|s| s.nodes.contains(&node))
             .take(3)
@@ -409,7 +409,7 @@ fn adding_a_node_moves_only_the_overflow_row_in_its_way() {
     let widest = (0..model.node_count())
         .map(|i| {
             model
-                .springs
+                .springs()
                 .iter()
                 .filter(|s| s.nodes.contains(&(i as u32)))
                 .count()
@@ -430,7 +430,7 @@ fn adding_a_node_moves_only_the_overflow_row_in_its_way() {
         c.overflow_rows()
     );
     // A copy of a node with one spring to it.
-    let src = model.springs[0].nodes[0];
+    let src = model.springs()[0].nodes[0];
     let n = model.node_count() as u32;
     let diff = ModelDiff {
         added_nodes: vec![lancet::model::AddedNode {
@@ -508,7 +508,7 @@ fn a_diff_that_does_not_fit_the_model_is_refused_and_leaves_it_unchanged() {
     assert!(err.contains("0-1"), "{err}");
     assert_eq!(m, model);
     let dup = ModelDiff {
-        added_springs: vec![model.springs[0]],
+        added_springs: vec![model.springs()[0]],
         ..ModelDiff::default()
     };
     assert!(m.apply(&dup).is_err());
@@ -528,17 +528,21 @@ fn applying_a_diff_keeps_every_spring_findable_once() {
     for round in 0..5 {
         let diff = random_diff(&model, round);
         model.apply(&diff).unwrap();
-        let mut pairs: Vec<[u32; 2]> = model.springs.iter().map(|s| s.nodes).collect();
+        let mut pairs: Vec<[u32; 2]> = model.springs().iter().map(|s| s.nodes).collect();
         pairs.sort_unstable();
         pairs.dedup();
-        assert_eq!(pairs.len(), model.springs.len(), "a spring is there twice");
-        for (i, s) in model.springs.iter().enumerate() {
+        assert_eq!(
+            pairs.len(),
+            model.springs().len(),
+            "a spring is there twice"
+        );
+        for (i, s) in model.springs().iter().enumerate() {
             assert!(s.nodes[0] < s.nodes[1]);
             assert_eq!(model.spring_index(s.nodes[1], s.nodes[0]), Some(i));
         }
         for s in &diff.added_springs {
             let i = model.spring_index(s.nodes[1], s.nodes[0]).unwrap();
-            assert_eq!(model.springs[i].stiffness, s.stiffness);
+            assert_eq!(model.springs()[i].stiffness, s.stiffness);
         }
         for s in &diff.removed_springs {
             let re_added = diff.added_springs.iter().any(|a| a.nodes == s.map(|x| x));

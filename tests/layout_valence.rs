@@ -16,7 +16,7 @@ use models::{random_model, random_state};
 
 fn valences(model: &PackedModel) -> Vec<u32> {
     let mut v = vec![0u32; model.node_count()];
-    for s in &model.springs {
+    for s in model.springs() {
         v[s.nodes[0] as usize] += 1;
         v[s.nodes[1] as usize] += 1;
     }
@@ -58,7 +58,7 @@ fn every_spring_appears_exactly_twice_across_all_buckets_with_the_right_other_en
     let model = random_model(2, true);
     let layout = layout_of(&model);
     let rank = &layout.order.rank;
-    let mut seen = vec![0u32; model.springs.len()];
+    let mut seen = vec![0u32; model.springs().len()];
     for b in &layout.buckets {
         for local in 0..b.count {
             let i = b.first + local;
@@ -68,11 +68,10 @@ fn every_spring_appears_exactly_twice_across_all_buckets_with_the_right_other_en
                 let to = layout.order.order[slot.other as usize];
                 let key = [from.min(to), from.max(to)];
                 let s = model
-                    .springs
-                    .binary_search_by_key(&key, |s| s.nodes)
-                    .unwrap_or_else(|_| panic!("no spring {key:?} for a slot of node {i}"));
+                    .spring_index(key[0], key[1])
+                    .unwrap_or_else(|| panic!("no spring {key:?} for a slot of node {i}"));
                 seen[s] += 1;
-                let spring = &model.springs[s];
+                let spring = &model.springs()[s];
                 assert_eq!(rank[to as usize], slot.other);
                 assert_eq!(slot.rest, spring.rest_length as f32);
                 assert_eq!(slot.k, spring.stiffness as f32);
@@ -120,7 +119,7 @@ fn bucket_widths_equal_valences_and_buckets_cover_all_nodes_without_padding() {
     }
     assert_eq!(next_node as usize, model.node_count());
     assert_eq!(next_slot as usize, layout.slots.len());
-    assert_eq!(layout.slots.len(), 2 * model.springs.len());
+    assert_eq!(layout.slots.len(), 2 * model.springs().len());
     assert!(layout.slots.iter().all(|s| s.other != u32::MAX));
     // Within a row, neighbours ascend (the order the twin and the shader sum in).
     for b in &layout.buckets {
@@ -150,7 +149,7 @@ fn memory_stats_sum_to_the_buffers_they_list(
     let layout = layout_of(&model);
     let (n, m, b) = (
         model.node_count() as u64,
-        model.springs.len() as u64,
+        model.springs().len() as u64,
         layout.buckets.len() as u64,
     );
     let stride = 256;

@@ -60,7 +60,7 @@ fn there_is_one_spring_per_unique_tet_edge() {
         let edges = mesh.edges();
         assert_eq!(model.spring_count(), edges.len());
         let packed = model.pack(&mesh).unwrap();
-        let springs: Vec<[u32; 2]> = packed.springs.iter().map(|s| s.nodes).collect();
+        let springs: Vec<[u32; 2]> = packed.springs().iter().map(|s| s.nodes).collect();
         assert_eq!(springs, edges);
     }
 }

@@ -52,7 +52,7 @@ fn net_forces(model: &PackedModel, x: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .iter()
         .map(|m| model.gravity.map(|g| m * g))
         .collect();
-    for s in &model.springs {
+    for s in model.springs() {
         let (a, b) = (s.nodes[0] as usize, s.nodes[1] as usize);
         let d = [0, 1, 2].map(|c| x[b][c] - x[a][c]);
         let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();

@@ -73,10 +73,9 @@ fn a_dropped_spring_moves_the_twin_past_the_tolerance(
     let base = twin(&layout, &model, config, &raw, steps);
     let tolerance = 1e-5 * steps as f64;
     let (mut passed, mut tried) = (0, 0);
-    for k in 0..model.springs.len() {
+    for k in 0..model.springs().len() {
         let mut less = model.clone();
-        less.springs.remove(k);
-        less.reindex();
+        less.springs_mut().remove(k);
         let other = models::fresh(&less, &layout);
         let t = twin(&other, &less, config, &raw, steps);
         let d = common::relative_difference(&t.0, &base.0, &raw.0)

@@ -484,8 +484,8 @@ impl Cutter {
     /// missed is longer: the cut finds those whose missing corner was pulled out of the box,
     /// its rest position lying well inside ([`Cutter::pulled_out`]: a node pulled out of quiet
     /// tissue, whose tets stretch across the box). What no cut that reads near its blade finds
-    /// is a tet with no corner in the box, or one that reaches into it only from its edge:
-    /// stretched across more than the box.
+    /// is a tet with no corner in the box nor pulled out of it, or one that reaches into it
+    /// only from its edge: stretched across more than the box.
     fn scan_reach(&self, read: &ReadPositions) -> f64 {
         (self.longest_rest + read.displacement_spread() + 2.0 * self.snap).min(self.reading_pad())
     }
@@ -494,8 +494,9 @@ impl Cutter {
     /// lie far enough inside the box that, displaced as any node read was (within the bounds of
     /// the displacements read, per axis, and two snap distances), they would lie in it. Their
     /// tets may stretch across the sweep from outside the box, with no corner within the
-    /// scan's reach ([`Cutter::scan_reach`]). In tissue moved as a whole, or smoothly, there
-    /// are none.
+    /// scan's reach ([`Cutter::scan_reach`]). In tissue moved as a whole there are none. A
+    /// node read with a displacement far from the others' (one dragged into the box) narrows
+    /// the region looked at, possibly to nothing: the query then finds less, never more.
     fn pulled_out(&self, sweep: &Sweep, read: &ReadPositions) -> Vec<u32> {
         let (Some((lo, hi)), Some((moved_lo, moved_hi))) =
             (self.reading_box(sweep), read.displacement_bounds())

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 /// Where a cut reads current node positions (m, dense model indices).
 pub trait PositionSource {
     /// Every node whose current position lies in the box `lo..=hi` (a few outside it may come
-    /// too), with its position, in any order.
+    /// too), with its position, in any order (a node given twice is taken once).
     fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>>;
     /// The current positions of `nodes`, in their order.
     fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>>;
@@ -195,9 +195,12 @@ impl ReadPositions {
                 "a position was read for node {i} of a mesh of {n} nodes"
             )));
         };
-        *slot = p;
-        *k = self.stamp;
-        self.read.push(i);
+        // A node given twice (a source may) is read once: the cut counts what it read.
+        if *k != self.stamp {
+            *slot = p;
+            *k = self.stamp;
+            self.read.push(i);
+        }
         Ok(())
     }
 

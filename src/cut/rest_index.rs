@@ -83,8 +83,9 @@ impl RestIndex {
         index
     }
 
-    /// The cell holding `p` (clamped to the grid: nodes a cut adds lie within the mesh's
-    /// bounds, on its edges or at its nodes).
+    /// The cell holding `p`, clamped to the grid (nodes a cut adds lie within the mesh's
+    /// bounds, on its edges or at its nodes; one outside would sit in a border cell, which a
+    /// query reaching past the grid visits, and the exact test decides).
     fn cell_of(&self, p: &[f64; 3]) -> usize {
         let at = |c: usize| self.axis(c, p[c]);
         at(0) + self.dims[0] * (at(1) + self.dims[1] * at(2))

@@ -518,7 +518,7 @@ impl NodeSprings {
     fn of(model: &PackedModel) -> Self {
         let n = model.node_count();
         let mut offsets = vec![0u32; n + 1];
-        for s in &model.springs {
+        for s in model.springs() {
             for i in s.nodes {
                 offsets[i as usize + 1] += 1;
             }
@@ -528,7 +528,7 @@ impl NodeSprings {
         }
         let mut fill = offsets.clone();
         let mut springs = vec![0u32; offsets[n] as usize];
-        for (k, s) in model.springs.iter().enumerate() {
+        for (k, s) in model.springs().iter().enumerate() {
             for i in s.nodes {
                 springs[fill[i as usize] as usize] = k as u32;
                 fill[i as usize] += 1;
@@ -553,7 +553,7 @@ impl Simulation {
         reserve_room(&mut model.rest);
         reserve_room(&mut model.mass);
         reserve_room(&mut model.fixed);
-        model.reserve_springs(crate::model::room::spare(model.springs.len()));
+        model.reserve_springs(crate::model::room::spare(model.springs().len()));
         if !(config.dt.is_finite() && config.dt > 0.0) {
             return Err(Error::Model(format!(
                 "time step {} must be finite and positive",
@@ -582,7 +582,7 @@ impl Simulation {
         // a larger array (a pause of milliseconds at 100,000 tets): a quarter, as the fast
         // engine keeps (350 subdividing cut events into a 104,544-tet box add 17% springs).
         let mut model = model;
-        model.reserve_springs(model.springs.len() / 4);
+        model.reserve_springs(model.springs().len() / 4);
         let extra = model.node_count() / 4;
         model.rest.reserve(extra);
         model.mass.reserve(extra);
@@ -632,7 +632,7 @@ impl Simulation {
         let g = m.gravity.iter().map(|g| g * g).sum::<f64>().sqrt();
         let gravity_scale: f64 = m.mass.iter().sum::<f64>() * g * diag;
         let strain_floor: f64 = m
-            .springs
+            .springs()
             .iter()
             .map(|s| 0.5 * s.stiffness * (1e-3 * s.rest_length).powi(2))
             .sum();
@@ -779,7 +779,11 @@ impl Simulation {
                     .iter()
                     .map(|s| (s.nodes[0], s.nodes[1])),
             )
-            .filter_map(|(a, b)| self.model.spring_index(a, b).map(|i| self.model.springs[i]))
+            .filter_map(|(a, b)| {
+                self.model
+                    .spring_index(a, b)
+                    .map(|i| self.model.springs()[i])
+            })
             .collect();
         let new: Vec<crate::model::PackedSpring> = diff
             .added_springs
@@ -1349,7 +1353,7 @@ impl Simulation {
         springs.dedup();
         let mut ends: Vec<u32> = springs
             .iter()
-            .flat_map(|&s| m.springs[s as usize].nodes)
+            .flat_map(|&s| m.springs()[s as usize].nodes)
             .chain(moved.iter().copied())
             .collect();
         ends.sort_unstable();
@@ -1373,7 +1377,7 @@ impl Simulation {
             0.5 * s.stiffness * (l - s.rest_length).powi(2)
         };
         for &s in &springs {
-            let s = &m.springs[s as usize];
+            let s = &m.springs()[s as usize];
             let [a, b] = s.nodes;
             let after = |i: u32| to.get(&i).copied().unwrap_or_else(|| at(i));
             work += spring_energy(s, after(a), after(b)) - spring_energy(s, at(a), at(b));

@@ -54,7 +54,7 @@ impl ReferenceEngine {
         for f in &mut self.force {
             *f = [0.0; 3];
         }
-        for s in &self.model.springs {
+        for s in self.model.springs() {
             let (a, b) = (s.nodes[0] as usize, s.nodes[1] as usize);
             let d = sub(self.x[b], self.x[a]);
             let l = norm(d);
@@ -123,7 +123,7 @@ impl Engine for ReferenceEngine {
     }
 
     fn memory(&self) -> super::EngineMemory {
-        let (n, m) = (self.x.len() as u64, self.model.springs.len() as u64);
+        let (n, m) = (self.x.len() as u64, self.model.springs().len() as u64);
         let spring = std::mem::size_of::<crate::model::PackedSpring>() as u64;
         let v3 = std::mem::size_of::<V3>() as u64;
         let buffers = vec![

@@ -110,7 +110,7 @@ impl DiffSprings {
             ))
         };
         for (&[a, b], s) in &map {
-            let held = model.spring_index(a, b).map(|i| &model.springs[i]);
+            let held = model.spring_index(a, b).map(|i| &model.springs()[i]);
             let same = held.is_some_and(|h| {
                 h.rest_length == s.rest_length
                     && h.stiffness == s.stiffness
@@ -183,7 +183,12 @@ pub(crate) fn row_slots(
                      the diff does not match the model it was applied to"
                 ))
             })?;
-            Ok(Slot::of(model, &model.springs[s], node, rank[nb as usize]))
+            Ok(Slot::of(
+                model,
+                &model.springs()[s],
+                node,
+                rank[nb as usize],
+            ))
         })
         .collect::<Result<Vec<Slot>>>()?;
     row.sort_by_key(|s| s.other);
@@ -237,7 +242,7 @@ impl ConnectivityLayout {
     pub fn new(model: &PackedModel, order: NodeOrder, capacity: Option<u32>) -> Result<Self> {
         let n = model.node_count();
         let mut valence = vec![0u32; n];
-        for s in &model.springs {
+        for s in model.springs() {
             valence[s.nodes[0] as usize] += 1;
             valence[s.nodes[1] as usize] += 1;
         }
@@ -258,7 +263,7 @@ impl ConnectivityLayout {
         // Rows wider than `k`, gathered whole and written as chains below.
         let mut wide: BTreeMap<usize, Vec<Slot>> = BTreeMap::new();
         // In the springs' order (none in particular after a cut); each row is sorted below.
-        for s in &model.springs {
+        for s in model.springs() {
             for (from, to) in [(s.nodes[0], s.nodes[1]), (s.nodes[1], s.nodes[0])] {
                 let slot = Slot::of(model, s, from, order.rank[to as usize]);
                 let row = order.rank[from as usize] as usize;

@@ -202,7 +202,7 @@ impl EdgeLayout {
     pub fn new(model: &PackedModel, order: NodeOrder) -> Self {
         let n = model.node_count();
         let mut springs: Vec<EdgeSpring> = model
-            .springs
+            .springs()
             .iter()
             .map(|s| {
                 let (ra, rb) = (
@@ -514,7 +514,7 @@ impl EdgeLayout {
     /// order `a < b`.
     fn record(&self, model: &PackedModel, a: u32, b: u32) -> Result<EdgeSpring> {
         let s = model.spring_index(a, b).ok_or_else(|| no_spring(a, b))?;
-        let s = &model.springs[s];
+        let s = &model.springs()[s];
         let (ra, rb) = (self.order.rank[a as usize], self.order.rank[b as usize]);
         let (from, lo, hi) = if ra < rb { (a, ra, rb) } else { (b, rb, ra) };
         let slot = super::Slot::of(model, s, from, hi);

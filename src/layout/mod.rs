@@ -159,7 +159,7 @@ impl NodeOrder {
 pub fn spring_graph(model: &PackedModel) -> (Vec<u32>, Vec<u32>) {
     let n = model.node_count();
     let mut rows = vec![0u32; n + 1];
-    for s in &model.springs {
+    for s in model.springs() {
         rows[s.nodes[0] as usize + 1] += 1;
         rows[s.nodes[1] as usize + 1] += 1;
     }
@@ -168,7 +168,7 @@ pub fn spring_graph(model: &PackedModel) -> (Vec<u32>, Vec<u32>) {
     }
     let mut fill = rows.clone();
     let mut cols = vec![0u32; rows[n] as usize];
-    for s in &model.springs {
+    for s in model.springs() {
         let [a, b] = s.nodes;
         cols[fill[a as usize] as usize] = b;
         fill[a as usize] += 1;

@@ -22,7 +22,7 @@ use crate::model::{ModelDiff, PackedModel};
 /// Springs at each node of `model`.
 fn valences(model: &PackedModel) -> Vec<u32> {
     let mut valence = vec![0u32; model.node_count()];
-    for s in &model.springs {
+    for s in model.springs() {
         valence[s.nodes[0] as usize] += 1;
         valence[s.nodes[1] as usize] += 1;
     }

@@ -8,9 +8,10 @@
 //! Applying a diff costs what the diff holds, not what the model holds: springs are found by
 //! end pair through a hash index, a removed spring's place takes the last spring, and added
 //! springs are appended. (Kept sorted by end pair, the array moved every spring after the
-//! first edit: 46 µs for a cut at the start of a 104,544-tet model's springs, 389 µs at
+//! first edit: 65 µs for a cut at the start of a 104,544-tet model's springs, 619 µs at
 //! 375,000 tets, at every cut deep in a large mesh.) Every engine and layout orders springs
-//! its own way, so none depends on the array's order.
+//! its own way, so none depends on the array's order but for rounding (sums over the springs
+//! in their order: the reference engine, the energy bookkeeping).
 
 use std::collections::HashSet;
 
@@ -124,46 +125,68 @@ pub(crate) fn pair(a: u32, b: u32) -> [u32; 2] {
     [a.min(b), a.max(b)]
 }
 
-/// Where each spring of a [`PackedModel`] is in its array, by end pair (ascending).
-#[derive(Clone, Default, PartialEq)]
-pub(crate) struct SpringIndex(FxHashMap<[u32; 2], u32>);
+/// Where each spring of a [`PackedModel`] is in its array, by end pair (ascending); stale
+/// after [`PackedModel::springs_mut`] until the next [`PackedModel::apply`] or
+/// [`PackedModel::reindex`].
+#[derive(Clone, Default)]
+pub(crate) struct SpringIndex {
+    at: FxHashMap<[u32; 2], u32>,
+    stale: bool,
+}
 
 impl std::fmt::Debug for SpringIndex {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // A map of every spring would drown the model's own fields in a debug print.
-        write!(f, "SpringIndex({} springs)", self.0.len())
+        write!(f, "SpringIndex({} springs)", self.at.len())
+    }
+}
+
+impl PartialEq for SpringIndex {
+    /// Always: the index follows from the springs, which the model compares.
+    fn eq(&self, _: &Self) -> bool {
+        true
     }
 }
 
 impl SpringIndex {
     /// The index of `springs` as they lie.
     pub(crate) fn of(springs: &[PackedSpring]) -> Self {
-        let mut map = FxHashMap::default();
-        map.reserve(springs.len() + crate::model::room::spare(springs.len()));
-        map.extend(springs.iter().enumerate().map(|(i, s)| (s.nodes, i as u32)));
-        SpringIndex(map)
+        let mut at = FxHashMap::default();
+        at.reserve(springs.len() + crate::model::room::spare(springs.len()));
+        at.extend(springs.iter().enumerate().map(|(i, s)| (s.nodes, i as u32)));
+        SpringIndex { at, stale: false }
     }
 }
 
 impl PackedModel {
+    /// The springs: sorted by end pair when packed; a diff moves the last spring into the
+    /// place of each it removes and appends those it adds ([`PackedModel::apply`]), so after a
+    /// cut they are in no particular order. Find one by its ends with
+    /// [`PackedModel::spring_index`].
+    pub fn springs(&self) -> &[PackedSpring] {
+        &self.springs
+    }
+
+    /// The springs, to change in place (tests and tools that build a model by hand). Lookups
+    /// scan the array until the next [`PackedModel::apply`] or [`PackedModel::reindex`]
+    /// indexes it again.
+    pub fn springs_mut(&mut self) -> &mut Vec<PackedSpring> {
+        self.index.stale = true;
+        &mut self.springs
+    }
+
     /// Index of the spring between `a` and `b` (either order) in [`PackedModel::springs`].
     pub fn spring_index(&self, a: u32, b: u32) -> Option<usize> {
         let key = pair(a, b);
-        if self.index.0.len() == self.springs.len() {
-            if let Some(&i) = self.index.0.get(&key) {
-                if self.springs.get(i as usize).is_some_and(|s| s.nodes == key) {
-                    return Some(i as usize);
-                }
-            } else {
-                return None;
-            }
+        if self.index.stale {
+            return self.springs.iter().position(|s| s.nodes == key);
         }
-        // The array was changed without [`PackedModel::reindex`]: still the right answer.
-        self.springs.iter().position(|s| s.nodes == key)
+        let i = *self.index.at.get(&key)? as usize;
+        debug_assert_eq!(self.springs[i].nodes, key, "the spring index is behind");
+        Some(i)
     }
 
-    /// Index the springs again after changing [`PackedModel::springs`] other than in their
-    /// parameters (adding, removing or reordering springs in place).
+    /// Index the springs again (after [`PackedModel::springs_mut`]; `apply` does it too).
     pub fn reindex(&mut self) {
         self.index = SpringIndex::of(&self.springs);
     }
@@ -172,7 +195,7 @@ impl PackedModel {
     /// that adds springs does not move or rehash every spring.
     pub fn reserve_springs(&mut self, additional: usize) {
         self.springs.reserve(additional);
-        self.index.0.reserve(additional);
+        self.index.at.reserve(additional);
     }
 
     /// Apply `diff`: the removed springs' places take the last springs, in the diff's order,
@@ -180,8 +203,7 @@ impl PackedModel {
     /// gives the same array (see the module's doc). On error (a spring that does not exist, a
     /// duplicate, an index out of range) the model is left unchanged.
     pub fn apply(&mut self, diff: &ModelDiff) -> Result<()> {
-        if self.index.0.len() != self.springs.len() {
-            // Springs added or removed in place without `reindex`.
+        if self.index.stale {
             self.reindex();
         }
         let n = self.node_count() + diff.added_nodes.len();
@@ -273,15 +295,15 @@ impl PackedModel {
             self.fixed[c.node as usize] = c.fixed;
         }
         for &[a, b] in &diff.removed_springs {
-            let i = self.index.0.remove(&pair(a, b)).expect("checked above") as usize;
+            let i = self.index.at.remove(&pair(a, b)).expect("checked above") as usize;
             self.springs.swap_remove(i);
             if let Some(moved) = self.springs.get(i) {
-                self.index.0.insert(moved.nodes, i as u32);
+                self.index.at.insert(moved.nodes, i as u32);
             }
         }
         for s in &diff.added_springs {
             let nodes = pair(s.nodes[0], s.nodes[1]);
-            self.index.0.insert(nodes, self.springs.len() as u32);
+            self.index.at.insert(nodes, self.springs.len() as u32);
             self.springs.push(PackedSpring { nodes, ..*s });
         }
         for s in &diff.changed_springs {
@@ -372,38 +394,33 @@ mod tests {
         }
     }
 
-    /// A spring removed in place is not found, those left are, before `reindex` (the index's
-    /// size tells it is stale) and after; a pushed one is found once indexed, and a diff then
-    /// applies as to a model packed afresh.
+    /// Springs changed in place through `springs_mut` (removed, pushed, swapped) are found
+    /// where they are, before any reindexing, and a diff then removes the spring it names (a
+    /// swap that kept the array's length once left the index pointing at the other one).
     #[test]
-    fn springs_edited_in_place_are_found_once_indexed() {
+    fn springs_changed_in_place_are_found_where_they_are() {
         let rest: Vec<[f64; 3]> = (0..4).map(|i| [i as f64, 0.0, 0.0]).collect();
-        let mut model = PackedModel::from_springs(
-            rest,
-            vec![1.0; 4],
-            &[([0, 1], 1.0, 0.0), ([1, 2], 1.0, 0.0)],
-        )
-        .unwrap();
-        model.springs.remove(0);
+        let springs = [([0, 1], 1.0, 0.0), ([1, 2], 1.0, 0.0), ([2, 3], 1.0, 0.0)];
+        let mut model = PackedModel::from_springs(rest, vec![1.0; 4], &springs).unwrap();
+        let gone = model.springs_mut().remove(0);
         assert_eq!(model.spring_index(0, 1), None);
         assert_eq!(model.spring_index(2, 1), Some(0));
-        model.springs.push(PackedSpring {
-            nodes: [2, 3],
-            rest_length: 1.0,
-            stiffness: 1.0,
-            damping: 0.0,
-        });
-        model.reindex();
+        model.springs_mut().push(gone);
+        model.springs_mut().swap(0, 2);
+        assert_eq!(model.spring_index(1, 0), Some(0));
         assert_eq!(model.spring_index(3, 2), Some(1));
-        assert_eq!(model.spring_index(1, 2), Some(0));
-        assert_eq!(model.spring_index(0, 1), None);
+        assert_eq!(model.spring_index(1, 2), Some(2));
         model
             .apply(&ModelDiff {
-                removed_springs: vec![[1, 2]],
+                removed_springs: vec![[0, 1]],
                 ..Default::default()
             })
             .unwrap();
-        assert_eq!(model.springs.len(), 1);
-        assert_eq!(model.spring_index(2, 3), Some(0));
+        let left: Vec<[u32; 2]> = model.springs().iter().map(|s| s.nodes).collect();
+        assert_eq!(left.len(), 2);
+        assert!(left.contains(&[1, 2]) && left.contains(&[2, 3]));
+        for (i, s) in model.springs().iter().enumerate() {
+            assert_eq!(model.spring_index(s.nodes[0], s.nodes[1]), Some(i));
+        }
     }
 }

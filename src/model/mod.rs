@@ -564,12 +564,8 @@ pub struct PackedModel {
     pub mass: Vec<f64>,
     /// Whether each node is held at its rest position.
     pub fixed: Vec<bool>,
-    /// The springs: sorted by end pair when packed; a diff removes springs by moving the last
-    /// one into the hole and appends what it adds ([`PackedModel::apply`]), so after a cut
-    /// they are in no particular order. Found by end pair with [`PackedModel::spring_index`];
-    /// after changing this array other than in the springs' parameters, call
-    /// [`PackedModel::reindex`].
-    pub springs: Vec<PackedSpring>,
+    /// The springs ([`PackedModel::springs`]).
+    springs: Vec<PackedSpring>,
     /// Gravity, m/s^2.
     pub gravity: [f64; 3],
     /// Mass-proportional damping, 1/s.

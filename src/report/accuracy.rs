@@ -527,7 +527,7 @@ pub fn model_accuracy(
     Ok(AccuracyReport {
         scene: name.to_string(),
         nodes: model.node_count(),
-        springs: model.springs.len(),
+        springs: model.springs().len(),
         integrator: format!("{integrator:?}"),
         dt_bound: bound.dt,
         sample_times: times,

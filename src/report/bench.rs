@@ -300,7 +300,7 @@ pub fn run_bench(
             report.rows.push(BenchRow {
                 mesh: name.clone(),
                 nodes: model.node_count(),
-                springs: model.springs.len(),
+                springs: model.springs().len(),
                 engine: sim.engine_name(),
                 layout: v
                     .layout
@@ -316,7 +316,7 @@ pub fn run_bench(
                 bytes_per_step: memory.bytes_per_step,
                 ms_per_step: per_step * 1e3,
                 gpu_ms_per_step,
-                spring_evals_per_s: model.springs.len() as f64 / per_step,
+                spring_evals_per_s: model.springs().len() as f64 / per_step,
                 achieved_bytes_per_s: achieved,
                 bandwidth_bytes_per_s: bandwidth.bytes_per_s,
                 floor_ratio: achieved / bandwidth.bytes_per_s,

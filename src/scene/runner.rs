@@ -213,7 +213,7 @@ pub fn run_scene(
         scene: scene.name.clone(),
         nodes: packed.node_count(),
         tets: mesh.tet_count(),
-        springs: packed.springs.len(),
+        springs: packed.springs().len(),
         steps: 0,
         simulated_s: 0.0,
         dt,

@@ -43,7 +43,7 @@ pub fn random_box(seed: u64, damped: bool) -> PackedModel {
         .unwrap()
         .pack(&mesh)
         .unwrap();
-    for s in &mut model.springs {
+    for s in model.springs_mut().iter_mut() {
         let f = 0.5 + rng.next();
         s.stiffness *= f;
         s.damping *= f;
@@ -117,7 +117,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
     let mut diff = ModelDiff::default();
     let mut gone: BTreeSet<[u32; 2]> = BTreeSet::new();
     for _ in 0..1 + pick(&mut rng, 6) {
-        let s = model.springs[pick(&mut rng, model.springs.len())].nodes;
+        let s = model.springs()[pick(&mut rng, model.springs().len())].nodes;
         if gone.insert(s) {
             diff.removed_springs.push(s);
         }
@@ -144,7 +144,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
         });
         // Every other spring of the original moves to the copy.
         let springs: Vec<&PackedSpring> = model
-            .springs
+            .springs()
             .iter()
             .filter(|s| s.nodes.contains(&orig) && !gone.contains(&s.nodes))
             .collect();
@@ -164,7 +164,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
     }
     // Springs split by a node at parameter t along them; the node starts between the ends.
     for _ in 0..pick(&mut rng, 4) {
-        let s = model.springs[pick(&mut rng, model.springs.len())];
+        let s = model.springs()[pick(&mut rng, model.springs().len())];
         if !gone.insert(s.nodes) {
             continue;
         }
@@ -189,7 +189,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
             });
         }
     }
-    for s in &model.springs {
+    for s in model.springs() {
         if !gone.contains(&s.nodes) && rng.next() < 0.03 {
             diff.changed_springs.push(PackedSpring {
                 stiffness: s.stiffness * (0.5 + rng.next()),
@@ -202,7 +202,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
     for _ in 0..pick(&mut rng, 3) {
         let a = pick(&mut rng, n) as u32;
         let near: BTreeSet<u32> = model
-            .springs
+            .springs()
             .iter()
             .filter(|s| s.nodes.contains(&a))
             .map(|s| {
@@ -214,7 +214,7 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
             })
             .collect();
         let two: Vec<u32> = model
-            .springs
+            .springs()
             .iter()
             .filter(|s| near.contains(&s.nodes[0]) || near.contains(&s.nodes[1]))
             .flat_map(|s| s.nodes)
@@ -293,7 +293,7 @@ pub fn widen_node_0(
 ) -> lancet::model::ModelDiff {
     let mut diff = lancet::model::ModelDiff::default();
     let mut valence = model
-        .springs
+        .springs()
         .iter()
         .filter(|s| s.nodes.contains(&0))
         .count() as u32;

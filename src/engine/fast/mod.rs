@@ -154,7 +154,7 @@ impl FastEngine {
         let x = zeros();
         let second = zeros();
         let mut engine = FastEngine {
-            damped: model.springs.iter().any(|s| s.damping != 0.0),
+            damped: model.springs().iter().any(|s| s.damping != 0.0),
             wide: wide_simd(),
             graph,
             params,
@@ -589,7 +589,7 @@ fn entry_of(s: &PackedSpring, end: usize, other: u32, rest: &[[f64; 3]]) -> (Ent
 fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     let n = model.node_count();
     let mut rows_of: Vec<Vec<(Entry, f32)>> = vec![Vec::new(); n];
-    for s in &model.springs {
+    for s in model.springs() {
         let (a, b) = (rank[s.nodes[0] as usize], rank[s.nodes[1] as usize]);
         rows_of[a as usize].push(entry_of(s, 0, b, &model.rest));
         rows_of[b as usize].push(entry_of(s, 1, a, &model.rest));
@@ -597,9 +597,9 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     // Holes are compacted in place before the adjacency grows, so only live rows use the
     // room (see `model::room::spare`).
     let mut rows = Vec::with_capacity(n + spare(n));
-    let entries = 2 * model.springs.len();
+    let entries = 2 * model.springs().len();
     let mut adj = Vec::with_capacity(entries + spare(entries));
-    let damped = model.springs.iter().any(|s| s.damping != 0.0);
+    let damped = model.springs().iter().any(|s| s.damping != 0.0);
     let mut damping = Vec::with_capacity(if damped { adj.capacity() } else { 0 });
     for mut r in rows_of {
         r.sort_by_key(|(e, _)| e.other);

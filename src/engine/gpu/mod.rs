@@ -1256,7 +1256,7 @@ pub fn step_params(model: &PackedModel, config: SimConfig) -> StepParams {
         gravity: [g[0] as f32, g[1] as f32, g[2] as f32],
         alpha: model.mass_damping as f32,
         integrator: config.integrator,
-        damped: model.springs.iter().any(|s| s.damping != 0.0),
+        damped: model.springs().iter().any(|s| s.damping != 0.0),
     }
 }
 
