@@ -318,6 +318,27 @@ mod tests {
         assert!(r.take_near(vec![(3, x[0])]).is_err());
     }
 
+    /// A node a source gives twice is read once (with its first position): the cut counts
+    /// the nodes it read in a region (`Cutter::pulled_out`), and a repeat would stand in for
+    /// a node it did not read.
+    #[test]
+    fn a_node_given_twice_is_read_once() {
+        let mut r = ReadPositions::default();
+        r.begin(3);
+        r.take_near(vec![(1, [1.0; 3]), (2, [2.0; 3]), (1, [9.0; 3])])
+            .unwrap();
+        assert_eq!(r.all(), &[1, 2]);
+        assert_eq!(r.near(), &[1, 2]);
+        assert_eq!(r.positions()[1], [1.0; 3]);
+        r.complete(
+            [0, 1, 0],
+            &mut AllPositions(&[[0.5; 3], [7.0; 3], [8.0; 3]]),
+        )
+        .unwrap();
+        assert_eq!(r.all(), &[1, 2, 0]);
+        assert_eq!(r.fetched(), 1);
+    }
+
     /// The spread is the diagonal of the bounds of the classification displacements of the
     /// nodes settled: a node within the snap distance of rest counts as not displaced, and a
     /// new cut starts from nothing.
