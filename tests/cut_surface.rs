@@ -215,9 +215,117 @@ fn an_edit_that_does_not_fit_changes_nothing() {
     drop(cutter);
 }
 
+/// Nodes `k` of a fixed sheet 1 mm apart, 40 to a row, 2 cm above a 7 cm box, without springs.
+fn sheet(k: std::ops::Range<u32>) -> lancet::model::ModelDiff {
+    let added = k
+        .map(|k| lancet::model::diff::AddedNode {
+            key: Default::default(),
+            rest: [0.001 * (k % 40) as f64, 0.001 * (k / 40) as f64, 0.09],
+            mass: 1e-3,
+            fixed: true,
+            state_from: None,
+            blend: None,
+        })
+        .collect();
+    lancet::model::ModelDiff {
+        added_nodes: added,
+        ..Default::default()
+    }
+}
+
+/// A 14 x 14 x 7 cm box of 1 cm cells falling under gravity, on the GPU engine, and its
+/// boundary.
+fn falling_box(layout: LayoutKind) -> (Simulation, Vec<[u32; 3]>) {
+    let mesh = BoxGrid::cube_cells([14, 14, 7], 0.01).build().unwrap();
+    let mut model_config = ModelConfig::new(Material::elastic(5e3, 0.3, 1e3));
+    model_config.gravity = [0.0, 0.0, -9.81];
+    let model = SpringModel::build(&mesh, &model_config).unwrap();
+    let packed = model.pack(&mesh).unwrap();
+    let config = SimConfig {
+        layout,
+        ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
+    };
+    let sim = Simulation::new(packed, EngineKind::Gpu, config).unwrap();
+    let boundary = Cutter::new(mesh, model, CutMethod::Separate)
+        .unwrap()
+        .surface();
+    (sim, boundary)
+}
+
+/// Boxes over the sheet, around the box, and over a hair under its top face, culled on the
+/// device after the box fell for ten steps: exactly what the float64 brute force finds (a
+/// culler reading node state the engine no longer steps would still see the top face).
+fn culls_the_fallen_box(sim: &mut Simulation, box_nodes: usize) {
+    sim.run(10).unwrap();
+    let x = sim.positions();
+    let top = x[..box_nodes].iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+    assert!(top < 0.07 - 2e-6, "the box fell to {top} m only");
+    let surface = sim.surface().unwrap().to_vec();
+    let exact_boxes = [
+        ([0.005, 0.005, 0.085], [0.02, 0.02, 0.095]),
+        ([-0.01, -0.01, -0.01], [0.15, 0.15, 0.08]),
+        ([-0.01, -0.01, 0.07 - 1e-6], [0.15, 0.15, 0.08]),
+    ];
+    let boxes: Vec<ToolBox> = exact_boxes
+        .iter()
+        .map(|&(lo, hi)| ToolBox::containing(lo, hi))
+        .collect();
+    let named = |c: Vec<[u32; 2]>| -> BTreeSet<([u32; 3], u32)> {
+        c.into_iter()
+            .map(|[t, b]| (canonical(surface[t as usize]), b))
+            .collect()
+    };
+    // The top box alone first: a cull with more boxes than the culler's box buffer holds
+    // binds it anew, whatever it was bound to.
+    let top_only = sim.cull_tools(&boxes[2..]).unwrap();
+    assert!(
+        top_only.is_empty(),
+        "the culler sees the box's top where it was before it fell: {} triangles",
+        top_only.len()
+    );
+    let got = named(sim.cull_tools(&boxes).unwrap());
+    let exact = named(cull_exact(&x, &surface, &exact_boxes));
+    assert!(
+        exact.iter().filter(|(_, b)| *b == 0).count() > 20,
+        "the box over the sheet met few triangles"
+    );
+    assert!(exact.iter().all(|(_, b)| *b != 2), "the box did not fall");
+    assert_eq!(got, exact);
+}
+
+/// A patch that moves the node state to larger buffers, while the culler's own buffers keep
+/// room (it was made after the first nodes were added), binds the culler to the new state:
+/// it culls the box where it fell.
+#[rstest]
+fn a_patch_that_grows_the_node_state_rebinds_the_culler(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+) {
+    if common::gpu().is_none() {
+        return;
+    }
+    let (mut sim, boundary) = falling_box(layout);
+    let n = sim.model().node_count();
+    // 1,800 nodes, and room for 1,024 more (16 KiB) in the state's first buffers.
+    sim.apply(&sheet(0..600)).unwrap();
+    let rows: Vec<[u32; 3]> = (0..560u32)
+        .filter(|k| k % 40 < 39)
+        .map(|k| [k, k + 1, k + 40].map(|i| n as u32 + i))
+        .collect();
+    sim.set_surface(boundary.iter().copied().chain(rows).collect())
+        .unwrap();
+    let cost = sim.apply(&sheet(600..1200)).unwrap();
+    assert!(
+        cost.reallocated,
+        "the state kept room for 1,200 nodes more: {cost:?}"
+    );
+    let diffs = sim.differences_from_rebuild().unwrap();
+    assert!(diffs.is_empty(), "{diffs:?}");
+    culls_the_fallen_box(&mut sim, n);
+}
+
 /// A surface edit past the room of the culler's triangle buffer grows it on the device,
 /// keeping what it held, after cuts that added more nodes than the first upload left room for
-/// (the layout's growth brings the culler up to date in full once): the device then holds
+/// (the node state grows on the way): the device then holds
 /// what an upload from scratch would, and culls as the float64 brute force does, the new
 /// nodes' triangles included.
 #[rstest]
@@ -227,19 +335,8 @@ fn a_surface_edit_past_the_buffers_room_grows_them(
     if common::gpu().is_none() {
         return;
     }
-    let mesh = BoxGrid::cube_cells([14, 14, 7], 0.01).build().unwrap();
-    let model =
-        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(5e3, 0.3, 1e3))).unwrap();
-    let packed = model.pack(&mesh).unwrap();
-    let n = packed.node_count() as u32;
-    let config = SimConfig {
-        layout,
-        ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
-    };
-    let mut sim = Simulation::new(packed, EngineKind::Gpu, config).unwrap();
-    let boundary = Cutter::new(mesh, model, CutMethod::Separate)
-        .unwrap()
-        .surface();
+    let (mut sim, boundary) = falling_box(layout);
+    let n = sim.model().node_count() as u32;
     // 1,568 triangles; the first upload of 100 leaves room for about 1,100 (16 KiB).
     assert!(boundary.len() > 1500);
     sim.set_surface(boundary[..100].to_vec()).unwrap();
@@ -247,24 +344,7 @@ fn a_surface_edit_past_the_buffers_room_grows_them(
     // nodes), in a sheet above the box, fixed and without springs; each cut's edit adds
     // triangles over the new row, each node with its neighbours along x and y.
     for round in 0..12u32 {
-        let added: Vec<lancet::model::diff::AddedNode> = (0..100)
-            .map(|i| {
-                let k = 100 * round + i;
-                lancet::model::diff::AddedNode {
-                    key: Default::default(),
-                    rest: [0.001 * (k % 40) as f64, 0.001 * (k / 40) as f64, 0.09],
-                    mass: 1e-3,
-                    fixed: true,
-                    state_from: None,
-                    blend: None,
-                }
-            })
-            .collect();
-        sim.apply(&lancet::model::ModelDiff {
-            added_nodes: added,
-            ..Default::default()
-        })
-        .unwrap();
+        sim.apply(&sheet(100 * round..100 * (round + 1))).unwrap();
         let rows = (100 * round.saturating_sub(1)..100 * round)
             .filter(|k| k % 40 < 39)
             .map(|k| [n + k, n + k + 1, n + k + 40]);
@@ -282,8 +362,8 @@ fn a_surface_edit_past_the_buffers_room_grows_them(
             );
         }
     }
-    let sheet = sim.surface().unwrap().len() - 100;
-    assert_eq!(sheet, 11 * 25);
+    let on_sheet = sim.surface().unwrap().len() - 100;
+    assert_eq!(on_sheet, 11 * 25);
     // Then the rest of the box's boundary: more triangles than the first upload left room for.
     let edit = SurfaceEdit {
         removed: vec![],
@@ -291,28 +371,8 @@ fn a_surface_edit_past_the_buffers_room_grows_them(
     };
     sim.edit_surface(&edit).unwrap();
     let edited = sim.surface().unwrap().to_vec();
-    assert_eq!(edited.len(), boundary.len() + sheet);
+    assert_eq!(edited.len(), boundary.len() + on_sheet);
     let diffs = sim.differences_from_rebuild().unwrap();
     assert!(diffs.is_empty(), "{diffs:?}");
-    let x = sim.positions();
-    let exact_boxes = [
-        ([0.005, 0.005, 0.085], [0.02, 0.02, 0.095]),
-        ([-0.01, -0.01, -0.01], [0.15, 0.15, 0.08]),
-    ];
-    let boxes: Vec<ToolBox> = exact_boxes
-        .iter()
-        .map(|&(lo, hi)| ToolBox::containing(lo, hi))
-        .collect();
-    let named = |c: Vec<[u32; 2]>| -> BTreeSet<([u32; 3], u32)> {
-        c.into_iter()
-            .map(|[t, b]| (canonical(edited[t as usize]), b))
-            .collect()
-    };
-    let got = named(sim.cull_tools(&boxes).unwrap());
-    let exact = named(cull_exact(&x, &edited, &exact_boxes));
-    assert!(
-        exact.iter().filter(|(_, b)| *b == 0).count() > 20,
-        "the box over the sheet met few triangles"
-    );
-    assert_eq!(got, exact);
+    culls_the_fallen_box(&mut sim, n as usize);
 }

@@ -153,7 +153,14 @@ impl SpringIndex {
     pub(crate) fn of(springs: &[PackedSpring]) -> Self {
         let mut at = FxHashMap::default();
         at.reserve(springs.len() + crate::model::room::spare(springs.len()));
-        at.extend(springs.iter().enumerate().map(|(i, s)| (s.nodes, i as u32)));
+        // Keyed by the ascending pair even where a hand-built spring lists its ends the other
+        // way round, so that every lookup agrees with the scan below.
+        at.extend(
+            springs
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (pair(s.nodes[0], s.nodes[1]), i as u32)),
+        );
         SpringIndex { at, stale: false }
     }
 }
@@ -179,10 +186,14 @@ impl PackedModel {
     pub fn spring_index(&self, a: u32, b: u32) -> Option<usize> {
         let key = pair(a, b);
         if self.index.stale {
-            return self.springs.iter().position(|s| s.nodes == key);
+            return self
+                .springs
+                .iter()
+                .position(|s| pair(s.nodes[0], s.nodes[1]) == key);
         }
         let i = *self.index.at.get(&key)? as usize;
-        debug_assert_eq!(self.springs[i].nodes, key, "the spring index is behind");
+        let s = self.springs[i].nodes;
+        debug_assert_eq!(pair(s[0], s[1]), key, "the spring index is behind");
         Some(i)
     }
 
@@ -298,7 +309,9 @@ impl PackedModel {
             let i = self.index.at.remove(&pair(a, b)).expect("checked above") as usize;
             self.springs.swap_remove(i);
             if let Some(moved) = self.springs.get(i) {
-                self.index.at.insert(moved.nodes, i as u32);
+                self.index
+                    .at
+                    .insert(pair(moved.nodes[0], moved.nodes[1]), i as u32);
             }
         }
         for s in &diff.added_springs {
@@ -422,5 +435,28 @@ mod tests {
         for (i, s) in model.springs().iter().enumerate() {
             assert_eq!(model.spring_index(s.nodes[0], s.nodes[1]), Some(i));
         }
+    }
+
+    /// A spring written by hand with its ends the other way round is found by either order,
+    /// stale or indexed, and a diff removes it rather than refusing or keeping it.
+    #[test]
+    fn a_spring_with_its_ends_reversed_is_found() {
+        let rest: Vec<[f64; 3]> = (0..4).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let springs = [([0, 1], 1.0, 0.0), ([1, 2], 1.0, 0.0), ([2, 3], 1.0, 0.0)];
+        let mut model = PackedModel::from_springs(rest, vec![1.0; 4], &springs).unwrap();
+        model.springs_mut()[1].nodes = [2, 1];
+        assert_eq!(model.spring_index(1, 2), Some(1));
+        assert_eq!(model.spring_index(2, 1), Some(1));
+        model.reindex();
+        assert_eq!(model.spring_index(1, 2), Some(1));
+        assert_eq!(model.spring_index(2, 1), Some(1));
+        model
+            .apply(&ModelDiff {
+                removed_springs: vec![[1, 2], [0, 1]],
+                ..Default::default()
+            })
+            .unwrap();
+        let left: Vec<[u32; 2]> = model.springs().iter().map(|s| s.nodes).collect();
+        assert_eq!(left, vec![[2, 3]]);
     }
 }

@@ -191,8 +191,11 @@ impl ToolCuller {
         rest: &[(u32, [f32; 4])],
         state: &NodeState,
     ) -> Result<bool> {
+        // Slots past the last count go up whatever the caller names: a grown buffer keeps the
+        // old one's bytes there (a longer surface's, before it shrank), and they become live.
+        let known = self.triangles_host.len().min(count) as u32;
         self.triangles_host.resize(count, [0; 4]);
-        let mut written: Vec<u32> = Vec::with_capacity(triangles.len());
+        let mut written: Vec<u32> = (known..count as u32).collect();
         for &(i, t) in triangles {
             self.triangles_host[i as usize] = [t[0], t[1], t[2], 0];
             written.push(i);
@@ -204,6 +207,10 @@ impl ToolCuller {
             &self.triangles_host,
             &mut written,
         )?;
+        // Node slots never shrink (a patch appends them, a repack keeps the order), so the
+        // device holds zeros past the host copy, as the host pads it: only named slots go up
+        // (valence appends whole buckets of empty slots).
+        debug_assert!(slots >= self.rest_host.len(), "node slots shrank");
         self.rest_host.resize(slots, [0.0; 4]);
         written.clear();
         for &(i, r) in rest {
@@ -337,5 +344,52 @@ impl ToolCuller {
             self.rebind(ctx, state);
             regrown += 1;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::Integrator;
+
+    /// A surface that shrank, then grows past its buffer's room by an edit that names only
+    /// some of the slots it makes live: the device holds what the host copy holds there
+    /// (zeros where nothing was named), not the longer surface's old triangles.
+    #[test]
+    fn growing_after_shrinking_writes_every_slot_it_makes_live() {
+        let ctx = match GpuContext::new() {
+            Ok(ctx) => ctx,
+            Err(e) if std::env::var("LANCET_REQUIRE_GPU").as_deref() == Ok("1") => {
+                panic!("LANCET_REQUIRE_GPU=1 but no GPU is usable: {e}")
+            }
+            Err(e) => {
+                eprintln!("skipped: no GPU adapter ({e})");
+                return;
+            }
+        };
+        let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
+        let tris: Vec<[u32; 3]> = (0..1000u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
+        let rest = vec![[0.5f32; 4]; 8];
+        let mut culler = ToolCuller::new(&ctx, &tris, &rest, &state).unwrap();
+        // 16,000 bytes and 16 KiB of room: 2,024 triangles.
+        let room = (culler.triangles.size() / 16) as usize;
+        culler.edit(&ctx, 500, &[], 8, &[], &state).unwrap();
+        let count = room + 100;
+        let named: Vec<(u32, [u32; 3])> = (1100..count as u32).map(|i| (i, [1, 2, 3])).collect();
+        culler.edit(&ctx, count, &named, 8, &[], &state).unwrap();
+        assert!(
+            culler.triangles.size() as usize > room * 16,
+            "the buffer grew"
+        );
+        let (device, _) = culler.read_surface(&ctx, count, 8).unwrap();
+        assert_eq!(device.len(), count);
+        for (i, (d, h)) in device.iter().zip(&culler.triangles_host).enumerate() {
+            assert_eq!(
+                d, h,
+                "slot {i}: the device holds {d:?}, the host copy {h:?}"
+            );
+        }
+        assert_eq!(device[700], [0; 4]);
+        assert_eq!(device[1100], [1, 2, 3, 0]);
     }
 }

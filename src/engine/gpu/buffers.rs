@@ -215,11 +215,12 @@ impl std::ops::AddAssign for Growth {
 }
 
 /// A buffer of the next size class holding `data`, to replace `old`, which `data` outgrew and
-/// which holds `data` as it was before a patch: equal outside the byte ranges `dirty`
-/// (ascending, 4-byte aligned) up to the old array's end, and nothing yet past it. Either the
-/// old contents are copied on the device and only the dirty ranges and the bytes past the old
-/// buffer are written, or, where that would upload as much (a rewrite of the whole array),
-/// `data` is written whole.
+/// which holds `data` as it was before a patch: equal to it outside the byte ranges `dirty`
+/// (ascending, 4-byte aligned) up to the old buffer's end. Either the old buffer is copied
+/// whole on the device and only the dirty ranges and the bytes past the old buffer are
+/// written, or, where that would upload as much (a rewrite of the whole array), `data` is
+/// written whole. Bytes between the old array's end and the old buffer's end are copied as
+/// they lie: a caller whose old buffer holds stale bytes there names them in `dirty`.
 pub fn grown(
     ctx: &GpuContext,
     label: &str,

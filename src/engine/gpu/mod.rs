@@ -264,17 +264,19 @@ pub struct GpuEngine {
     last_submission: Option<wgpu::SubmissionIndex>,
 }
 
-/// The tissue surface on the device and the broad phases over it.
-/// What changed under the surface culler since it last saw the layout.
+/// What changed under the surface culler since it last saw the layout. A patch keeps the
+/// layout's node order except where its state moves say (a repack too: it packs the same order
+/// anew, see [`crate::layout::patch`]), so the moves name every slot whose triangles and rest
+/// position may be stale.
 enum SurfaceSync {
     /// Nothing: its triangles and rest positions match the layout.
     Current,
-    /// The nodes at these layout slots moved there or were added (from patches' state moves).
-    Moved(Vec<u32>),
-    /// The layout or the node state was rebuilt: compare everything.
-    Full,
+    /// The nodes at these layout slots moved there or were added (from patches' state moves);
+    /// `rebind` when the node state moved to new buffers, which the culler's passes read.
+    Moved { slots: Vec<u32>, rebind: bool },
 }
 
+/// The tissue surface on the device and the broad phases over it.
 struct SurfaceCulling {
     /// Boundary triangles, model order.
     triangles: Vec<[u32; 3]>,
@@ -507,7 +509,8 @@ impl GpuEngine {
         // whole: written in place like any dirty range (or grown like any array), it keeps the
         // passes and their pipelines. A repack of the node-centric layouts rebuilds them.
         let mut rebuild = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
-        if slots > self.state.capacity() {
+        let state_moved = slots > self.state.capacity();
+        if state_moved {
             self.state = self.state.grown(&self.ctx, slots)?;
             self.mover.forget_state();
             rebuild = true;
@@ -596,8 +599,9 @@ impl GpuEngine {
                 .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
         }
         // Node indices and state buffers may have changed under the surface: the culler is
-        // brought up to date when next used (a cut usually edits the surface right after).
-        self.note_surface_moves(&patch.moves, rebuild || patch.repacked);
+        // brought up to date when next used (a cut usually edits the surface right after). A
+        // repack keeps the node order, so only the moved slots are stale even then.
+        self.note_surface_moves(&patch.moves, state_moved);
         Ok(cost)
     }
 
@@ -736,13 +740,11 @@ impl GpuEngine {
     /// does). Writes only those triangles, those at nodes a patch moved in the layout, and the
     /// rest positions of the moved and added nodes: a cut costs what it changed, not a pass
     /// over the surface and every node (a buffer the edit outgrows is grown by a copy on the
-    /// device). Falls back to [`GpuEngine::set_surface`] (which compares everything) when the
-    /// layout was rebuilt.
+    /// device). A patch that moved the node state to new buffers costs a rebinding more.
     pub fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
-        let moved = match &self.surface_sync {
-            SurfaceSync::Full => return self.set_surface(triangles),
-            SurfaceSync::Moved(slots) => slots.clone(),
-            SurfaceSync::Current => Vec::new(),
+        let (moved, rebind) = match &self.surface_sync {
+            SurfaceSync::Moved { slots, rebind } => (slots.clone(), *rebind),
+            SurfaceSync::Current => (Vec::new(), false),
         };
         let Some(surface) = self.surface.as_ref() else {
             return self.set_surface(triangles);
@@ -813,7 +815,10 @@ impl GpuEngine {
             &rest,
             &self.state,
         )?;
-        if rest_moved {
+        if rebind {
+            s.tool.rebind(&self.ctx, &self.state);
+        }
+        if rest_moved || rebind {
             s.near.rebind(&self.ctx, s.tool.rest(), &self.state);
         }
         // Dropped slots leave the index; changed and appended ones are put in it anew.
@@ -841,19 +846,21 @@ impl GpuEngine {
         Ok(())
     }
 
-    /// Remember what a patch's `moves` changed under the surface (every slot when `rebuilt`).
-    fn note_surface_moves(&mut self, moves: &[crate::layout::patch::StateMove], rebuilt: bool) {
+    /// Remember what a patch's `moves` changed under the surface, and whether it moved the node
+    /// state to new buffers (`state_moved`).
+    fn note_surface_moves(&mut self, moves: &[crate::layout::patch::StateMove], state_moved: bool) {
         if self.surface.is_none() {
             return;
         }
-        self.surface_sync = match std::mem::replace(&mut self.surface_sync, SurfaceSync::Full) {
-            _ if rebuilt => SurfaceSync::Full,
-            SurfaceSync::Full => SurfaceSync::Full,
-            SurfaceSync::Current => SurfaceSync::Moved(moves.iter().map(|m| m.to).collect()),
-            SurfaceSync::Moved(mut slots) => {
-                slots.extend(moves.iter().map(|m| m.to));
-                SurfaceSync::Moved(slots)
-            }
+        let (mut slots, rebind) =
+            match std::mem::replace(&mut self.surface_sync, SurfaceSync::Current) {
+                SurfaceSync::Current => (Vec::new(), false),
+                SurfaceSync::Moved { slots, rebind } => (slots, rebind),
+            };
+        slots.extend(moves.iter().map(|m| m.to));
+        self.surface_sync = SurfaceSync::Moved {
+            slots,
+            rebind: rebind || state_moved,
         };
     }
 
