@@ -560,7 +560,10 @@ impl GpuEngine {
         }
         // Submitted before anything else can fail: the host layout is patched already, and
         // the device must follow it even if the moves cannot be staged (the error says so).
-        let moves = self.mover.stage(&self.ctx, &mut upload, &patch.moves);
+        let state_buffers = self.state.buffers();
+        let moves = self
+            .mover
+            .stage(&self.ctx, &mut upload, &patch.moves, state_buffers.len());
         // Nothing to write and no moves (the records are written too): nothing to submit.
         if upload.bytes() > 0 {
             let mut enc = self
@@ -570,9 +573,9 @@ impl GpuEngine {
                     label: Some("patch"),
                 });
             let staging = upload.record(&self.ctx, &mut self.staging, &mut enc)?;
-            if let Ok(count) = moves {
+            if let Ok(staged) = moves {
                 self.mover
-                    .record(&self.ctx, &mut enc, &self.state.buffers(), count);
+                    .record(&self.ctx, &mut enc, &state_buffers, staged);
             }
             self.ctx.queue.submit([enc.finish()]);
             if let Some(b) = staging {
