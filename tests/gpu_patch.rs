@@ -16,6 +16,7 @@ use models::{
     floating_ring, fresh, moved_state, random_diff, random_model, random_state, widen_node_0,
 };
 use rstest::rstest;
+use std::collections::BTreeSet;
 
 type Raw = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
@@ -196,6 +197,135 @@ fn a_connectivity_row_that_outgrows_its_capacity_continues_on_the_device() {
     }
 }
 
+/// The device's raw state `after` a patch is `before` moved by the patch's moves, in the
+/// first `slots` entries: copies exactly, blends up to the device's fused multiply-adds, every
+/// entry no move names unchanged.
+fn assert_moved(
+    after: &Raw,
+    before: &Raw,
+    patch: &lancet::layout::patch::LayoutPatch,
+    slots: usize,
+    what: &str,
+) {
+    for (got, was) in [(&after.0, &before.0), (&after.1, &before.1)] {
+        let want = moved_state(was, &patch.moves, slots);
+        assert!(
+            got.len() >= slots,
+            "{what}: {} entries for {slots} slots",
+            got.len()
+        );
+        // Slots a shrinking patch dropped lie past `slots`: they show as zeros when later
+        // patches lay holes there again.
+        for mv in patch.moves.iter().filter(|m| (m.to as usize) < slots) {
+            let (g, w) = (got[mv.to as usize], want[mv.to as usize]);
+            if let (Some(f), Some(blend)) = (mv.from, mv.blend) {
+                let (f, b) = (f as usize, blend.with as usize);
+                for c in 0..4 {
+                    let scale = was[f][c].abs() + was[b][c].abs();
+                    let tol = 4.0 * f32::EPSILON * scale;
+                    assert!(
+                        (g[c] - w[c]).abs() <= tol,
+                        "{what}: blend to {}: {g:?} vs {w:?}",
+                        mv.to
+                    );
+                }
+            } else {
+                assert_eq!(bits(&[g]), bits(&[w]), "{what}: move to {}", mv.to);
+            }
+        }
+        let moved: std::collections::HashSet<u32> = patch.moves.iter().map(|m| m.to).collect();
+        for i in (0..slots).filter(|i| !moved.contains(&(*i as u32))) {
+            assert_eq!(
+                bits(&[got[i]]),
+                bits(&[want[i]]),
+                "{what}: entry {i} changed"
+            );
+        }
+    }
+}
+
+/// Cut-like patches on the valence engine until its layout regroups (packs anew by valence,
+/// every node renumbered): the device follows every node's state through each patch, and its
+/// surface culler, given before the run and brought up to date only through the patches'
+/// moves, holds what an upload from scratch would after every patch and culls as the float64
+/// brute force does over the renumbered nodes.
+#[test]
+fn a_valence_regroup_on_the_device_keeps_every_node_its_state_and_surface() {
+    use lancet::collide::broad::{cull_exact, ToolBox};
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(21, false);
+    let config = SimConfig::new(2e-5);
+    let mut engine = GpuEngine::with_context(ctx, &model, config, LayoutKind::Valence).unwrap();
+    let (x, v) = random_state(&model, 21);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    let n = model.node_count() as u32;
+    let triangles: Vec<[u32; 3]> = (0..n - 2).step_by(2).map(|i| [i, i + 1, i + 2]).collect();
+    engine.set_surface(&triangles).unwrap();
+    let mut regrouped = 0;
+    for round in 0..100 {
+        let diff = random_diff(&model, 21 * 1009 + round);
+        let mut next = model.clone();
+        next.apply(&diff).unwrap();
+        let before = engine.raw_state().unwrap();
+        let mut cpu = engine.layout().clone();
+        let patch = cpu.patch(&next, &diff).unwrap();
+        engine.patch(&next, &diff).unwrap();
+        let after = engine.raw_state().unwrap();
+        assert_moved(
+            &after,
+            &before,
+            &patch,
+            cpu.node_slots(),
+            &format!("round {round}"),
+        );
+        regrouped += usize::from(patch.repacked);
+        // The culler catches up at its next use, each round: through shrinking and growing
+        // node slots its buffers equal an upload from scratch.
+        let everywhere = ToolBox::containing([-1.0; 3], [1.0; 3]);
+        engine.cull_tools(&[everywhere]).unwrap();
+        let diffs = engine.surface_differences().unwrap();
+        assert!(diffs.is_empty(), "round {round}: {diffs:?}");
+        model = next;
+    }
+    assert!(regrouped > 0, "no patch regrouped the layout");
+    let x = engine.positions();
+    let lo = x
+        .iter()
+        .fold([f64::MAX; 3], |a, p| [0, 1, 2].map(|c| a[c].min(p[c])));
+    let hi = x
+        .iter()
+        .fold([f64::MIN; 3], |a, p| [0, 1, 2].map(|c| a[c].max(p[c])));
+    let mid = [0, 1, 2].map(|c| 0.5 * (lo[c] + hi[c]));
+    let exact_boxes = [
+        (lo, mid),
+        (mid, hi),
+        ([lo[0], mid[1], lo[2]], [mid[0], hi[1], mid[2]]),
+    ];
+    let boxes: Vec<ToolBox> = exact_boxes
+        .iter()
+        .map(|&(a, b)| ToolBox::containing(a, b))
+        .collect();
+    let got = engine.cull_tools(&boxes).unwrap().candidates;
+    let diffs = engine.surface_differences().unwrap();
+    assert!(diffs.is_empty(), "{diffs:?}");
+    let exact = cull_exact(&x, &triangles, &exact_boxes);
+    assert!(exact.len() > 10, "the boxes met {} triangles", exact.len());
+    // Float32 rounding may add triangles within a micrometre of a box, never more.
+    let grown: Vec<([f64; 3], [f64; 3])> = exact_boxes
+        .iter()
+        .map(|(a, b)| (a.map(|v| v - 1e-6), b.map(|v| v + 1e-6)))
+        .collect();
+    let loose = cull_exact(&x, &triangles, &grown);
+    let (got, exact, loose): (BTreeSet<_>, BTreeSet<_>, BTreeSet<_>) = (
+        got.into_iter().collect(),
+        exact.into_iter().collect(),
+        loose.into_iter().collect(),
+    );
+    assert!(exact.is_subset(&got), "missed {:?}", exact.difference(&got));
+    assert!(got.is_subset(&loose), "found {:?}", got.difference(&loose));
+}
+
 #[rstest]
 fn state_moves_on_the_device_follow_the_nodes(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
@@ -215,33 +345,7 @@ fn state_moves_on_the_device_follow_the_nodes(
     let patch = cpu.patch(&next, &diff).unwrap();
     engine.patch(&next, &diff).unwrap();
     let after = engine.raw_state().unwrap();
-    let slots = cpu.node_slots();
-    // Copies exactly; blends up to the device's fused multiply-adds.
-    for (got, was) in [(&after.0, &before.0), (&after.1, &before.1)] {
-        let want = moved_state(was, &patch.moves, slots);
-        assert_eq!(got.len(), want.len());
-        for mv in &patch.moves {
-            let (g, w) = (got[mv.to as usize], want[mv.to as usize]);
-            if mv.blend.is_none() {
-                assert_eq!(bits(&[g]), bits(&[w]), "move to {}", mv.to);
-            } else {
-                let (f, b) = (mv.from.unwrap() as usize, mv.blend.unwrap().with as usize);
-                for c in 0..4 {
-                    let scale = was[f][c].abs() + was[b][c].abs();
-                    let tol = 4.0 * f32::EPSILON * scale;
-                    assert!(
-                        (g[c] - w[c]).abs() <= tol,
-                        "blend to {}: {g:?} vs {w:?}",
-                        mv.to
-                    );
-                }
-            }
-        }
-        let moved: std::collections::HashSet<u32> = patch.moves.iter().map(|m| m.to).collect();
-        for i in (0..slots).filter(|i| !moved.contains(&(*i as u32))) {
-            assert_eq!(bits(&[got[i]]), bits(&[want[i]]), "entry {i} changed");
-        }
-    }
+    assert_moved(&after, &before, &patch, cpu.node_slots(), "");
     // Positions read back in model order: old nodes where they were, copies on their source.
     let x0 = engine.positions();
     let old = {

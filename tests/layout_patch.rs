@@ -602,3 +602,96 @@ fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
         assert_eq!(before.0, after.0, "{kind:?}: {a:?} was reallocated");
     }
 }
+
+/// A long run of cut-like patches on the valence layout: each patch appends a bucket where a
+/// node's new valence has no hole or room left, and every bucket is a dispatch per step, so
+/// the layout regroups (packs anew by valence) once the buckets outnumber twice the valences
+/// plus `SPARE_BUCKETS`. Across the run the buckets stay within that bound, at least one
+/// patch regroups, every patch still equals a packing from scratch of its arrangement with
+/// every changed byte in a dirty range, and the state moves keep every node its own state
+/// through the regroups.
+#[rstest]
+fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
+    #[values(21, 22, 23)] seed: u64,
+) {
+    use lancet::layout::valence::SPARE_BUCKETS;
+    let mut model = random_model(seed, false);
+    let mut layout =
+        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let mut rng = Rng(seed);
+    // The state each model node should have, and the device's, by layout index.
+    let mut want: Vec<[f32; 4]> = (0..model.node_count())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 1.0])
+        .collect();
+    let mut state: Vec<[f32; 4]> = vec![[0.0; 4]; layout.node_slots()];
+    for (new, old) in layout.order().pairs() {
+        state[new] = want[old];
+    }
+    let mut regrouped = 0;
+    let mut most = 0;
+    for round in 0..100 {
+        let diff = random_diff(&model, seed * 1009 + round);
+        let next = applied(&model, &diff);
+        let before = layout.clone();
+        let patch = layout.patch(&next, &diff).unwrap();
+        assert!(
+            layout == fresh(&next, &layout),
+            "round {round}: differs from a fresh packing"
+        );
+        assert_dirty_covers(&before, &layout, &patch);
+        let PackedLayout::Valence(v) = &layout else {
+            unreachable!("packed as valence")
+        };
+        let dispatched = v.buckets.iter().filter(|b| b.count > 0).count();
+        let valences: std::collections::BTreeSet<u32> = v
+            .buckets
+            .iter()
+            .filter(|b| b.count > 0)
+            .map(|b| b.valence)
+            .collect();
+        assert!(
+            dispatched <= 2 * valences.len() + SPARE_BUCKETS,
+            "round {round}: {dispatched} buckets for {} valences",
+            valences.len()
+        );
+        most = most.max(dispatched);
+        if patch.repacked {
+            regrouped += 1;
+            assert_eq!(
+                dispatched,
+                valences.len(),
+                "a regroup packs a bucket per valence"
+            );
+        }
+        // What each node's state becomes: copies and blends of their sources, zero where the
+        // change fixed a node.
+        let n = model.node_count();
+        let touched = diff.touched_nodes(n);
+        for a in &diff.added_nodes {
+            let from = want[a.state_from.unwrap() as usize];
+            want.push(match a.blend {
+                None => from,
+                Some(b) => {
+                    let with = want[b.with as usize];
+                    let t = b.t as f32;
+                    [0, 1, 2, 3].map(|c| from[c] * (1.0 - t) + with[c] * t)
+                }
+            });
+        }
+        for &t in &touched {
+            if next.fixed[t as usize] {
+                want[t as usize] = [0.0; 4];
+            }
+        }
+        state = moved_state(&state, &patch.moves, layout.node_slots());
+        for (t, w) in want.iter().enumerate() {
+            assert_eq!(
+                state[layout.order().rank[t] as usize],
+                *w,
+                "round {round}: node {t}"
+            );
+        }
+        model = next;
+    }
+    assert!(regrouped > 0, "no patch regrouped (at most {most} buckets)");
+}

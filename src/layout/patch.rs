@@ -109,7 +109,9 @@ pub(crate) fn mix_state(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
 pub struct LayoutPatch {
     /// Changed byte ranges, ascending per array, not overlapping.
     pub dirty: Vec<Dirty>,
-    /// Node state to move or clear, one entry per destination.
+    /// Node state to move or clear, one entry per destination. A patch that shrinks the node
+    /// slots (a valence regroup) clears the slots it drops: those destinations lie past the
+    /// new slots, within the old ones.
     pub moves: Vec<StateMove>,
     /// Whether the layout was repacked whole (a slot row outgrew its capacity, or the edge
     /// layout's incidence table compacted the holes its moved rows left); every array the

@@ -29,6 +29,10 @@ fn valences(model: &PackedModel) -> Vec<u32> {
     valence
 }
 
+/// Buckets a patched layout may have beyond twice the valences it holds before it is
+/// regrouped (packed anew by valence): see [`ValenceLayout::patch`].
+pub const SPARE_BUCKETS: usize = 8;
+
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
 #[repr(C)]
@@ -180,7 +184,10 @@ impl ValenceLayout {
     /// sixteenth of that valence's nodes, at least 32, or a sixteenth of the nodes on a mesh of
     /// fewer than 512); no other node moves, the rows pointing at a moved node are rewritten,
     /// and its state moves with it. The result equals
-    /// [`ValenceLayout::arranged`] of `model` in the patched arrangement.
+    /// [`ValenceLayout::arranged`] of `model` in the patched arrangement. When that leaves
+    /// more than twice as many buckets as valences plus [`SPARE_BUCKETS`], the layout is
+    /// instead packed anew by valence, keeping the node order within each valence (every node
+    /// may move; the patch says `repacked`), as [`ValenceLayout::new`] packs it.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
         super::patch::check_model(before, diff, model)?;
@@ -306,10 +313,134 @@ impl ValenceLayout {
         if buckets_changed {
             patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
         }
+        if self.fragmented() {
+            return Ok(self.regroup(model, diff, &moves));
+        }
         patch.moves = moves.into_values().collect();
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();
         Ok(patch)
+    }
+
+    /// The nodes in layout order, holes left out.
+    fn kept_order(&self) -> Vec<u32> {
+        self.order
+            .order
+            .iter()
+            .copied()
+            .filter(|&o| o != NodeOrder::HOLE)
+            .collect()
+    }
+
+    /// Whether the buckets outnumber twice the valences they hold by more than
+    /// [`SPARE_BUCKETS`]: every bucket is a dispatch per step, and patches append buckets
+    /// (a node whose valence changes goes to a hole, to room at a bucket's end, or to a new
+    /// bucket), so a long run of cuts would make the step ever slower.
+    fn fragmented(&self) -> bool {
+        let dispatched: Vec<u32> = self
+            .buckets
+            .iter()
+            .filter(|b| b.count > 0)
+            .map(|b| b.valence)
+            .collect();
+        let valences: BTreeSet<u32> = dispatched.iter().copied().collect();
+        dispatched.len() > 2 * valences.len() + SPARE_BUCKETS
+    }
+
+    /// Pack the layout anew by valence (one bucket per valence, no holes), keeping the node
+    /// order within each valence, after the incremental part of a patch left it fragmented:
+    /// what [`ValenceLayout::new`] packs from `model` in the order of the nodes here, made
+    /// from the rows the patch left (their other ends renumbered), not from the model's
+    /// springs. `moves` are that part's state moves (destination in the fragmented layout,
+    /// sources before the patch); each node's state goes on from there to its new place.
+    /// Every array goes up whole and the patch says `repacked`; the node slots may shrink.
+    fn regroup(
+        &mut self,
+        model: &PackedModel,
+        diff: &ModelDiff,
+        moves: &BTreeMap<u32, StateMove>,
+    ) -> LayoutPatch {
+        // Every node, in layout order, with its valence and where its row starts: each sits
+        // in a bucket of its valence, its row full.
+        let mut kept: Vec<(u32, u32, u32)> = Vec::with_capacity(model.node_count());
+        for b in &self.buckets {
+            for local in 0..b.count {
+                let t = self.order.order[(b.first + local) as usize];
+                if t != NodeOrder::HOLE {
+                    kept.push((t, b.valence, b.offset + local * b.valence));
+                }
+            }
+        }
+        kept.sort_by_key(|k| k.1);
+        let order = NodeOrder::from_order(kept.iter().map(|k| k.0).collect());
+        let mut buckets: Vec<Bucket> = Vec::new();
+        let mut slots: Vec<Slot> = Vec::with_capacity(self.slots.len());
+        for (new, &(_, v, start)) in kept.iter().enumerate() {
+            match buckets.last_mut() {
+                Some(b) if b.valence == v => b.count += 1,
+                _ => buckets.push(Bucket {
+                    valence: v,
+                    first: new as u32,
+                    count: 1,
+                    offset: slots.len() as u32,
+                }),
+            }
+            let at = slots.len();
+            let row = &self.slots[start as usize..(start + v) as usize];
+            slots.extend(row.iter().map(|s| Slot {
+                other: order.rank[self.order.order[s.other as usize] as usize],
+                ..*s
+            }));
+            slots[at..].sort_unstable_by_key(|s| s.other);
+        }
+        let inv_mass = order
+            .order
+            .iter()
+            .map(|&t| self.nodes.inv_mass[self.order.rank[t as usize] as usize])
+            .collect();
+        let fresh = ValenceLayout {
+            room: buckets.iter().map(|b| b.count).collect(),
+            order,
+            buckets,
+            slots,
+            nodes: NodeArrays { inv_mass },
+            free: BTreeMap::new(),
+        };
+        debug_assert!(
+            fresh == ValenceLayout::new(model, &NodeOrder::from_order(self.kept_order())),
+            "a regroup packs what a packing from scratch does"
+        );
+        let mut patch = LayoutPatch {
+            repacked: true,
+            ..Default::default()
+        };
+        for (t, &to) in fresh.order.rank.iter().enumerate() {
+            let at = self.order.rank[t];
+            // A node the incremental part left in place keeps its state from there.
+            let source = moves.get(&at).copied().unwrap_or(StateMove {
+                to: at,
+                from: Some(at),
+                blend: None,
+            });
+            if to != at || source.from != Some(at) || source.blend.is_some() {
+                patch.moves.push(StateMove { to, ..source });
+            }
+        }
+        // The slots the regroup drops are cleared: a bucket appended later lays holes there,
+        // which must read as zero state again, as past the slots of a layout that never shrank.
+        let (kept, dropped) = (fresh.order.order.len(), self.order.order.len());
+        patch.moves.extend((kept..dropped).map(|to| StateMove {
+            to: to as u32,
+            from: None,
+            blend: None,
+        }));
+        *self = fresh;
+        patch.mark_all(LayoutArray::Slots, self.slots.len() as u64 * 32);
+        patch.mark_all(LayoutArray::InvMass, self.nodes.inv_mass.len() as u64 * 4);
+        patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
+        patch.rest_fixed(model, diff, &self.order.rank);
+        patch.normalize();
+        patch
     }
 
     /// The slots of model node `t`'s row, each with the model index of its other end.

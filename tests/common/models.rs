@@ -256,10 +256,13 @@ pub fn moved_state(
     slots: usize,
 ) -> Vec<[f32; 4]> {
     let mut out = state.to_vec();
-    out.resize(slots, [0.0; 4]);
+    let most = moves.iter().map(|m| m.to as usize + 1).max().unwrap_or(0);
+    out.resize(slots.max(most), [0.0; 4]);
     for m in moves {
         out[m.to as usize] = m.apply_to(state);
     }
+    // Slots a shrinking patch dropped (and cleared) are past the layout's slots.
+    out.truncate(slots);
     out
 }
 

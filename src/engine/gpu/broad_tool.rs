@@ -207,10 +207,10 @@ impl ToolCuller {
             &self.triangles_host,
             &mut written,
         )?;
-        // Node slots never shrink (a patch appends them, a repack keeps the order), so the
-        // device holds zeros past the host copy, as the host pads it: only named slots go up
-        // (valence appends whole buckets of empty slots).
-        debug_assert!(slots >= self.rest_host.len(), "node slots shrank");
+        // Only named slots go up: a slot a node takes is named (its state moves there), and
+        // nothing reads a hole's rest position, so new holes (valence appends whole buckets
+        // of them) may keep whatever the device holds there (zeros, or an older layout's
+        // positions after the slots shrank), however the host copy pads them.
         self.rest_host.resize(slots, [0.0; 4]);
         written.clear();
         for &(i, r) in rest {

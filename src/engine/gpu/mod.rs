@@ -264,9 +264,10 @@ pub struct GpuEngine {
     last_submission: Option<wgpu::SubmissionIndex>,
 }
 
-/// What changed under the surface culler since it last saw the layout. A patch keeps the
-/// layout's node order except where its state moves say (a repack too: it packs the same order
-/// anew, see [`crate::layout::patch`]), so the moves name every slot whose triangles and rest
+/// What changed under the surface culler since it last saw the layout. A patch moves a node
+/// to another layout index only with a state move to it (its state must follow it: a
+/// connectivity repack or an edge compaction packs the same order anew, a valence regroup
+/// moves every node it renumbers), so the moves name every slot whose triangles and rest
 /// position may be stale.
 enum SurfaceSync {
     /// Nothing: its triangles and rest positions match the layout.
@@ -602,8 +603,8 @@ impl GpuEngine {
                 .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
         }
         // Node indices and state buffers may have changed under the surface: the culler is
-        // brought up to date when next used (a cut usually edits the surface right after). A
-        // repack keeps the node order, so only the moved slots are stale even then.
+        // brought up to date when next used (a cut usually edits the surface right after).
+        // Only the moved slots are stale, after a repack too (see `SurfaceSync`).
         self.note_surface_moves(&patch.moves, state_moved);
         Ok(cost)
     }
@@ -798,8 +799,11 @@ impl GpuEngine {
             .iter()
             .map(|&i| (i, triangles[i as usize].map(|k| order.rank[k as usize])))
             .collect();
+        let slots_total = self.layout.node_slots();
+        // Slots a shrinking patch dropped are no node's: nothing to write there.
         let rest: Vec<(u32, [f32; 4])> = moved
             .iter()
+            .filter(|&&slot| (slot as usize) < slots_total)
             .map(|&slot| {
                 let r = node_at(slot).map_or([0.0; 4], |old| {
                     let r = self.rest[old as usize];
@@ -808,7 +812,6 @@ impl GpuEngine {
                 (slot, r)
             })
             .collect();
-        let slots_total = self.layout.node_slots();
         let s = self.surface.as_mut().expect("checked above");
         let rest_moved = s.tool.edit(
             &self.ctx,
