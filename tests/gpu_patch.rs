@@ -244,9 +244,40 @@ fn assert_moved(
     }
 }
 
+/// A patch that adds the first damped spring to an undamped model turns the device's damped
+/// step on: the patched engine then steps like an engine built from scratch on the changed
+/// model (which reads the neighbours' velocities), in every layout.
+#[rstest]
+fn the_first_damped_spring_damps_the_device_step(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let model = random_model(5, false);
+    assert!(model.springs().iter().all(|s| s.damping == 0.0));
+    let config = SimConfig::new(2e-5);
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let (x, v) = random_state(&model, 5);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    let diff = random_diff(&model, 5);
+    assert!(diff.added_springs.iter().any(|s| s.damping > 0.0));
+    let mut next = model.clone();
+    next.apply(&diff).unwrap();
+    engine.patch(&next, &diff).unwrap();
+    assert!(engine.step_params().damped, "the step is not damped");
+    steps_like_twin_and_rebuild(
+        &mut engine,
+        &next,
+        config,
+        Accumulation::Gather,
+        format!("{kind:?}"),
+    );
+}
+
 /// Cut-like patches on the valence engine until its layout regroups (packs anew by valence,
-/// every node renumbered): the device follows every node's state through each patch, and its
-/// surface culler, given before the run and brought up to date only through the patches'
+/// every node renumbered): the device follows every node's state through each patch, steps
+/// after a regroup like its CPU twin and like an engine built from scratch, and its surface
+/// culler, given before the run and brought up to date only through the patches'
 /// moves, holds what an upload from scratch would after every patch and culls as the float64
 /// brute force does over the renumbered nodes.
 #[test]
@@ -280,6 +311,9 @@ fn a_valence_regroup_on_the_device_keeps_every_node_its_state_and_surface() {
             &format!("round {round}"),
         );
         regrouped += usize::from(patch.repacked);
+        if patch.repacked {
+            steps_like_twin_and_rebuild(&mut engine, &next, config, Accumulation::Gather, round);
+        }
         // The culler catches up at its next use, each round: through shrinking and growing
         // node slots its buffers equal an upload from scratch.
         let everywhere = ToolBox::containing([-1.0; 3], [1.0; 3]);
