@@ -41,6 +41,26 @@ fn assert_dirty_covers(before: &PackedLayout, after: &PackedLayout, patch: &Layo
     }
 }
 
+/// Patch `layout` with `diff` (`next`: the model after it) and check the result: it equals a
+/// fresh packing of `next` in the patched arrangement, and every changed byte lies in a dirty
+/// range.
+fn patch_checked(
+    layout: &mut PackedLayout,
+    next: &PackedModel,
+    diff: &ModelDiff,
+    round: u64,
+) -> LayoutPatch {
+    let before = layout.clone();
+    let patch = layout.patch(next, diff).unwrap();
+    // Not assert_eq: the Debug output of a layout is thousands of lines.
+    assert!(
+        *layout == fresh(next, layout),
+        "round {round}: differs from a fresh packing"
+    );
+    assert_dirty_covers(&before, layout, &patch);
+    patch
+}
+
 #[rstest]
 fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
@@ -51,14 +71,7 @@ fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
     for round in 0..4 {
         let diff = random_diff(&model, seed * 31 + round);
         let next = applied(&model, &diff);
-        let before = layout.clone();
-        let patch = layout.patch(&next, &diff).unwrap();
-        // Not assert_eq: the Debug output of a layout is thousands of lines.
-        assert!(
-            layout == fresh(&next, &layout),
-            "round {round}: differs from a fresh packing"
-        );
-        assert_dirty_covers(&before, &layout, &patch);
+        patch_checked(&mut layout, &next, &diff, round);
         model = next;
     }
 }
@@ -632,13 +645,7 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     for round in 0..100 {
         let diff = random_diff(&model, seed * 1009 + round);
         let next = applied(&model, &diff);
-        let before = layout.clone();
-        let patch = layout.patch(&next, &diff).unwrap();
-        assert!(
-            layout == fresh(&next, &layout),
-            "round {round}: differs from a fresh packing"
-        );
-        assert_dirty_covers(&before, &layout, &patch);
+        let patch = patch_checked(&mut layout, &next, &diff, round);
         let PackedLayout::Valence(v) = &layout else {
             unreachable!("packed as valence")
         };

@@ -33,6 +33,20 @@ fn valences(model: &PackedModel) -> Vec<u32> {
 /// regrouped (packed anew by valence): see [`ValenceLayout::patch`].
 pub const SPARE_BUCKETS: usize = 8;
 
+/// Put layout index `new`, of valence `v` with its row at slot `offset`, into the buckets of a
+/// packing laid out up to it: the last bucket where it has that valence, else a new one.
+fn push_node(buckets: &mut Vec<Bucket>, new: u32, v: u32, offset: u32) {
+    match buckets.last_mut() {
+        Some(b) if b.valence == v => b.count += 1,
+        _ => buckets.push(Bucket {
+            valence: v,
+            first: new,
+            count: 1,
+            offset,
+        }),
+    }
+}
+
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
 #[repr(C)]
@@ -86,15 +100,7 @@ impl ValenceLayout {
         let mut offset = 0u32;
         for (new, &old) in order.order.iter().enumerate() {
             let v = valence[old as usize];
-            match buckets.last_mut() {
-                Some(b) if b.valence == v => b.count += 1,
-                _ => buckets.push(Bucket {
-                    valence: v,
-                    first: new as u32,
-                    count: 1,
-                    offset,
-                }),
-            }
+            push_node(&mut buckets, new as u32, v, offset);
             offset += v;
         }
         let room = buckets.iter().map(|b| b.count).collect();
@@ -376,15 +382,7 @@ impl ValenceLayout {
         let mut buckets: Vec<Bucket> = Vec::new();
         let mut slots: Vec<Slot> = Vec::with_capacity(self.slots.len());
         for (new, &(_, v, start)) in kept.iter().enumerate() {
-            match buckets.last_mut() {
-                Some(b) if b.valence == v => b.count += 1,
-                _ => buckets.push(Bucket {
-                    valence: v,
-                    first: new as u32,
-                    count: 1,
-                    offset: slots.len() as u32,
-                }),
-            }
+            push_node(&mut buckets, new as u32, v, slots.len() as u32);
             let at = slots.len();
             let row = &self.slots[start as usize..(start + v) as usize];
             slots.extend(row.iter().map(|s| Slot {
