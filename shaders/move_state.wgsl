@@ -107,8 +107,8 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = moves.items[k];
     for (var b = 0u; b < min(moves.buffers, MOST); b = b + 1u) {
         let s = sources(m, b);
-        temp[2u * (MOST * k + b)] = s[0];
-        temp[2u * (MOST * k + b) + 1u] = s[1];
+        temp[2u * (moves.buffers * k + b)] = s[0];
+        temp[2u * (moves.buffers * k + b) + 1u] = s[1];
     }
 }
 
@@ -120,7 +120,7 @@ fn scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let m = moves.items[k];
     for (var b = 0u; b < min(moves.buffers, MOST); b = b + 1u) {
-        let at = 2u * (MOST * k + b);
+        let at = 2u * (moves.buffers * k + b);
         store(b, m.to, mixed(m, temp[at], temp[at + 1u]));
     }
 }

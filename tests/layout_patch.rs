@@ -621,8 +621,8 @@ fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
 /// the layout regroups (packs anew by valence) once the buckets outnumber twice the valences
 /// plus `SPARE_BUCKETS`. Across the run the buckets stay within that bound, at least one
 /// patch regroups, every patch still equals a packing from scratch of its arrangement with
-/// every changed byte in a dirty range, and the state moves keep every node its own state
-/// through the regroups.
+/// every changed byte in a dirty range, no move writes past the slots before and after the
+/// patch, and the state moves keep every node its own state through the regroups.
 #[rstest]
 fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     #[values(21, 22, 23)] seed: u64,
@@ -645,7 +645,15 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     for round in 0..100 {
         let diff = random_diff(&model, seed * 1009 + round);
         let next = applied(&model, &diff);
+        let slots_before = layout.node_slots();
         let patch = patch_checked(&mut layout, &next, &diff, round);
+        // The device's state buffers hold the slots before the patch and those after it: no
+        // move may write past both (a regroup clears only the slots it had before).
+        let held = slots_before.max(layout.node_slots());
+        assert!(
+            patch.moves.iter().all(|m| (m.to as usize) < held),
+            "round {round}: a move past {held} slots"
+        );
         let PackedLayout::Valence(v) = &layout else {
             unreachable!("packed as valence")
         };

@@ -111,7 +111,7 @@ pub struct LayoutPatch {
     pub dirty: Vec<Dirty>,
     /// Node state to move or clear, one entry per destination. A patch that shrinks the node
     /// slots (a valence regroup) clears the slots it drops: those destinations lie past the
-    /// new slots, within the old ones.
+    /// new slots, within those before the patch.
     pub moves: Vec<StateMove>,
     /// Whether the layout was repacked whole (a slot row outgrew its capacity, or the edge
     /// layout's incidence table compacted the holes its moved rows left); every array the

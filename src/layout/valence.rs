@@ -196,6 +196,7 @@ impl ValenceLayout {
     /// may move; the patch says `repacked`), as [`ValenceLayout::new`] packs it.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
+        let slots_before = self.order.order.len();
         super::patch::check_model(before, diff, model)?;
         // Checked before anything changes: on error the layout is as it was.
         let springs = DiffSprings::of(diff, model)?;
@@ -320,7 +321,7 @@ impl ValenceLayout {
             patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
         }
         if self.fragmented() {
-            return Ok(self.regroup(model, diff, &moves));
+            return Ok(self.regroup(model, diff, &moves, slots_before));
         }
         patch.moves = moves.into_values().collect();
         patch.rest_fixed(model, diff, &self.order.rank);
@@ -365,6 +366,7 @@ impl ValenceLayout {
         model: &PackedModel,
         diff: &ModelDiff,
         moves: &BTreeMap<u32, StateMove>,
+        slots_before: usize,
     ) -> LayoutPatch {
         // Every node, in layout order, with its valence and where its row starts: each sits
         // in a bucket of its valence, its row full.
@@ -426,7 +428,9 @@ impl ValenceLayout {
         }
         // The slots the regroup drops are cleared: a bucket appended later lays holes there,
         // which must read as zero state again, as past the slots of a layout that never shrank.
-        let (kept, dropped) = (fresh.order.order.len(), self.order.order.len());
+        // Only those the layout had before the patch: the device's state past them is zero
+        // already (and may not exist: the buckets this patch appended were never uploaded).
+        let (kept, dropped) = (fresh.order.order.len(), slots_before);
         patch.moves.extend((kept..dropped).map(|to| StateMove {
             to: to as u32,
             from: None,

@@ -574,6 +574,13 @@ impl GpuEngine {
         }
         // Submitted before anything else can fail: the host layout is patched already, and
         // the device must follow it even if the moves cannot be staged (the error says so).
+        debug_assert!(
+            patch
+                .moves
+                .iter()
+                .all(|m| (m.to as usize) < self.state.capacity()),
+            "a state move past the state buffers"
+        );
         let state_buffers = self.state.buffers();
         let moves = self
             .mover

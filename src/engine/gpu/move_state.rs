@@ -164,8 +164,8 @@ impl MovePass {
             *self.group.get_mut() = None;
         }
         let direct = in_place(moves);
-        // Two sources per move and buffer slot.
-        let scratch = 2 * MOST_BUFFERS as u64 * n * 16;
+        // Two sources per move and state buffer.
+        let scratch = 2 * buffers as u64 * n * 16;
         if !direct && self.temp.size() < scratch {
             self.temp =
                 buffers::zeroed_storage(ctx, "state move sources", scratch, Sizing::SizeClass)?;
