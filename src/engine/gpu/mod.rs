@@ -510,7 +510,7 @@ impl GpuEngine {
         // whole: written in place like any dirty range (or grown like any array), it keeps the
         // passes and their pipelines. A repack of the node-centric layouts rebuilds them (a
         // valence regroup written in place through the staging path took 38-40 ms at 104,544
-        // tets on lavapipe, against 28-30 ms rebuilt).
+        // tets on lavapipe, against 24-30 ms rebuilt).
         let mut rebuild = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
         let state_moved = slots > self.state.capacity();
         if state_moved {

@@ -144,12 +144,11 @@ impl MovePass {
         moves: &[StateMove],
         buffers: usize,
     ) -> Result<Staged> {
-        let none = Staged {
-            count: 0,
-            direct: true,
-        };
         if moves.is_empty() {
-            return Ok(none);
+            return Ok(Staged {
+                count: 0,
+                direct: true,
+            });
         }
         if buffers > MOST_BUFFERS {
             return Err(crate::Error::Gpu(format!(
