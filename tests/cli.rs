@@ -864,6 +864,15 @@ fn bench_cut_cuts_in_the_smallest_box_it_accepts() {
             .sum();
         let max = r["max_ms"].as_f64().unwrap();
         assert!((parts - max).abs() <= 1e-9 * max.max(1.0), "{r:#}");
+        // The quiet steps before and after the incisions were timed; the CPU engine has no
+        // device time to give.
+        for k in ["quiet_step_before_ms", "quiet_step_after_ms"] {
+            let ms = r[k].as_f64().unwrap_or(f64::NAN);
+            assert!(ms > 0.0 && ms.is_finite(), "{k}: {r:#}");
+        }
+        for k in ["quiet_device_before_ms", "quiet_device_after_ms"] {
+            assert!(r[k].is_null(), "{k}: {r:#}");
+        }
     }
 }
 

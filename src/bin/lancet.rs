@@ -925,16 +925,16 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
     }
     let ew = labels.iter().map(|l| l.len()).max().unwrap_or(0).max(6);
     println!(
-        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5}  slowest in",
+        "{:>7} {:>6} {:>9} {:<ew$} {:>4} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>6} {:>6} {:>6} {:>6} {:>10} {:>7} {:>7} {:>5} {:>8} {:>9} {:>9} {:>5} {:>5} {:>6} {:>6} {:>6} {:>6}  slowest in",
         "tets", "len cm", "method", "engine", "cuts", "p50 ms", "p99 ms", "max ms", "read", "nodes",
         "ahead", "cut", "apply", "surf", "step", "bytes/cut", "% lay", "rebuilt", "grown", "nodes/cm2", "dt before",
-        "dt after", "floor", "min q"
+        "dt after", "floor", "min q", "quiet0", "quiet1", "dev0", "dev1"
     );
     for (r, engine) in rows.iter().zip(&labels) {
         let (part, ms) = r.slowest.largest();
         let grew = if r.slowest.grew { " (grew)" } else { "" };
         println!(
-            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>5} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3}  {part} {ms:.3}{grew}",
+            "{:>7} {:>6.1} {:>9} {:<ew$} {:>4} {:>7.3} {:>7.3} {:>7.3} {:>6.3} {:>6.0} {:>5} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>10.0} {:>7.2} {:>7} {:>5} {:>8.1} {:>9.3e} {:>9.3e} {:>5} {:>5.3} {:>6.3} {:>6.3} {:>6} {:>6}  {part} {ms:.3}{grew}",
             r.tets,
             r.length * 100.0,
             r.method,
@@ -958,10 +958,19 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
             r.dt_before,
             r.dt_after,
             r.quality_floor,
-            r.min_quality
+            r.min_quality,
+            r.quiet_step_before_ms,
+            r.quiet_step_after_ms,
+            optional_ms(r.quiet_device_before_ms),
+            optional_ms(r.quiet_device_after_ms)
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A time the engine may not measure, ms, for a table column: "-" where it does not.
+fn optional_ms(ms: Option<f64>) -> String {
+    ms.map_or_else(|| "-".to_string(), |ms| format!("{ms:.3}"))
 }
 
 /// Split engine names such as "gpu-valence on llvmpipe (LLVM 15.0.7, 256 bits)" into the short

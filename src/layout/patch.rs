@@ -155,6 +155,11 @@ impl LayoutPatch {
         }
     }
 
+    /// Mark elements `elems` of `array`, each `elem` bytes, dirty as one range.
+    pub(crate) fn mark_range(&mut self, array: LayoutArray, elems: Range<u64>, elem: u64) {
+        self.push(array, elems.start * elem..elems.end * elem);
+    }
+
     /// Mark a whole array of `bytes` bytes dirty.
     pub(crate) fn mark_all(&mut self, array: LayoutArray, bytes: u64) {
         self.dirty.retain(|d| d.array != array);

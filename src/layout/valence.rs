@@ -29,8 +29,8 @@ fn valences(model: &PackedModel) -> Vec<u32> {
     valence
 }
 
-/// Buckets a patched layout may have beyond twice the valences it holds before it is
-/// regrouped (packed anew by valence): see [`ValenceLayout::patch`].
+/// Buckets a patched layout may have beyond twice the valences it holds before the buckets
+/// patches appended are regrouped (packed anew by valence): see [`ValenceLayout::patch`].
 pub const SPARE_BUCKETS: usize = 8;
 
 /// Put layout index `new`, of valence `v` with its row at slot `offset`, into the buckets of a
@@ -191,9 +191,10 @@ impl ValenceLayout {
     /// fewer than 512); no other node moves, the rows pointing at a moved node are rewritten,
     /// and its state moves with it. The result equals
     /// [`ValenceLayout::arranged`] of `model` in the patched arrangement. When that leaves
-    /// more than twice as many buckets as valences plus [`SPARE_BUCKETS`], the layout is
-    /// instead packed anew by valence, keeping the node order within each valence (every node
-    /// may move; the patch says `repacked`), as [`ValenceLayout::new`] packs it.
+    /// more than twice as many buckets as valences plus [`SPARE_BUCKETS`], the buckets patches
+    /// appended are instead packed anew by valence, keeping the node order within each valence:
+    /// their nodes may move, the packing's buckets before them stay (see `regroup`). Not a
+    /// repack: the device writes the tail and the rows that point into it, as for any patch.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
         let slots_before = self.order.order.len();
@@ -321,22 +322,12 @@ impl ValenceLayout {
             patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
         }
         if self.fragmented() {
-            return Ok(self.regroup(model, diff, &moves, slots_before));
+            return Ok(self.regroup(model, diff, &moves, &rows, slots_before));
         }
         patch.moves = moves.into_values().collect();
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();
         Ok(patch)
-    }
-
-    /// The nodes in layout order, holes left out.
-    fn kept_order(&self) -> Vec<u32> {
-        self.order
-            .order
-            .iter()
-            .copied()
-            .filter(|&o| o != NodeOrder::HOLE)
-            .collect()
     }
 
     /// Whether the buckets outnumber twice the valences they hold by more than
@@ -354,91 +345,174 @@ impl ValenceLayout {
         dispatched.len() > 2 * valences.len() + SPARE_BUCKETS
     }
 
-    /// Pack the layout anew by valence (one bucket per valence, no holes), keeping the node
-    /// order within each valence, after the incremental part of a patch left it fragmented:
-    /// what [`ValenceLayout::new`] packs from `model` in the order of the nodes here, made
-    /// from the rows the patch left (their other ends renumbered), not from the model's
-    /// springs. `moves` are that part's state moves (destination in the fragmented layout,
-    /// sources before the patch); each node's state goes on from there to its new place.
-    /// Every array goes up whole and the patch says `repacked`; the node slots may shrink.
+    /// Where the buckets patches appended begin: the bucket after the longest run of strictly
+    /// increasing valences at the start (what a packing lays out, [`ValenceLayout::new`]),
+    /// with the first layout index and slot of that tail. Every bucket before it lies, with
+    /// its room, below both; where an arrangement does not (one given to
+    /// [`ValenceLayout::arranged`]), the whole layout is the tail.
+    fn tail_start(&self) -> (usize, u32, u32) {
+        let b = &self.buckets;
+        let k = (1..b.len())
+            .find(|&k| b[k].valence <= b[k - 1].valence)
+            .unwrap_or(b.len());
+        if k == 0 || k == b.len() {
+            return (0, 0, 0);
+        }
+        let (first, offset) = (b[k].first, b[k].offset);
+        let head_below = b[..k]
+            .iter()
+            .zip(&self.room)
+            .all(|(h, &r)| h.first + r <= first && h.offset + r * h.valence <= offset);
+        let tail_above = b[k..]
+            .iter()
+            .all(|t| t.first >= first && t.offset >= offset);
+        if head_below && tail_above {
+            (k, first, offset)
+        } else {
+            (0, 0, 0)
+        }
+    }
+
+    /// Pack the buckets patches appended anew by valence (one bucket per valence, no holes,
+    /// no room), keeping the node order within each valence, after the incremental part of a
+    /// patch left the layout fragmented. The buckets of the packing before them keep their
+    /// nodes and holes: their valences are distinct, so the layout is left with at most two
+    /// buckets per valence. Only the tail's nodes move; their rows are taken from the rows the
+    /// patch left (their other ends renumbered), and the rows pointing at them are remapped.
+    /// `moves` are that part's state moves (destination in the fragmented layout, sources
+    /// before the patch), `rows` the rows it rewrote; each moved node's state goes on from
+    /// there to its new place. The node slots may shrink: the slots dropped that the layout had
+    /// before the patch (`slots_before`) are cleared.
     fn regroup(
         &mut self,
         model: &PackedModel,
         diff: &ModelDiff,
         moves: &BTreeMap<u32, StateMove>,
+        rows: &BTreeSet<u32>,
         slots_before: usize,
     ) -> LayoutPatch {
-        // Every node, in layout order, with its valence and where its row starts: each sits
-        // in a bucket of its valence, its row full.
-        let mut kept: Vec<(u32, u32, u32)> = Vec::with_capacity(model.node_count());
-        for b in &self.buckets {
+        let (k, first, offset) = self.tail_start();
+        // The tail's nodes in layout order, with valence and where their rows start; stably
+        // sorted by valence below, so each valence keeps its order.
+        let mut tail: Vec<(u32, u32, u32)> = Vec::new();
+        for b in &self.buckets[k..] {
             for local in 0..b.count {
-                let t = self.order.order[(b.first + local) as usize];
-                if t != NodeOrder::HOLE {
-                    kept.push((t, b.valence, b.offset + local * b.valence));
+                let idx = b.first + local;
+                if self.order.order[idx as usize] != NodeOrder::HOLE {
+                    tail.push((idx, b.valence, b.offset + local * b.valence));
                 }
             }
         }
-        kept.sort_by_key(|k| k.1);
-        let order = NodeOrder::from_order(kept.iter().map(|k| k.0).collect());
-        let mut buckets: Vec<Bucket> = Vec::new();
-        let mut slots: Vec<Slot> = Vec::with_capacity(self.slots.len());
-        for (new, &(_, v, start)) in kept.iter().enumerate() {
-            push_node(&mut buckets, new as u32, v, slots.len() as u32);
-            let at = slots.len();
-            let row = &self.slots[start as usize..(start + v) as usize];
-            slots.extend(row.iter().map(|s| Slot {
-                other: order.rank[self.order.order[s.other as usize] as usize],
-                ..*s
-            }));
-            slots[at..].sort_unstable_by_key(|s| s.other);
-        }
-        let inv_mass = order
-            .order
+        tail.sort_by_key(|e| e.1);
+        let remap: FxHashMap<u32, u32> = tail
             .iter()
-            .map(|&t| self.nodes.inv_mass[self.order.rank[t as usize] as usize])
+            .enumerate()
+            .map(|(j, e)| (e.0, first + j as u32))
             .collect();
-        let fresh = ValenceLayout {
-            room: buckets.iter().map(|b| b.count).collect(),
-            order,
-            buckets,
-            slots,
-            nodes: NodeArrays { inv_mass },
-            free: BTreeMap::new(),
+        let renumbered = |row: &[Slot]| {
+            let mut row: Vec<Slot> = row
+                .iter()
+                .map(|s| Slot {
+                    other: remap.get(&s.other).copied().unwrap_or(s.other),
+                    ..*s
+                })
+                .collect();
+            // Sorted by layout index, as every packing sorts a row.
+            row.sort_unstable_by_key(|s| s.other);
+            row
         };
+        let mut buckets: Vec<Bucket> = Vec::new();
+        let mut slots: Vec<Slot> = Vec::new();
+        let mut heads: BTreeSet<u32> = BTreeSet::new();
+        for (j, &(_, v, start)) in tail.iter().enumerate() {
+            push_node(
+                &mut buckets,
+                first + j as u32,
+                v,
+                offset + slots.len() as u32,
+            );
+            let row = &self.slots[start as usize..(start + v) as usize];
+            heads.extend(row.iter().map(|s| s.other).filter(|&o| o < first));
+            slots.extend(renumbered(row));
+        }
+        let nodes: Vec<u32> = tail
+            .iter()
+            .map(|e| self.order.order[e.0 as usize])
+            .collect();
+        let inv_mass: Vec<f32> = tail
+            .iter()
+            .map(|e| self.nodes.inv_mass[e.0 as usize])
+            .collect();
+        // The rows before the tail that point into it.
+        for &h in &heads {
+            let at = self.row_range(h);
+            let row = renumbered(&self.slots[at.clone()]);
+            self.slots[at].copy_from_slice(&row);
+        }
+        let end = first as usize + tail.len();
+        self.order.order.truncate(first as usize);
+        self.order.order.extend_from_slice(&nodes);
+        for (j, &t) in nodes.iter().enumerate() {
+            self.order.rank[t as usize] = first + j as u32;
+        }
+        self.slots.truncate(offset as usize);
+        self.slots.extend_from_slice(&slots);
+        self.nodes.inv_mass.truncate(first as usize);
+        self.nodes.inv_mass.extend_from_slice(&inv_mass);
+        self.room.truncate(k);
+        self.room.extend(buckets.iter().map(|b| b.count));
+        self.buckets.truncate(k);
+        self.buckets.extend_from_slice(&buckets);
+        self.free.retain(|_, holes| {
+            holes.retain(|&h| h < first);
+            !holes.is_empty()
+        });
         debug_assert!(
-            fresh == ValenceLayout::new(model, &NodeOrder::from_order(self.kept_order())),
-            "a regroup packs what a packing from scratch does"
+            ValenceLayout::arranged(
+                model,
+                self.order.clone(),
+                self.buckets.clone(),
+                self.room.clone()
+            )
+            .is_ok_and(|packed| packed == *self),
+            "a regroup packs what a packing from scratch of its arrangement does"
         );
-        let mut patch = LayoutPatch {
-            repacked: true,
-            ..Default::default()
-        };
-        for (t, &to) in fresh.order.rank.iter().enumerate() {
-            let at = self.order.rank[t];
-            // A node the incremental part left in place keeps its state from there.
+        let mut patch = LayoutPatch::default();
+        // Moves into the buckets before the tail stand; a tail node's state goes on from where
+        // the incremental part put it (or from where it was) to its new place.
+        patch.moves.extend(moves.range(..first).map(|(_, &m)| m));
+        for (&(at, _, _), j) in tail.iter().zip(first..) {
             let source = moves.get(&at).copied().unwrap_or(StateMove {
                 to: at,
                 from: Some(at),
                 blend: None,
             });
-            if to != at || source.from != Some(at) || source.blend.is_some() {
-                patch.moves.push(StateMove { to, ..source });
+            if j != at || source.from != Some(at) || source.blend.is_some() {
+                patch.moves.push(StateMove { to: j, ..source });
             }
         }
         // The slots the regroup drops are cleared: a bucket appended later lays holes there,
         // which must read as zero state again, as past the slots of a layout that never shrank.
         // Only those the layout had before the patch: the device's state past them is zero
         // already (and may not exist: the buckets this patch appended were never uploaded).
-        let (kept, dropped) = (fresh.order.order.len(), slots_before);
-        patch.moves.extend((kept..dropped).map(|to| StateMove {
+        patch.moves.extend((end..slots_before).map(|to| StateMove {
             to: to as u32,
             from: None,
             blend: None,
         }));
-        *self = fresh;
-        patch.mark_all(LayoutArray::Slots, self.slots.len() as u64 * 32);
-        patch.mark_all(LayoutArray::InvMass, self.nodes.inv_mass.len() as u64 * 4);
+        // The rows the incremental part rewrote before the tail, those remapped, and the tail.
+        let before_tail: Vec<u32> = rows.range(..first).copied().collect();
+        for &idx in before_tail.iter().chain(&heads) {
+            let row = self.row_range(idx);
+            patch.mark(LayoutArray::Slots, row.start as u32..row.end as u32, 1, 32);
+        }
+        patch.mark(LayoutArray::InvMass, before_tail, 1, 4);
+        patch.mark_range(
+            LayoutArray::Slots,
+            offset as u64..self.slots.len() as u64,
+            32,
+        );
+        patch.mark_range(LayoutArray::InvMass, first as u64..end as u64, 4);
         patch.mark_all(LayoutArray::Buckets, self.buckets.len() as u64 * 16);
         patch.rest_fixed(model, diff, &self.order.rank);
         patch.normalize();

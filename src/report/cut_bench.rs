@@ -56,6 +56,18 @@ pub struct CutRow {
     /// Median of the step before each cut event, waited for, ms (not part of the latency: the
     /// simulation steps anyway; it shows what reading ahead adds to the step).
     pub step_ms: f64,
+    /// Median of [`QUIET_STEPS`] steps, each waited for, before the first incision, ms.
+    pub quiet_step_before_ms: f64,
+    /// The same after the last incision, ms: what the cuts did to the step itself (a larger
+    /// model, a layout fragmented or regrouped by patches, overflow rows), against
+    /// `quiet_step_before_ms`. No read is made ahead in either, unlike `step_ms`.
+    pub quiet_step_after_ms: f64,
+    /// The device's own time of those steps before the incisions (timestamps around the step
+    /// pass), median, ms, where the engine measures it (a GPU adapter with timestamp queries):
+    /// without the submission and the wait, which dominate a small step's wall time.
+    pub quiet_device_before_ms: Option<f64>,
+    /// The same after the last incision, ms.
+    pub quiet_device_after_ms: Option<f64>,
     /// Classifying and editing (the cutter).
     pub cut_ms: f64,
     /// Patching the engine (diff applied, dirty ranges uploaded, time step re-checked).
@@ -386,6 +398,24 @@ struct Row {
 /// (a millimetre: a tenth of a cell).
 const PREDICTION_MARGIN: f64 = 1e-3;
 
+/// Steps timed before the first incision and after the last ([`CutRow::quiet_step_before_ms`]).
+pub const QUIET_STEPS: usize = 20;
+
+/// The medians of `count` steps, each waited for, ms: wall time, and the device's own time
+/// where the engine measures it (read after the wall time is taken).
+fn quiet_steps(sim: &mut Simulation, count: usize) -> Result<(f64, Option<f64>)> {
+    let (mut wall, mut device) = (Vec::with_capacity(count), Vec::with_capacity(count));
+    for _ in 0..count {
+        let t = Instant::now();
+        sim.run(1)?;
+        sim.wait();
+        wall.push(t.elapsed().as_secs_f64() * 1e3);
+        device.extend(sim.last_device_seconds().map(|s| s * 1e3));
+    }
+    let device = (device.len() == count).then(|| median(device));
+    Ok((median(wall), device))
+}
+
 fn one(row: &Row) -> Result<CutRow> {
     let &Row {
         n,
@@ -435,6 +465,7 @@ fn one(row: &Row) -> Result<CutRow> {
     let mut grew: Vec<bool> = Vec::new();
     let (mut passes_rebuilt, mut buffers_grown, mut reads_ahead) = (0, 0, 0);
     let sites = incision_sites(n, length / h, incisions);
+    let (quiet_step_before_ms, quiet_device_before_ms) = quiet_steps(&mut sim, QUIET_STEPS)?;
     for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
         // The blade arrives moving as it goes on to cut: a tracked tool's velocity is known
@@ -507,6 +538,7 @@ fn one(row: &Row) -> Result<CutRow> {
                 outcome.diff.added_springs.len() as i64 - outcome.diff.removed_springs.len() as i64;
         }
     }
+    let (quiet_step_after_ms, quiet_device_after_ms) = quiet_steps(&mut sim, QUIET_STEPS)?;
     let cuts = total.len();
     if cuts == 0 {
         // A row without cuts would report latencies of nothing and zero growth as if measured.
@@ -542,6 +574,10 @@ fn one(row: &Row) -> Result<CutRow> {
         nodes_read: median(nodes_read),
         reads_ahead,
         step_ms: median(step),
+        quiet_step_before_ms,
+        quiet_step_after_ms,
+        quiet_device_before_ms,
+        quiet_device_after_ms,
         cut_ms: median(cutting),
         apply_ms: median(apply),
         surface_ms: median(surface),

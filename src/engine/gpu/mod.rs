@@ -267,7 +267,7 @@ pub struct GpuEngine {
 /// What changed under the surface culler since it last saw the layout. A patch moves a node
 /// to another layout index only with a state move to it (its state must follow it: a
 /// connectivity repack or an edge compaction packs the same order anew, a valence regroup
-/// moves every node it renumbers), so the moves name every slot whose triangles and rest
+/// moves every node of the buckets it packs anew), so the moves name every slot whose triangles and rest
 /// position may be stale.
 enum SurfaceSync {
     /// Nothing: its triangles and rest positions match the layout.
@@ -508,9 +508,8 @@ impl GpuEngine {
         let slots = self.layout.node_slots();
         // An edge-layout compaction rewrites only its two incidence arrays, both marked dirty
         // whole: written in place like any dirty range (or grown like any array), it keeps the
-        // passes and their pipelines. A repack of the node-centric layouts rebuilds them (a
-        // valence regroup written in place through the staging path took 38-40 ms at 104,544
-        // tets on lavapipe, against 24-30 ms rebuilt).
+        // passes and their pipelines. A connectivity repack rebuilds them (its whole table is new;
+        // a valence regroup packs only the buckets patches appended, written like any patch).
         let mut rebuild = patch.repacked && !matches!(self.layout, PackedLayout::Edges(_));
         let state_moved = slots > self.state.capacity();
         if state_moved {
