@@ -392,7 +392,7 @@ fn valence_buckets_cover_every_node_without_padding() {
             assert_eq!(got, expected[i], "node {i}");
         }
     }
-    let (stats, _) = layout.memory(Integrator::Verlet, 256);
+    let (stats, _) = layout.memory(Integrator::Verlet);
     assert_eq!(stats.padding, 0);
     assert_eq!(
         stats.total,

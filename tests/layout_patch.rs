@@ -625,8 +625,8 @@ fn dispatched_buckets(layout: &PackedLayout) -> usize {
 }
 
 /// A long run of cut-like patches on the valence layout: each patch appends a bucket where a
-/// node's new valence has no hole or room left, and every bucket is a dispatch per step, so
-/// the layout regroups the buckets patches appended (packs them anew by valence) once the
+/// node's new valence has no hole or room left, and every bucket brings room the step covers
+/// idly, so the layout regroups the buckets patches appended (packs them anew by valence) once the
 /// buckets outnumber twice the valences plus `SPARE_BUCKETS`. Across the run the buckets stay
 /// within that bound, at least one patch regroups, a regroup leaves at most two buckets per
 /// valence (the packing's and the regrouped tail's) and is no repack, every patch still equals

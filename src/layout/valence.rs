@@ -1,7 +1,8 @@
 //! The valence layout (the "valence textures"): nodes are renumbered so that nodes of equal
 //! valence are contiguous, and each such bucket has a slot table exactly as wide as its valence,
 //! `slots[bucket.offset + local * valence + s]`. No padding; the price is a permutation of the
-//! nodes (kept here, invisible to users) and one dispatch per bucket.
+//! nodes (kept here, invisible to users) and, on the device, a search of the bucket table by
+//! each node's invocation (one dispatch steps every bucket: `shaders/springs_valence.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 
@@ -69,7 +70,8 @@ const _: () = assert!(std::mem::size_of::<Bucket>() == 16);
 /// After incremental patches a valence may have several buckets (the first ones from the
 /// packing, later ones appended at the end with room to spare), and a bucket may hold holes
 /// ([`NodeOrder::HOLE`] layout indices with no springs and zero inverse mass, which the pass
-/// skips). Each bucket is one dispatch over `count` nodes.
+/// skips). The step dispatches over every node slot; invocations past a bucket's `count` (its
+/// room) do nothing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ValenceLayout {
     /// Node renumbering: `order.order[layout] = model` (or a hole), `order.rank[model] = layout`.
@@ -222,7 +224,7 @@ impl ValenceLayout {
         let mut buckets_changed = false;
         self.order.rank.resize(model.node_count(), NodeOrder::HOLE);
         // How many nodes each valence receives, so that one appended bucket holds them all
-        // (every bucket is a dispatch per step).
+        // (every bucket brings room and a table entry to search).
         let mut demand: BTreeMap<u32, u32> = BTreeMap::new();
         for (&t, list) in &lists {
             let v = list.len() as u32;
@@ -331,9 +333,11 @@ impl ValenceLayout {
     }
 
     /// Whether the buckets outnumber twice the valences they hold by more than
-    /// [`SPARE_BUCKETS`]: every bucket is a dispatch per step, and patches append buckets
-    /// (a node whose valence changes goes to a hole, to room at a bucket's end, or to a new
-    /// bucket), so a long run of cuts would make the step ever slower.
+    /// [`SPARE_BUCKETS`]: patches append buckets (a node whose valence changes goes to a hole,
+    /// to room at a bucket's end, or to a new bucket), each with room that the step's dispatch
+    /// covers idly and the host and device hold, and an entry that every node's search of the
+    /// table reads; without a bound a long run of cuts would make the step ever slower and
+    /// the arrays ever larger.
     fn fragmented(&self) -> bool {
         let dispatched: Vec<u32> = self
             .buckets
@@ -629,23 +633,20 @@ impl ValenceLayout {
         self.nodes.inv_mass.len()
     }
 
-    /// Device memory with node state (`uniform_stride`: bytes per bucket in the dynamic-offset
-    /// uniform buffer, the device's uniform offset alignment), and the bytes one step moves.
-    pub fn memory(&self, integrator: Integrator, uniform_stride: u64) -> (MemoryStats, u64) {
+    /// Device memory with node state, and the bytes one step moves.
+    pub fn memory(&self, integrator: Integrator) -> (MemoryStats, u64) {
         let n = self.node_count() as u64;
         let slots = self.slots.len() as u64 * 32;
-        let table = self.buckets.len() as u64 * uniform_stride;
+        // A 16-byte count, then 16 bytes a bucket.
+        let table = 16 + self.buckets.len() as u64 * 16;
         let mut buffers = vec![
             ("slots".to_string(), slots),
             ("inverse masses".to_string(), n * 4),
             ("bucket table".to_string(), table),
         ];
         buffers.extend(state_buffers(n, integrator));
-        // Only the 16 bytes of each bucket entry are read; the rest is alignment, not padding
-        // of the spring data.
         let stats = MemoryStats::new(buffers, 0, n as usize, self.slots.len() / 2);
-        let per_step =
-            slots + n * 4 + self.buckets.len() as u64 * 16 + state_traffic(n, integrator);
+        let per_step = slots + n * 4 + table + state_traffic(n, integrator);
         (stats, per_step)
     }
 

@@ -359,7 +359,6 @@ impl GpuEngine {
             config,
             &uniform,
             &state,
-            dispatch.row,
             fixed_point,
             Sizing::Headroom,
         )?;
@@ -429,9 +428,15 @@ impl GpuEngine {
             }
         }
         out.extend(self.surface_differences()?);
-        // The bucket table is uploaded at the device's uniform offset stride.
+        // The bucket table, after the count of buckets it holds.
         if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&self.passes, &self.layout) {
-            let device = p.read_buckets(&self.ctx, v.buckets.len())?;
+            let (held, device) = p.read_buckets(&self.ctx, v.buckets.len())?;
+            if held as usize != v.buckets.len() {
+                out.push(format!(
+                    "the device's bucket table holds {held} buckets, the layout {}",
+                    v.buckets.len()
+                ));
+            }
             if let Some(i) = (0..v.buckets.len()).find(|&i| device.get(i) != Some(&v.buckets[i])) {
                 out.push(format!("device bucket {i} differs from the layout"));
             }
@@ -559,7 +564,6 @@ impl GpuEngine {
                 self.config,
                 &self.uniform,
                 &self.state,
-                self.dispatch.row,
                 self.fixed_point,
                 Sizing::SizeClass,
             )?;
@@ -709,7 +713,7 @@ impl GpuEngine {
         if let (Passes::Valence(p), PackedLayout::Valence(v)) = (&mut self.passes, &self.layout) {
             if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
                 let stage = |table: &wgpu::Buffer, bytes: &[u8]| upload.write(table, 0, bytes);
-                grown += p.set_buckets(&self.ctx, &v.buckets, self.dispatch.row, stage) as usize;
+                grown += p.set_buckets(&self.ctx, &v.buckets, stage) as usize;
                 written += v.buckets.len() as u64 * 16;
             }
         }
@@ -1219,12 +1223,10 @@ fn constants(base: StepUniform, layout: &PackedLayout, dispatch: Dispatch) -> St
 }
 
 /// Device memory of `layout` with its node state, and the bytes a step moves.
-fn layout_memory(ctx: &GpuContext, layout: &PackedLayout, config: SimConfig) -> EngineMemory {
+fn layout_memory(layout: &PackedLayout, config: SimConfig) -> EngineMemory {
     let (stats, bytes_per_step) = match layout {
         PackedLayout::Connectivity(c) => c.memory(config.integrator),
-        PackedLayout::Valence(v) => {
-            v.memory(config.integrator, springs_valence::bucket_stride(ctx))
-        }
+        PackedLayout::Valence(v) => v.memory(config.integrator),
         PackedLayout::Edges(e) => e.memory(config.integrator, config.accumulation),
     };
     EngineMemory {
@@ -1241,7 +1243,6 @@ fn build_passes(
     config: SimConfig,
     uniform: &wgpu::Buffer,
     state: &NodeState,
-    row: u32,
     fixed_point: FixedPoint,
     sizing: Sizing,
 ) -> Result<Passes> {
@@ -1250,7 +1251,7 @@ fn build_passes(
             springs_connectivity::ConnectivityPass::new(ctx, c, uniform, state, sizing)?,
         ),
         PackedLayout::Valence(v) => Passes::Valence(springs_valence::ValencePass::new(
-            ctx, v, uniform, state, row, sizing,
+            ctx, v, uniform, state, sizing,
         )?),
         PackedLayout::Edges(e) => match config.accumulation {
             Accumulation::Gather => Passes::Edges(springs_edges::EdgePasses::new(
@@ -1315,7 +1316,7 @@ impl Engine for GpuEngine {
                 let d = self.dispatch;
                 match &self.passes {
                     Passes::Connectivity(p) => p.record(&mut pass, self.phase, d.nodes),
-                    Passes::Valence(p) => p.record(&mut pass, self.phase),
+                    Passes::Valence(p) => p.record(&mut pass, self.phase, d.nodes),
                     Passes::Edges(p) => p.record(&mut pass, self.phase, d.springs, d.nodes),
                     Passes::AtomicEdges(p) => p.record(&mut pass, self.phase, d.springs, d.nodes),
                 }
@@ -1412,7 +1413,7 @@ impl Engine for GpuEngine {
 
     fn memory(&self) -> EngineMemory {
         // Counted when asked (a pass over the slot table), not at every patch.
-        layout_memory(&self.ctx, &self.layout, self.config)
+        layout_memory(&self.layout, self.config)
     }
 
     fn name(&self) -> String {
