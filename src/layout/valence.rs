@@ -48,6 +48,20 @@ fn push_node(buckets: &mut Vec<Bucket>, new: u32, v: u32, offset: u32) {
     }
 }
 
+/// `row` with its other ends renumbered through `remap` (layout indices that moved; the others
+/// stay), sorted by layout index as every packing sorts a row.
+fn renumbered(row: &[Slot], remap: &FxHashMap<u32, u32>) -> Vec<Slot> {
+    let mut row: Vec<Slot> = row
+        .iter()
+        .map(|s| Slot {
+            other: remap.get(&s.other).copied().unwrap_or(s.other),
+            ..*s
+        })
+        .collect();
+    row.sort_unstable_by_key(|s| s.other);
+    row
+}
+
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
 #[repr(C)]
@@ -291,16 +305,7 @@ impl ValenceLayout {
         pointing.sort_unstable();
         pointing.dedup();
         for t in pointing {
-            let mut row: Vec<Slot> = self
-                .row_slots_of(t)
-                .iter()
-                .map(|s| Slot {
-                    other: remap.get(&s.other).copied().unwrap_or(s.other),
-                    ..*s
-                })
-                .collect();
-            // Sorted by layout index, as every packing sorts a row.
-            row.sort_by_key(|s| s.other);
+            let row = renumbered(self.row_slots_of(t), &remap);
             self.write_row(t, &row, model);
             rows.insert(self.order.rank[t as usize]);
         }
@@ -413,18 +418,6 @@ impl ValenceLayout {
             .enumerate()
             .map(|(j, e)| (e.0, first + j as u32))
             .collect();
-        let renumbered = |row: &[Slot]| {
-            let mut row: Vec<Slot> = row
-                .iter()
-                .map(|s| Slot {
-                    other: remap.get(&s.other).copied().unwrap_or(s.other),
-                    ..*s
-                })
-                .collect();
-            // Sorted by layout index, as every packing sorts a row.
-            row.sort_unstable_by_key(|s| s.other);
-            row
-        };
         let mut buckets: Vec<Bucket> = Vec::new();
         let mut slots: Vec<Slot> = Vec::new();
         let mut heads: BTreeSet<u32> = BTreeSet::new();
@@ -437,7 +430,7 @@ impl ValenceLayout {
             );
             let row = &self.slots[start as usize..(start + v) as usize];
             heads.extend(row.iter().map(|s| s.other).filter(|&o| o < first));
-            slots.extend(renumbered(row));
+            slots.extend(renumbered(row, &remap));
         }
         let nodes: Vec<u32> = tail
             .iter()
@@ -450,7 +443,7 @@ impl ValenceLayout {
         // The rows before the tail that point into it.
         for &h in &heads {
             let at = self.row_range(h);
-            let row = renumbered(&self.slots[at.clone()]);
+            let row = renumbered(&self.slots[at.clone()], &remap);
             self.slots[at].copy_from_slice(&row);
         }
         let end = first as usize + tail.len();

@@ -181,7 +181,9 @@ impl ToolCuller {
     /// the next size class holding the old contents (copied on the device) and the new (see
     /// [`buffers::grown`]), and the pass bound to `state` anew: a surface that carving grows
     /// past the first upload's room is not compared and uploaded whole. Returns whether the
-    /// rest positions moved to a new buffer (passes sharing them must bind it).
+    /// rest positions moved to a new buffer (passes sharing them must bind it). An edit that
+    /// would take either buffer past the device's binding limit is refused before anything
+    /// changes, on the host or the device.
     pub fn edit(
         &mut self,
         ctx: &GpuContext,
@@ -191,6 +193,11 @@ impl ToolCuller {
         rest: &[(u32, [f32; 4])],
         state: &NodeState,
     ) -> Result<bool> {
+        // Checked first: the triangles are written before the rest positions, and a refusal
+        // of the second left the first edited.
+        let entry = std::mem::size_of::<[u32; 4]>() as u64;
+        buffers::check_binding(ctx, "surface triangles", count as u64 * entry)?;
+        buffers::check_binding(ctx, "rest positions", slots as u64 * entry)?;
         // Slots past the last count go up whatever the caller names: a grown buffer keeps the
         // old one's bytes there (a longer surface's, before it shrank), and they become live.
         let known = self.triangles_host.len().min(count) as u32;
@@ -391,5 +398,38 @@ mod tests {
         }
         assert_eq!(device[700], [0; 4]);
         assert_eq!(device[1100], [1, 2, 3, 0]);
+    }
+
+    /// An edit whose rest positions would pass the device's binding limit is refused before
+    /// anything changes: the triangles it names are written neither on the host nor on the
+    /// device, and the culler keeps its count.
+    #[test]
+    fn an_edit_past_the_binding_limit_changes_nothing() {
+        // 64 KiB a binding: 4,096 rest positions or triangles.
+        let ctx = match GpuContext::with_limits(|l| l.max_storage_buffer_binding_size = 64 << 10) {
+            Ok(ctx) => ctx,
+            Err(e) if std::env::var("LANCET_REQUIRE_GPU").as_deref() == Ok("1") => {
+                panic!("LANCET_REQUIRE_GPU=1 but no GPU is usable: {e}")
+            }
+            Err(e) => {
+                eprintln!("skipped: no GPU adapter ({e})");
+                return;
+            }
+        };
+        let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
+        let tris: Vec<[u32; 3]> = (0..100u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
+        let rest = vec![[0.5f32; 4]; 8];
+        let mut culler = ToolCuller::new(&ctx, &tris, &rest, &state).unwrap();
+        let before_host = culler.triangles_host.clone();
+        let err = culler
+            .edit(&ctx, 120, &[(0, [5, 6, 7])], 5000, &[], &state)
+            .unwrap_err();
+        assert!(err.to_string().contains("rest positions"), "{err}");
+        assert_eq!(culler.triangle_count, 100);
+        assert_eq!(culler.triangles_host, before_host);
+        let (device, _) = culler.read_surface(&ctx, 100, 8).unwrap();
+        for (i, (d, t)) in device.iter().zip(&tris).enumerate() {
+            assert_eq!(*d, [t[0], t[1], t[2], 0], "slot {i}");
+        }
     }
 }
