@@ -48,13 +48,13 @@ fn push_node(buckets: &mut Vec<Bucket>, new: u32, v: u32, offset: u32) {
     }
 }
 
-/// `row` with its other ends renumbered through `remap` (layout indices that moved; the others
-/// stay), sorted by layout index as every packing sorts a row.
-fn renumbered(row: &[Slot], remap: &FxHashMap<u32, u32>) -> Vec<Slot> {
+/// `row` with its other ends renumbered by `remap` (the new layout index of one that moved,
+/// `None` for the others), sorted by layout index as every packing sorts a row.
+fn renumbered(row: &[Slot], remap: impl Fn(u32) -> Option<u32>) -> Vec<Slot> {
     let mut row: Vec<Slot> = row
         .iter()
         .map(|s| Slot {
-            other: remap.get(&s.other).copied().unwrap_or(s.other),
+            other: remap(s.other).unwrap_or(s.other),
             ..*s
         })
         .collect();
@@ -305,7 +305,7 @@ impl ValenceLayout {
         pointing.sort_unstable();
         pointing.dedup();
         for t in pointing {
-            let row = renumbered(self.row_slots_of(t), &remap);
+            let row = renumbered(self.row_slots_of(t), |o| remap.get(&o).copied());
             self.write_row(t, &row, model);
             rows.insert(self.order.rank[t as usize]);
         }
@@ -413,14 +413,16 @@ impl ValenceLayout {
             }
         }
         tail.sort_by_key(|e| e.1);
-        let remap: FxHashMap<u32, u32> = tail
-            .iter()
-            .enumerate()
-            .map(|(j, e)| (e.0, first + j as u32))
-            .collect();
+        // New layout index by old, over the tail's indices (dense: the tail is a few thousand
+        // slots, and a row's lookups are most of a regroup's time).
+        let mut moved_to = vec![NodeOrder::HOLE; self.order.order.len() - first as usize];
+        for (j, e) in tail.iter().enumerate() {
+            moved_to[(e.0 - first) as usize] = first + j as u32;
+        }
+        let remap = |o: u32| o.checked_sub(first).map(|i| moved_to[i as usize]);
         let mut buckets: Vec<Bucket> = Vec::new();
         let mut slots: Vec<Slot> = Vec::new();
-        let mut heads: BTreeSet<u32> = BTreeSet::new();
+        let mut heads: Vec<u32> = Vec::new();
         for (j, &(_, v, start)) in tail.iter().enumerate() {
             push_node(
                 &mut buckets,
@@ -430,7 +432,7 @@ impl ValenceLayout {
             );
             let row = &self.slots[start as usize..(start + v) as usize];
             heads.extend(row.iter().map(|s| s.other).filter(|&o| o < first));
-            slots.extend(renumbered(row, &remap));
+            slots.extend(renumbered(row, remap));
         }
         let nodes: Vec<u32> = tail
             .iter()
@@ -441,9 +443,11 @@ impl ValenceLayout {
             .map(|e| self.nodes.inv_mass[e.0 as usize])
             .collect();
         // The rows before the tail that point into it.
+        heads.sort_unstable();
+        heads.dedup();
         for &h in &heads {
             let at = self.row_range(h);
-            let row = renumbered(&self.slots[at.clone()], &remap);
+            let row = renumbered(&self.slots[at.clone()], remap);
             self.slots[at].copy_from_slice(&row);
         }
         let end = first as usize + tail.len();

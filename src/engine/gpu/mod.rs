@@ -551,7 +551,11 @@ impl GpuEngine {
         };
         // The dirty ranges and the state moves go up together: one staging buffer, one
         // submission.
-        let mut upload = upload::Upload::new();
+        // Room for the dirty ranges (joined ranges take their gaps too), the move records (16
+        // bytes each and a header) and the step constants.
+        let mut upload = upload::Upload::with_capacity(
+            (patch.dirty_bytes() + 16 * patch.moves.len() as u64 + 256) as usize,
+        );
         // With the patch's other writes (a queue write stages through a buffer of its own),
         // and only when the dispatch sizes changed.
         if bytemuck::bytes_of(&uniform_before) != bytemuck::bytes_of(&self.uniform_data) {

@@ -31,9 +31,13 @@ struct Copy {
 }
 
 impl Upload {
-    /// Nothing to write yet.
-    pub fn new() -> Self {
-        Self::default()
+    /// Nothing to write yet, with room for `bytes` of writes: a patch knows its dirty bytes
+    /// and state moves ahead, so the bytes are gathered without growing the buffer.
+    pub fn with_capacity(bytes: usize) -> Self {
+        Upload {
+            data: Vec::with_capacity(bytes),
+            copies: Vec::new(),
+        }
     }
 
     /// Write `data` into `dst` at `offset` when recorded. Both must be multiples of four bytes
