@@ -325,6 +325,9 @@ fn a_valence_regroup_on_the_device_keeps_every_node_its_state_and_surface() {
         if regroup {
             steps_like_twin_and_rebuild(&mut engine, &next, config, Accumulation::Gather, round);
         }
+        // Every layout buffer, the bucket table and its count as the host holds them.
+        let differences = engine.device_differences().unwrap();
+        assert!(differences.is_empty(), "round {round}: {differences:?}");
         // The culler catches up at its next use, each round: through shrinking and growing
         // node slots its buffers equal an upload from scratch.
         let everywhere = ToolBox::containing([-1.0; 3], [1.0; 3]);

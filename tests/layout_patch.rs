@@ -616,6 +616,93 @@ fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
     }
 }
 
+/// The buckets of a valence layout up to the first that breaks their rising valences: those of
+/// the packing, which a regroup keeps.
+fn rising_prefix(layout: &PackedLayout) -> Vec<lancet::layout::valence::Bucket> {
+    let PackedLayout::Valence(v) = layout else {
+        unreachable!("packed as valence")
+    };
+    let b = &v.buckets;
+    let k = (1..b.len())
+        .find(|&k| b[k].valence <= b[k - 1].valence)
+        .unwrap_or(b.len());
+    b[..k].to_vec()
+}
+
+/// A valence arrangement whose first bucket's slot table lies past the others' (as no patch
+/// lays it out, but [`ValenceLayout::arranged`] accepts), cut into up to four buckets per
+/// valence:
+/// the regroup cannot keep the packing's buckets apart from the appended ones, so it packs the
+/// whole layout anew by valence, from layout index 0. The result equals a packing from scratch
+/// of its arrangement, has one bucket per valence, and every node keeps its state.
+#[test]
+fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
+    use lancet::layout::valence::{Bucket, ValenceLayout};
+    let model = random_model(31, false);
+    let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    // Each bucket in up to four pieces, then the first piece's table moved past every other.
+    let mut buckets: Vec<Bucket> = Vec::new();
+    for b in &packed.buckets {
+        let pieces = b.count.min(4);
+        let cut: Vec<u32> = (0..=pieces).map(|k| k * b.count / pieces).collect();
+        for w in cut.windows(2) {
+            buckets.push(Bucket {
+                valence: b.valence,
+                first: b.first + w[0],
+                count: w[1] - w[0],
+                offset: b.offset + w[0] * b.valence,
+            });
+        }
+    }
+    let first_table = buckets[0].count * buckets[0].valence;
+    for b in &mut buckets[1..] {
+        b.offset -= first_table;
+    }
+    buckets[0].offset = packed.slots.len() as u32 - first_table;
+    let valences: std::collections::BTreeSet<u32> = buckets.iter().map(|b| b.valence).collect();
+    assert!(buckets.len() > 2 * valences.len() + lancet::layout::valence::SPARE_BUCKETS);
+    let room: Vec<u32> = buckets.iter().map(|b| b.count).collect();
+    let arranged = ValenceLayout::arranged(&model, packed.order.clone(), buckets, room).unwrap();
+    let mut layout = PackedLayout::Valence(arranged);
+    let mut rng = Rng(31);
+    let want: Vec<[f32; 4]> = (0..model.node_count())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 1.0])
+        .collect();
+    let mut state = vec![[0.0f32; 4]; layout.node_slots()];
+    for (new, old) in layout.order().pairs() {
+        state[new] = want[old];
+    }
+    let patch = patch_checked(&mut layout, &model, &ModelDiff::default(), 0);
+    assert_eq!(
+        dispatched_buckets(&layout),
+        valences.len(),
+        "one bucket per valence"
+    );
+    let state = moved_state(&state, &patch.moves, layout.node_slots());
+    for (t, w) in want.iter().enumerate() {
+        assert_eq!(state[layout.order().rank[t] as usize], *w, "node {t}");
+    }
+}
+
+/// An arrangement whose buckets do not follow each other in layout order (one starting inside
+/// the room of the one before it) is refused: the device finds a node's bucket by searching
+/// the buckets by their first node.
+#[test]
+fn an_arrangement_with_overlapping_buckets_is_refused() {
+    use lancet::layout::valence::ValenceLayout;
+    let model = random_model(32, false);
+    let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    let mut buckets = packed.buckets.clone();
+    let mut room = packed.room.clone();
+    buckets.swap(0, 1);
+    room.swap(0, 1);
+    let err = ValenceLayout::arranged(&model, packed.order.clone(), buckets, room).unwrap_err();
+    assert!(err.to_string().contains("inside the room"), "{err}");
+    let short = packed.room[1..].to_vec();
+    let err = ValenceLayout::arranged(&model, packed.order, packed.buckets, short).unwrap_err();
+    assert!(err.to_string().contains("room given for"), "{err}");
+}
+
 /// Buckets of a valence layout that are dispatched (hold nodes or holes).
 fn dispatched_buckets(layout: &PackedLayout) -> usize {
     let PackedLayout::Valence(v) = layout else {
@@ -657,6 +744,7 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
         let next = applied(&model, &diff);
         let slots_before = layout.node_slots();
         let dispatched_before = dispatched_buckets(&layout);
+        let head_before = rising_prefix(&layout);
         let patch = patch_checked(&mut layout, &next, &diff, round);
         // The device's state buffers hold the slots before the patch and those after it: no
         // move may write past both (a regroup clears only the slots it had before).
@@ -692,7 +780,16 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
                     .count();
                 assert!(of <= 2, "round {round}: {of} buckets of valence {valence}");
             }
-            assert!(!patch.repacked, "round {round}: a regroup repacked");
+            // Only the appended buckets were packed anew: the packing's stay where they were
+            // (the incremental part may only have filled their room).
+            let head = &v.buckets[..head_before.len()];
+            for (b, a) in head_before.iter().zip(head) {
+                assert_eq!(
+                    (b.first, b.offset, b.valence),
+                    (a.first, a.offset, a.valence),
+                    "round {round}: a bucket of the packing moved"
+                );
+            }
         }
         // What each node's state becomes: copies and blends of their sources, zero where the
         // change fixed a node.

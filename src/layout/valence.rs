@@ -133,6 +133,25 @@ impl ValenceLayout {
         buckets: Vec<Bucket>,
         room: Vec<u32>,
     ) -> Result<Self> {
+        // The device finds a node's bucket by searching the table by `first`
+        // (`shaders/springs_valence.wgsl`), as `bucket_of` does here.
+        if room.len() != buckets.len() {
+            return Err(Error::Model(format!(
+                "{} valence buckets but room given for {}",
+                buckets.len(),
+                room.len()
+            )));
+        }
+        if let Some(w) =
+            (1..buckets.len()).find(|&i| buckets[i - 1].first + room[i - 1] > buckets[i].first)
+        {
+            return Err(Error::Model(format!(
+                "valence bucket {w} starts at layout index {}, inside the room of the bucket                  before it (from {}, room {}): buckets must follow each other",
+                buckets[w].first,
+                buckets[w - 1].first,
+                room[w - 1]
+            )));
+        }
         let valence = valences(model);
         let (graph_rows, graph_cols) = super::spring_graph(model);
         let slot_count = buckets
@@ -419,7 +438,10 @@ impl ValenceLayout {
         for (j, e) in tail.iter().enumerate() {
             moved_to[(e.0 - first) as usize] = first + j as u32;
         }
-        let remap = |o: u32| o.checked_sub(first).map(|i| moved_to[i as usize]);
+        let remap = |o: u32| {
+            o.checked_sub(first)
+                .and_then(|i| moved_to.get(i as usize).copied())
+        };
         let mut buckets: Vec<Bucket> = Vec::new();
         let mut slots: Vec<Slot> = Vec::new();
         let mut heads: Vec<u32> = Vec::new();

@@ -145,10 +145,13 @@ impl Sizing {
     /// binding limit.
     pub fn size(self, ctx: &GpuContext, bytes: u64) -> u64 {
         let bytes = bytes.max(32);
+        // Whole words: a buffer's size is rounded up to them, which must not pass the limit
+        // that `check_binding` holds a request to.
         let max = ctx
             .limits
             .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+            .min(ctx.limits.max_buffer_size)
+            & !3;
         match self {
             Sizing::Exact => bytes,
             // Never past the binding limit for the room alone.

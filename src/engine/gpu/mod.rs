@@ -718,7 +718,7 @@ impl GpuEngine {
             if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
                 let stage = |table: &wgpu::Buffer, bytes: &[u8]| upload.write(table, 0, bytes);
                 grown += p.set_buckets(&self.ctx, &v.buckets, stage) as usize;
-                written += v.buckets.len() as u64 * 16;
+                written += springs_valence::TABLE_HEADER + v.buckets.len() as u64 * 16;
             }
         }
         (written, grown)

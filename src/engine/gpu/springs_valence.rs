@@ -52,7 +52,8 @@ impl ValencePass {
             sizing,
         )?;
         let entries = match sizing {
-            Sizing::Exact => layout.buckets.len(),
+            // A runtime-sized array binds at least one element.
+            Sizing::Exact => layout.buckets.len().max(1),
             // Room for the buckets the first cuts append.
             Sizing::Headroom => layout.buckets.len() + 16,
             Sizing::SizeClass => layout.buckets.len().max(1).next_power_of_two(),
