@@ -359,20 +359,28 @@ mod tests {
     use super::*;
     use crate::engine::Integrator;
 
-    /// A surface that shrank, then grows past its buffer's room by an edit that names only
-    /// some of the slots it makes live: the device holds what the host copy holds there
-    /// (zeros where nothing was named), not the longer surface's old triangles.
-    #[test]
-    fn growing_after_shrinking_writes_every_slot_it_makes_live() {
-        let ctx = match GpuContext::new() {
-            Ok(ctx) => ctx,
+    /// The device, or `None` (the test skipped, saying why) where none opens; a failure where
+    /// `LANCET_REQUIRE_GPU=1`.
+    fn opened(ctx: Result<GpuContext>) -> Option<GpuContext> {
+        match ctx {
+            Ok(ctx) => Some(ctx),
             Err(e) if std::env::var("LANCET_REQUIRE_GPU").as_deref() == Ok("1") => {
                 panic!("LANCET_REQUIRE_GPU=1 but no GPU is usable: {e}")
             }
             Err(e) => {
                 eprintln!("skipped: no GPU adapter ({e})");
-                return;
+                None
             }
+        }
+    }
+
+    /// A surface that shrank, then grows past its buffer's room by an edit that names only
+    /// some of the slots it makes live: the device holds what the host copy holds there
+    /// (zeros where nothing was named), not the longer surface's old triangles.
+    #[test]
+    fn growing_after_shrinking_writes_every_slot_it_makes_live() {
+        let Some(ctx) = opened(GpuContext::new()) else {
+            return;
         };
         let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
         let tris: Vec<[u32; 3]> = (0..1000u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
@@ -406,15 +414,9 @@ mod tests {
     #[test]
     fn an_edit_past_the_binding_limit_changes_nothing() {
         // 64 KiB a binding: 4,096 rest positions or triangles.
-        let ctx = match GpuContext::with_limits(|l| l.max_storage_buffer_binding_size = 64 << 10) {
-            Ok(ctx) => ctx,
-            Err(e) if std::env::var("LANCET_REQUIRE_GPU").as_deref() == Ok("1") => {
-                panic!("LANCET_REQUIRE_GPU=1 but no GPU is usable: {e}")
-            }
-            Err(e) => {
-                eprintln!("skipped: no GPU adapter ({e})");
-                return;
-            }
+        let lower = |l: &mut wgpu::Limits| l.max_storage_buffer_binding_size = 64 << 10;
+        let Some(ctx) = opened(GpuContext::with_limits(lower)) else {
+            return;
         };
         let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
         let tris: Vec<[u32; 3]> = (0..100u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
