@@ -965,6 +965,17 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
             optional_ms(r.quiet_device_after_ms)
         );
     }
+    println!(
+        "p50/p99/max: latency of a cut event (read + cut + apply + surf), ms; read: positions \
+         near the blade read back; nodes: how many; ahead: events whose read came with the step \
+         before; cut: the cutter; apply: the engine patched; surf: the surface handed over; \
+         step: the step before each event, waited for (not in the latency); % lay: bytes per \
+         cut against the whole layout; rebuilt / grown: passes rebuilt, buffers grown; dt: \
+         stable step before and after; min q: lowest tet quality after; quiet0/quiet1 \
+         (dev0/dev1): median of 20 steps before the first incision and after the last, wall \
+         (device) ms; \
+         slowest in: the largest part of the slowest event"
+    );
     Ok(ExitCode::SUCCESS)
 }
 
