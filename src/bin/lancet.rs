@@ -972,9 +972,10 @@ fn bench_cut(bench: &lancet::report::cut_bench::CutBench, json: bool) -> lancet:
          step: the step before each event, waited for (not in the latency); % lay: bytes per \
          cut against the whole layout; rebuilt / grown: passes rebuilt, buffers grown; dt: \
          stable step before and after; min q: lowest tet quality after; quiet0/quiet1 \
-         (dev0/dev1): median of 20 steps before the first incision and after the last, wall \
+         (dev0/dev1): median of {quiet} steps before the first incision and after the last, wall \
          (device) ms; \
-         slowest in: the largest part of the slowest event"
+         slowest in: the largest part of the slowest event",
+        quiet = lancet::report::cut_bench::QUIET_STEPS
     );
     Ok(ExitCode::SUCCESS)
 }
