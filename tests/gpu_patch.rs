@@ -283,8 +283,9 @@ fn dispatched_buckets(layout: &lancet::layout::PackedLayout) -> usize {
 }
 
 /// Cut-like patches on the valence engine until its layout regroups (packs the buckets
-/// patches appended anew by valence, their nodes renumbered): the device follows every node's state through each patch, steps
-/// after a regroup like its CPU twin and like an engine built from scratch, and its surface
+/// patches appended anew by valence, their nodes renumbered): the device follows every node's
+/// state through each patch, holds every layout buffer as the host does, steps after a
+/// regroup like its CPU twin and like an engine built from scratch, and its surface
 /// culler, given before the run and brought up to date only through the patches'
 /// moves, holds what an upload from scratch would after every patch and culls as the float64
 /// brute force does over the renumbered nodes.

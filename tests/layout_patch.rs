@@ -631,10 +631,9 @@ fn rising_prefix(layout: &PackedLayout) -> Vec<lancet::layout::valence::Bucket> 
 
 /// A valence arrangement whose first bucket's slot table lies past the others' (as no patch
 /// lays it out, but [`ValenceLayout::arranged`] accepts), cut into up to four buckets per
-/// valence:
-/// the regroup cannot keep the packing's buckets apart from the appended ones, so it packs the
-/// whole layout anew by valence, from layout index 0. The result equals a packing from scratch
-/// of its arrangement, has one bucket per valence, and every node keeps its state.
+/// valence: the regroup cannot keep the packing's buckets apart from the appended ones, so it
+/// packs the whole layout anew by valence, from layout index 0. The result equals a packing
+/// from scratch of its arrangement, has one bucket per valence, and every node keeps its state.
 #[test]
 fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
     use lancet::layout::valence::{Bucket, ValenceLayout};
@@ -713,13 +712,13 @@ fn dispatched_buckets(layout: &PackedLayout) -> usize {
 
 /// A long run of cut-like patches on the valence layout: each patch appends a bucket where a
 /// node's new valence has no hole or room left, and every bucket brings room the step covers
-/// idly, so the layout regroups the buckets patches appended (packs them anew by valence) once the
-/// buckets outnumber twice the valences plus `SPARE_BUCKETS`. Across the run the buckets stay
-/// within that bound, at least one patch regroups, a regroup leaves at most two buckets per
-/// valence (the packing's and the regrouped tail's) and is no repack, every patch still equals
-/// a packing from scratch of its arrangement with every changed byte in a dirty range, no
-/// move writes past the slots before and after the patch, and the state moves keep every node
-/// its own state through the regroups.
+/// idly, so the layout regroups the buckets patches appended (packs them anew by valence) once
+/// the buckets outnumber twice the valences plus `SPARE_BUCKETS`. Across the run the buckets
+/// stay within that bound, at least one patch regroups, a regroup leaves the packing's buckets
+/// in place and at most two buckets per valence (the packing's and the regrouped tail's), every
+/// patch still equals a packing from scratch of its arrangement with every changed byte in a
+/// dirty range, no move writes past the slots before and after the patch, and the state moves
+/// keep every node its own state through the regroups.
 #[rstest]
 fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     #[values(21, 22, 23)] seed: u64,

@@ -62,6 +62,10 @@ fn renumbered(row: &[Slot], remap: impl Fn(u32) -> Option<u32>) -> Vec<Slot> {
     row
 }
 
+/// Bytes of the device's bucket table before its first bucket: the count of buckets, padded to
+/// a bucket's size (`struct BucketTable` in `shaders/springs_valence.wgsl`).
+pub const TABLE_HEADER: u64 = 16;
+
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
 #[repr(C)]
@@ -146,7 +150,8 @@ impl ValenceLayout {
             (1..buckets.len()).find(|&i| buckets[i - 1].first + room[i - 1] > buckets[i].first)
         {
             return Err(Error::Model(format!(
-                "valence bucket {w} starts at layout index {}, inside the room of the bucket                  before it (from {}, room {}): buckets must follow each other",
+                "valence bucket {w} starts at layout index {}, inside the room of the bucket \
+                 before it (from {}, room {}): buckets must follow each other",
                 buckets[w].first,
                 buckets[w - 1].first,
                 room[w - 1]
@@ -656,8 +661,7 @@ impl ValenceLayout {
     pub fn memory(&self, integrator: Integrator) -> (MemoryStats, u64) {
         let n = self.node_count() as u64;
         let slots = self.slots.len() as u64 * 32;
-        // A 16-byte count, then 16 bytes a bucket.
-        let table = 16 + self.buckets.len() as u64 * 16;
+        let table = TABLE_HEADER + self.buckets.len() as u64 * 16;
         let mut buffers = vec![
             ("slots".to_string(), slots),
             ("inverse masses".to_string(), n * 4),

@@ -267,8 +267,8 @@ pub struct GpuEngine {
 /// What changed under the surface culler since it last saw the layout. A patch moves a node
 /// to another layout index only with a state move to it (its state must follow it: a
 /// connectivity repack or an edge compaction packs the same order anew, a valence regroup
-/// moves every node of the buckets it packs anew), so the moves name every slot whose triangles and rest
-/// position may be stale.
+/// moves every node of the buckets it packs anew), so the moves name every slot whose
+/// triangles and rest position may be stale.
 enum SurfaceSync {
     /// Nothing: its triangles and rest positions match the layout.
     Current,
@@ -551,8 +551,8 @@ impl GpuEngine {
         };
         // The dirty ranges and the state moves go up together: one staging buffer, one
         // submission.
-        // Room for the dirty ranges (joined ranges take their gaps too), the move records (16
-        // bytes each and a header) and the step constants.
+        // Room for the dirty ranges, the move records (16 bytes each and a header) and the step
+        // constants; ranges joined across small gaps may still grow it.
         let mut upload = upload::Upload::with_capacity(
             (patch.dirty_bytes() + 16 * patch.moves.len() as u64 + 256) as usize,
         );
@@ -718,7 +718,7 @@ impl GpuEngine {
             if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
                 let stage = |table: &wgpu::Buffer, bytes: &[u8]| upload.write(table, 0, bytes);
                 grown += p.set_buckets(&self.ctx, &v.buckets, stage) as usize;
-                written += springs_valence::TABLE_HEADER + v.buckets.len() as u64 * 16;
+                written += crate::layout::valence::TABLE_HEADER + v.buckets.len() as u64 * 16;
             }
         }
         (written, grown)

@@ -2,14 +2,15 @@
 //! group 1 holds the bucket table (a count, then the buckets) in a storage buffer. One dispatch
 //! over every node slot steps all buckets: each invocation finds its node's bucket by a binary
 //! search of the table. One dispatch per bucket, as the valence textures of the literature
-//! were drawn, cost about 4 µs a bucket on an H100 (the 104,544-tet box's step 0.044 ms with
-//! 11 buckets, 0.19-0.22 ms with the 27 that 40 incisions leave), more than the step's own work.
+//! were drawn, made the step cost 4-8 µs a bucket on an H100 (the 104,544-tet box's step 0.044
+//! ms of device time with 11 buckets, 0.19-0.22 ms with the 27 that 40 incisions leave; 0.014
+//! ms in one dispatch), more than the step's own work.
 
 use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
 use super::{GpuContext, NodeState};
 use crate::error::Result;
-use crate::layout::valence::{Bucket, ValenceLayout};
+use crate::layout::valence::{Bucket, ValenceLayout, TABLE_HEADER};
 
 /// WGSL has no includes: the shared parts are prepended.
 const SOURCE: &str = concat!(
@@ -17,9 +18,6 @@ const SOURCE: &str = concat!(
     include_str!("../../../shaders/node_gather.wgsl"),
     include_str!("../../../shaders/springs_valence.wgsl")
 );
-
-/// Bytes before the first bucket of the table: its count, padded to a bucket's size.
-pub const TABLE_HEADER: u64 = 16;
 
 /// The pass with its device data.
 pub struct ValencePass {
