@@ -972,3 +972,104 @@ fn run_warns_about_a_cut_section_without_a_blade() {
         "{err}"
     );
 }
+
+/// `--check` turns the invariant checks on for a scene that leaves them off (no `check: true`,
+/// no `InvariantsHold`): without it no cut is checked, with it every cut is; and the run's
+/// per-cut latencies are ordered (p50 <= p99 <= max).
+#[test]
+fn run_check_turns_the_invariant_checks_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("unchecked_cut.ron");
+    std::fs::write(
+        &scene,
+        r#"Scene(
+    name: "cut, checks off",
+    mesh: Box((cells: (3, 3, 3), size: (0.03, 0.03, 0.03))),
+    material: (stiffness: Material(youngs_modulus: 2e4, poisson_ratio: 0.3), mass: Density(1000.0)),
+    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 1.0, 0.0), tolerance: 1e-9)],
+    dt: BoundFraction(0.8),
+    steps: 100,
+    engine: Fast,
+    tools: [(
+        name: "scalpel",
+        shape: Blade(width: 0.1, length: 0.1, thickness: 2e-4),
+        trajectory: Keyframes([
+            (time: 0.0, translation: (0.015, 0.017, 0.04)),
+            (time: 0.01, translation: (0.015, 0.017, -0.01)),
+        ]),
+    )],
+    cut: Some((methods: [Separate], check: false)),
+    expect: [Fragments(min: Some(2), max: Some(2))],
+)"#,
+    )
+    .unwrap();
+    let path = scene.to_str().unwrap();
+    let cuts = |extra: &[&str]| {
+        let mut args = vec!["run", "--no-output", "--json"];
+        args.extend_from_slice(extra);
+        args.push(path);
+        ok_json(&lancet(&args))["cuts"].clone()
+    };
+    let (off, on) = (cuts(&[]), cuts(&["--check"]));
+    let n = |c: &serde_json::Value, k: &str| c[k].as_u64().unwrap();
+    assert!(n(&off, "cuts") > 0, "{off:#}");
+    assert_eq!(n(&off, "checks"), 0, "{off:#}");
+    assert_eq!(n(&on, "checks"), n(&on, "cuts"), "{on:#}");
+    assert!(on["violations"].as_array().unwrap().is_empty(), "{on:#}");
+    let f = |k: &str| on[k].as_f64().unwrap();
+    assert!(
+        f("p50_ms") <= f("p99_ms") && f("p99_ms") <= f("max_ms"),
+        "{on:#}"
+    );
+}
+
+/// A local incision touches about as much of a larger mesh as of a smaller one: the bytes a cut
+/// event writes stay flat while the layout grows eightfold (3,000 to 24,000 tets), on the
+/// fast CPU engine and, where there is an adapter, the GPU edge layout; and each row's
+/// latencies are ordered (p50 <= p99 <= max).
+#[test]
+fn bench_cut_bytes_per_cut_stay_flat_as_the_mesh_grows() {
+    let out = lancet(&[
+        "bench",
+        "cut",
+        "--cube",
+        "10,20",
+        "--engine",
+        "fast,gpu",
+        "--layout",
+        "edges",
+        "--method",
+        "separate,subdivide,remove",
+        "--json",
+    ]);
+    let rows = ok_json(&out).as_array().unwrap().clone();
+    let f = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    let s = |r: &serde_json::Value, k: &str| r[k].as_str().unwrap().to_string();
+    let mut pairs = 0;
+    for small in rows.iter().filter(|r| r["tets"].as_u64() == Some(3_000)) {
+        let large = rows
+            .iter()
+            .find(|r| {
+                r["tets"].as_u64() == Some(24_000)
+                    && s(r, "engine") == s(small, "engine")
+                    && s(r, "method") == s(small, "method")
+            })
+            .unwrap_or_else(|| panic!("no 20-cell row for {small:#}"));
+        assert!(
+            f(large, "layout_bytes") > 6.0 * f(small, "layout_bytes"),
+            "{small:#} {large:#}"
+        );
+        assert!(
+            f(large, "bytes_per_cut") < 2.0 * f(small, "bytes_per_cut"),
+            "{small:#} {large:#}"
+        );
+        pairs += 1;
+    }
+    assert!(pairs >= 3, "every method on the fast engine: {rows:#?}");
+    for r in &rows {
+        assert!(
+            f(r, "p50_ms") <= f(r, "p99_ms") && f(r, "p99_ms") <= f(r, "max_ms"),
+            "{r:#}"
+        );
+    }
+}

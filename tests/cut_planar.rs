@@ -361,3 +361,74 @@ fn a_turned_blade_moved_out_of_its_plane_keeps_the_mesh_conforming() {
         }
     }
 }
+
+/// The cut happens in rest space: tissue moved rigidly, stretched or sheared, and cut by the
+/// blade carried along by the same motion, is cut into the same tets, at the same rest
+/// positions, as the tissue at rest; every method, at the default quality floor. The blade is
+/// off the grid (y = 1.7 cells), so no node is within rounding of its plane.
+#[test]
+fn cutting_moved_or_deformed_tissue_cuts_as_at_rest() {
+    use nalgebra::{Point3, Vector3};
+    let rigid = Isometry3::new(
+        Vector3::new(0.1, -0.05, 0.2),
+        Vector3::new(0.3, -0.5, 0.8).normalize() * 0.7,
+    );
+    let y0 = 1.7 * H;
+    // (what it is, where a rest point goes, the blade's pose at edge height z)
+    type Motion = (
+        &'static str,
+        Box<dyn Fn(Point3<f64>) -> Point3<f64>>,
+        Box<dyn Fn(f64) -> Isometry3<f64>>,
+    );
+    let motions: Vec<Motion> = vec![
+        (
+            "rigid",
+            Box::new(move |p| rigid * p),
+            Box::new(move |z| rigid * blade_at(y0, z)),
+        ),
+        (
+            "stretched 1.5x across the blade",
+            Box::new(|p| Point3::new(p.x, 1.5 * p.y, p.z)),
+            Box::new(move |z| blade_at(1.5 * y0, z)),
+        ),
+        (
+            "sheared along the blade",
+            Box::new(|p| Point3::new(p.x + 0.4 * p.y + 0.2 * p.z, p.y, p.z)),
+            Box::new(move |z| blade_at(y0, z)),
+        ),
+    ];
+    for method in [CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide] {
+        let cut = |to_world: &dyn Fn(Point3<f64>) -> Point3<f64>,
+                   blade: &dyn Fn(f64) -> Isometry3<f64>| {
+            let mesh = box_mesh();
+            let model = SpringModel::build(&mesh, &config()).unwrap();
+            let mut cutter = Cutter::new(mesh, model, method).unwrap();
+            let sweep = Sweep::of_blade(&BLADE, &blade(0.05), &blade(-0.01)).unwrap();
+            let world: Vec<[f64; 3]> = cutter
+                .mesh()
+                .nodes()
+                .map(|(_, n)| to_world(n.rest).coords.into())
+                .collect();
+            cutter.cut(&sweep, &world).unwrap();
+            cutter
+        };
+        let at_rest = cut(&|p| p, &|z| blade_at(y0, z));
+        assert!(
+            fragment_volumes(&at_rest).len() == 2 || method == CutMethod::Remove,
+            "{method:?}: the cut at rest splits the box"
+        );
+        for (what, to_world, blade) in &motions {
+            let moved = cut(to_world.as_ref(), blade.as_ref());
+            assert_eq!(
+                corner_points(&moved),
+                corner_points(&at_rest),
+                "{method:?}, tissue {what}"
+            );
+            assert_eq!(
+                moved.mesh().node_count(),
+                at_rest.mesh().node_count(),
+                "{method:?}, tissue {what}"
+            );
+        }
+    }
+}

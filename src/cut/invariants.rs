@@ -10,16 +10,18 @@
 //!   the uncut surface's area (checked where nothing was carved);
 //! - no tet is inverted or below the quality floor;
 //! - copies of a fixed node are fixed;
+//! - the springs are exactly the tet edges: none joins two nodes that no tet joins (a spring
+//!   across a completed cut), and no tet edge lacks one, whatever the stiffness model;
 //! - the spring model equals one built from scratch on the cut mesh (material stiffness and
 //!   density parameterisations, which do not depend on how many tets share an edge or node).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use serde::Serialize;
 
 use super::Cutter;
 use crate::mesh::topology::components;
-use crate::mesh::{NodeKey, TET_FACES};
+use crate::mesh::{NodeKey, TET_EDGES, TET_FACES};
 use crate::model::{Mass, SpringModel, Stiffness};
 
 /// Relative tolerance of the volume and mass comparisons (sums in different orders).
@@ -48,6 +50,11 @@ pub struct InvariantReport {
     pub untwinned_area_expected: Option<f64>,
     /// Smallest volume-length ratio of any tet (1 regular, 0 flat, negative inverted).
     pub min_quality: f64,
+    /// Springs between two nodes that no tet joins (across a completed cut, or left behind by
+    /// a removed tet).
+    pub springs_off_tet_edges: usize,
+    /// Tet edges with no spring.
+    pub tet_edges_without_spring: usize,
     /// Springs whose parameters differ from a model rebuilt from scratch (`None` where the
     /// parameterisation depends on incidence counts, so a rebuild differs by design).
     pub springs_differing_from_rebuild: Option<usize>,
@@ -60,6 +67,25 @@ impl InvariantReport {
     pub fn passed(&self) -> bool {
         self.violations.is_empty()
     }
+}
+
+/// An end pair in ascending order.
+fn ordered(a: NodeKey, b: NodeKey) -> (NodeKey, NodeKey) {
+    (a.min(b), a.max(b))
+}
+
+/// Edges of `triangles` not matched by the same edge the other way round: 0 for surfaces
+/// that are closed and consistently oriented. Each directed edge p->q counts +1 on the pair and
+/// q->p counts -1, so a closed, consistently oriented surface cancels on every edge.
+fn unmatched_edges(triangles: &[[NodeKey; 3]]) -> usize {
+    let mut half_edges: HashMap<(NodeKey, NodeKey), i64> = HashMap::new();
+    for f in triangles {
+        for k in 0..3 {
+            let (p, q) = (f[k], f[(k + 1) % 3]);
+            *half_edges.entry(ordered(p, q)).or_insert(0) += if p < q { 1 } else { -1 };
+        }
+    }
+    half_edges.values().filter(|&&c| c != 0).count()
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -125,25 +151,16 @@ impl Cutter {
         let (of_tet, fragments) = components(mesh);
         let mut tet_volume = vec![0.0; fragments];
         let mut enclosed = vec![0.0; fragments];
-        let mut half_edges: HashMap<(NodeKey, NodeKey), i64> = HashMap::new();
         for (tk, _) in mesh.tets() {
             tet_volume[of_tet[tk] as usize] += mesh.tet_volume(tk);
         }
+        let mut triangles = Vec::with_capacity(self.faces.boundary_len());
         for (tk, local) in self.faces.boundary() {
             let t = mesh.tet(tk).expect("boundary faces belong to tets");
             let f = TET_FACES[local as usize].map(|i| t.nodes[i]);
             let [a, b, c] = f.map(|k| mesh.rest(k).coords);
             enclosed[of_tet[tk] as usize] += a.dot(&b.cross(&c)) / 6.0;
-            for k in 0..3 {
-                let (p, q) = (f[k], f[(k + 1) % 3]);
-                // +1 for p->q, -1 for q->p, keyed by the ordered pair: a closed, consistently
-                // oriented surface cancels to zero on every edge.
-                if p < q {
-                    *half_edges.entry((p, q)).or_insert(0) += 1;
-                } else {
-                    *half_edges.entry((q, p)).or_insert(0) -= 1;
-                }
-            }
+            triangles.push(f);
         }
         // Faces split differently on their two sides leave triangles inside the tissue that
         // close up with each other (so the checks above pass) but have no twin.
@@ -172,7 +189,7 @@ impl Cutter {
                 ));
             }
         }
-        let open_edges = half_edges.values().filter(|&&c| c != 0).count();
+        let open_edges = unmatched_edges(&triangles);
         if open_edges > 0 {
             violations.push(format!(
                 "{open_edges} boundary edges are not matched by a reverse edge: a fragment \
@@ -208,6 +225,34 @@ impl Cutter {
             ));
         }
 
+        // Springs are the tet edges, so no spring crosses a cut: checked on the structure
+        // alone, where the rebuild comparison below needs a stiffness model it can rebuild.
+        let mut edges: HashSet<(NodeKey, NodeKey)> = HashSet::new();
+        for (_, t) in mesh.tets() {
+            for [i, j] in TET_EDGES {
+                edges.insert(ordered(t.nodes[i], t.nodes[j]));
+            }
+        }
+        let springs_off_tet_edges = model
+            .springs()
+            .filter(|(_, s)| !edges.contains(&ordered(s.nodes[0], s.nodes[1])))
+            .count();
+        let tet_edges_without_spring = edges
+            .iter()
+            .filter(|&&(a, b)| model.spring_between(a, b).is_none())
+            .count();
+        if springs_off_tet_edges > 0 {
+            violations.push(format!(
+                "{springs_off_tet_edges} springs join nodes that no tet joins (a spring across a \
+                 cut)"
+            ));
+        }
+        if tet_edges_without_spring > 0 {
+            violations.push(format!(
+                "{tet_edges_without_spring} tet edges have no spring"
+            ));
+        }
+
         let min_quality = mesh.min_volume_length_ratio();
         if mesh.tet_count() > 0 && !(min_quality > 0.0 && min_quality >= quality_floor) {
             violations.push(format!(
@@ -233,6 +278,8 @@ impl Cutter {
             untwinned_area,
             untwinned_area_expected,
             min_quality,
+            springs_off_tet_edges,
+            tet_edges_without_spring,
             springs_differing_from_rebuild,
             violations,
         }
@@ -268,5 +315,174 @@ impl Cutter {
             .spring_count()
             .saturating_sub(self.model.spring_count());
         Some(differing)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! Each invariant reports a state that breaks it: a checker that flags nothing would pass
+    //! every test that cuts correctly.
+
+    use nalgebra::{Isometry3, Point3};
+
+    use super::*;
+    use crate::collide::ToolShape;
+    use crate::cut::{CutMethod, Sweep};
+    use crate::mesh::generate::BoxGrid;
+    use crate::mesh::TetMesh;
+    use crate::model::{FixedSelector, Material, ModelConfig};
+
+    const H: f64 = 0.01;
+
+    fn config() -> ModelConfig {
+        ModelConfig::new(Material::elastic(3e3, 0.3, 1000.0))
+    }
+
+    /// A 3-cell box split in two along faces by an upright blade at y = 1.7 cells, its volume
+    /// and the box before the cut.
+    fn cut_box() -> (Cutter, f64, TetMesh) {
+        let mesh = BoxGrid::cube_cells([3, 3, 3], H).build().unwrap();
+        let volume = mesh.volume();
+        let model = SpringModel::build(&mesh, &config()).unwrap();
+        let mut cutter = Cutter::new(mesh.clone(), model, CutMethod::Separate).unwrap();
+        let blade = ToolShape::Blade {
+            width: 0.1,
+            length: 0.1,
+            thickness: 1e-4,
+        };
+        let at = |z: f64| Isometry3::translation(0.015, 1.7 * H, z);
+        let sweep = Sweep::of_blade(&blade, &at(0.05), &at(-0.01)).unwrap();
+        let rest: Vec<[f64; 3]> = cutter
+            .mesh()
+            .nodes()
+            .map(|(_, n)| n.rest.coords.into())
+            .collect();
+        cutter.cut(&sweep, &rest).unwrap();
+        (cutter, volume, mesh)
+    }
+
+    fn violated(report: &InvariantReport, what: &str) -> bool {
+        report.violations.iter().any(|v| v.contains(what))
+    }
+
+    #[test]
+    fn a_correct_cut_passes() {
+        let (cutter, volume, _) = cut_box();
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(report.passed(), "{:?}", report.violations);
+        assert_eq!(report.fragments, 2);
+        assert_eq!(report.springs_off_tet_edges, 0);
+        assert_eq!(report.tet_edges_without_spring, 0);
+    }
+
+    #[test]
+    fn lost_volume_is_reported() {
+        let (mut cutter, volume, _) = cut_box();
+        cutter.volume_removed += 1e-3 * volume;
+        assert!(violated(
+            &cutter.check_invariants(volume, 0.0),
+            "rest volume"
+        ));
+    }
+
+    #[test]
+    fn a_tet_without_its_share_of_mass_and_springs_is_reported() {
+        let (mut cutter, volume, _) = cut_box();
+        let (tk, _) = cutter.mesh.tets().next().unwrap();
+        cutter.model.remove_tet(&cutter.mesh, tk).unwrap();
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(violated(&report, "mass"), "{:?}", report.violations);
+        assert!(violated(&report, "differ from a model rebuilt"));
+    }
+
+    #[test]
+    fn springs_across_the_cut_are_reported_whatever_the_stiffness_model() {
+        // The model of the uncut box keeps the springs the cut removed: its original nodes
+        // keep their keys, so those springs join nodes on the two lips.
+        let (mut cutter, volume, uncut) = cut_box();
+        let mut config = config();
+        // Stiffness per spring: no rebuild comparison is possible, the structure check stays.
+        config.material.stiffness = crate::model::Stiffness::Spring(10.0);
+        cutter.model = SpringModel::build(&uncut, &config).unwrap();
+        let report = cutter.check_invariants(volume, 0.0);
+        assert_eq!(report.springs_differing_from_rebuild, None);
+        assert!(report.springs_off_tet_edges > 0, "{report:?}");
+        assert!(report.tet_edges_without_spring > 0, "the copies have none");
+        assert!(violated(&report, "across a cut"));
+    }
+
+    #[test]
+    fn a_surface_around_a_tet_the_index_lost_does_not_enclose_its_tets() {
+        let (mut cutter, volume, _) = cut_box();
+        let (tk, _) = cutter.mesh.tets().next().unwrap();
+        cutter.faces.remove(tk);
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(report.worst_enclosed_volume_error > 1e-3, "{report:?}");
+        assert!(violated(&report, "encloses a volume"));
+    }
+
+    #[test]
+    fn a_differently_split_face_leaves_untwinned_area() {
+        let (mut cutter, volume, _) = cut_box();
+        cutter.surface_area *= 1.01;
+        assert!(violated(
+            &cutter.check_invariants(volume, 0.0),
+            "not conforming"
+        ));
+    }
+
+    #[test]
+    fn tets_below_the_floor_are_reported() {
+        let (cutter, volume, _) = cut_box();
+        // The box's tets are far from regular.
+        assert!(violated(
+            &cutter.check_invariants(volume, 0.99),
+            "below the floor"
+        ));
+    }
+
+    #[test]
+    fn open_or_misoriented_surfaces_have_unmatched_edges() {
+        let mut mesh = TetMesh::new();
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]
+        .map(|c| mesh.add_node(Point3::from(c)));
+        let tet = mesh.add_tet(p, 0).unwrap();
+        let t = mesh.tet(tet).unwrap();
+        let faces: Vec<[NodeKey; 3]> = TET_FACES.iter().map(|f| f.map(|i| t.nodes[i])).collect();
+        assert_eq!(unmatched_edges(&faces), 0);
+        assert_eq!(unmatched_edges(&faces[..3]), 3, "one face missing");
+        let mut flipped = faces.clone();
+        flipped[0].swap(1, 2);
+        assert_eq!(unmatched_edges(&flipped), 3, "one face turned inward");
+    }
+
+    #[test]
+    fn a_copy_that_lost_its_fixed_flag_is_reported() {
+        // Two tets already apart at a shared face position: tet 0 (region 1, fixed) uses
+        // nodes 1-3, tet 1 (region 2) their copies 5-7 at the same rest positions.
+        let points = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let (mesh, _) =
+            TetMesh::from_arrays(&points, &[[0, 1, 2, 3], [4, 7, 6, 5]], Some(&[1, 2])).unwrap();
+        let mut config = config();
+        config.fixed.push(FixedSelector::Region(1));
+        let model = SpringModel::build(&mesh, &config).unwrap();
+        let volume = mesh.volume();
+        let cutter = Cutter::new(mesh, model, CutMethod::Separate).unwrap();
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(violated(&report, "3 copies"), "{:?}", report.violations);
     }
 }

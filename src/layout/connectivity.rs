@@ -5,7 +5,9 @@
 //! per node gathers its springs and integrates itself, so no two invocations write the same
 //! node. The price is padding: every node pays for the widest one.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap;
 
 use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
@@ -42,9 +44,49 @@ pub(crate) fn inv_mass_of(model: &PackedModel, node: u32) -> f32 {
     }
 }
 
-/// The rows before a diff of the existing nodes it touches: each slot with the model index of
-/// its other end.
-pub(crate) type OldRows = BTreeMap<u32, Vec<(Slot, u32)>>;
+/// The nodes a diff touches (model indices, ascending), each with its row before the diff
+/// (an existing node's slots, each with the model index of its other end; empty for an added
+/// node) and its neighbours in the model after it (added nodes included). Sorted arrays
+/// searched by node: a cut touches a few dozen nodes, and every patch walks them in order.
+pub(crate) struct TouchedRows {
+    nodes: Vec<u32>,
+    old: Vec<Vec<(Slot, u32)>>,
+    lists: Vec<Vec<u32>>,
+}
+
+impl TouchedRows {
+    /// The touched nodes with their neighbours after the diff, ascending.
+    pub(crate) fn iter(&self) -> impl Iterator<Item = (u32, &[u32])> {
+        self.nodes
+            .iter()
+            .zip(&self.lists)
+            .map(|(&t, l)| (t, l.as_slice()))
+    }
+
+    /// The touched nodes, ascending.
+    pub(crate) fn nodes(&self) -> &[u32] {
+        &self.nodes
+    }
+
+    /// Whether the diff touches node `t`.
+    pub(crate) fn contains(&self, t: u32) -> bool {
+        self.nodes.binary_search(&t).is_ok()
+    }
+
+    /// Node `t`'s neighbours after the diff (empty if it is not touched).
+    pub(crate) fn list(&self, t: u32) -> &[u32] {
+        self.nodes
+            .binary_search(&t)
+            .map_or(&[][..], |i| self.lists[i].as_slice())
+    }
+
+    /// Node `t`'s row before the diff (empty for an added or untouched node).
+    pub(crate) fn old(&self, t: u32) -> &[(Slot, u32)] {
+        self.nodes
+            .binary_search(&t)
+            .map_or(&[][..], |i| self.old[i].as_slice())
+    }
+}
 
 /// The rows of the existing nodes `diff` touches as they are before it (`row_of(node)`: a
 /// node's slots, each with the model index of its other end), and the neighbours (model
@@ -53,52 +95,52 @@ pub(crate) fn touched_rows(
     diff: &ModelDiff,
     nodes_before: usize,
     mut row_of: impl FnMut(u32) -> Vec<(Slot, u32)>,
-) -> (OldRows, BTreeMap<u32, Vec<u32>>) {
-    let mut removed: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+) -> TouchedRows {
+    // The springs the diff removes and adds at each node: a few per node, so short lists.
+    let mut removed: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
     for &[a, b] in &diff.removed_springs {
-        removed.entry(a).or_default().insert(b);
-        removed.entry(b).or_default().insert(a);
+        removed.entry(a).or_default().push(b);
+        removed.entry(b).or_default().push(a);
     }
-    let mut added: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+    let mut added: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
     for s in &diff.added_springs {
         let [a, b] = s.nodes;
         added.entry(a).or_default().push(b);
         added.entry(b).or_default().push(a);
     }
-    let mut old_rows = OldRows::new();
-    let lists = diff
-        .touched_nodes(nodes_before)
-        .into_iter()
-        .map(|t| {
-            let mut list = Vec::new();
-            if (t as usize) < nodes_before {
-                let row = row_of(t);
-                list.extend(row.iter().map(|e| e.1));
-                old_rows.insert(t, row);
-            }
-            if let Some(r) = removed.get(&t) {
-                list.retain(|x| !r.contains(x));
-            }
-            if let Some(a) = added.get(&t) {
-                list.extend(a);
-            }
-            (t, list)
-        })
-        .collect();
-    (old_rows, lists)
+    let nodes = diff.touched_nodes(nodes_before);
+    let mut old = Vec::with_capacity(nodes.len());
+    let mut lists = Vec::with_capacity(nodes.len());
+    for &t in &nodes {
+        let row = if (t as usize) < nodes_before {
+            row_of(t)
+        } else {
+            Vec::new()
+        };
+        let mut list: Vec<u32> = row.iter().map(|e| e.1).collect();
+        if let Some(r) = removed.get(&t) {
+            list.retain(|x| !r.contains(x));
+        }
+        if let Some(a) = added.get(&t) {
+            list.extend(a);
+        }
+        old.push(row);
+        lists.push(list);
+    }
+    TouchedRows { nodes, old, lists }
 }
 
 /// The springs a diff adds or changes, by end pair, as the model holds them after it (a
 /// change wins over an addition, as in `PackedModel::apply`): with a touched node's slots from
 /// before the patch, all its new row needs ([`patched_row_slots`]).
-pub(crate) struct DiffSprings(rustc_hash::FxHashMap<[u32; 2], PackedSpring>);
+pub(crate) struct DiffSprings(FxHashMap<[u32; 2], PackedSpring>);
 
 impl DiffSprings {
     /// The springs `diff` adds or changes, checked against `model` (the model after it): each
     /// must be there as the diff gives it, and each spring it removes (and does not add back)
     /// gone. A search per spring the diff names, not per slot of every row it touches.
     pub(crate) fn of(diff: &ModelDiff, model: &PackedModel) -> Result<Self> {
-        let mut map = rustc_hash::FxHashMap::default();
+        let mut map = FxHashMap::default();
         for s in diff.added_springs.iter().chain(&diff.changed_springs) {
             let [a, b] = s.nodes;
             map.insert([a.min(b), a.max(b)], *s);
@@ -558,19 +600,19 @@ impl ConnectivityLayout {
         }
         // The touched nodes' rows before the patch: the springs the diff leaves alone are taken
         // from them.
-        let (old_rows, lists) = touched_rows(diff, before, |t| {
+        let touched = touched_rows(diff, before, |t| {
             self.row(self.order.rank[t as usize] as usize)
                 .into_iter()
                 .map(|s| (s, self.order.order[s.other as usize]))
                 .collect()
         });
-        for &t in lists.keys() {
+        for &t in touched.nodes() {
             let row = self.order.rank[t as usize] as usize;
             self.nodes.inv_mass[row] = inv_mass_of(model, t);
         }
-        for (&t, list) in &lists {
+        for (t, list) in touched.iter() {
             let row = self.order.rank[t as usize] as usize;
-            let old = old_rows.get(&t).map_or(&[][..], Vec::as_slice);
+            let old = touched.old(t);
             let new = patched_row_slots(model, t, list, old, &springs, &self.order.rank)?;
             self.write_row(row, &new, &mut dirty)?;
         }
@@ -598,7 +640,11 @@ impl ConnectivityLayout {
             patch.normalize();
             return Ok(patch);
         }
-        let rows: Vec<u32> = lists.keys().map(|&t| self.order.rank[t as usize]).collect();
+        let rows: Vec<u32> = touched
+            .nodes()
+            .iter()
+            .map(|&t| self.order.rank[t as usize])
+            .collect();
         // Continuation slots in rows that are not rewritten whole.
         let whole: std::collections::HashSet<u32> = dirty.iter().copied().collect();
         dirty_slots.retain(|&s| !whole.contains(&(s / k as u32)));

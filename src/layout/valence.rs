@@ -249,7 +249,7 @@ impl ValenceLayout {
             .collect();
         // The touched nodes' rows before the patch: the springs the diff leaves alone are taken
         // from them.
-        let (old_rows, lists) = touched_rows(diff, before, |t| self.row_of(t));
+        let touched = touched_rows(diff, before, |t| self.row_of(t));
         // Where each moved node was and where it goes (layout indices): the rows of untouched
         // neighbours that point at one are remapped through it below. Their springs do not
         // change, only where a slot points, and their rows stay where they are.
@@ -258,20 +258,20 @@ impl ValenceLayout {
         let buckets_before = self.buckets.len();
         let mut moves: BTreeMap<u32, StateMove> = BTreeMap::new();
         let mut moved: Vec<u32> = Vec::new();
-        let mut rows: BTreeSet<u32> = BTreeSet::new();
+        let mut rows: Vec<u32> = Vec::new();
         let mut buckets_changed = false;
         self.order.rank.resize(model.node_count(), NodeOrder::HOLE);
         // How many nodes each valence receives, so that one appended bucket holds them all
         // (every bucket brings room and a table entry to search).
         let mut demand: BTreeMap<u32, u32> = BTreeMap::new();
-        for (&t, list) in &lists {
+        for (t, list) in touched.iter() {
             let v = list.len() as u32;
             let new_node = t as usize >= before;
             if new_node || self.buckets[self.bucket_of(self.order.rank[t as usize])].valence != v {
                 *demand.entry(v).or_default() += 1;
             }
         }
-        for (&t, list) in &lists {
+        for (t, list) in touched.iter() {
             let v = list.len() as u32;
             let new_node = t as usize >= before;
             let stays = !new_node && {
@@ -279,7 +279,7 @@ impl ValenceLayout {
                 self.buckets[self.bucket_of(idx)].valence == v
             };
             if stays {
-                rows.insert(self.order.rank[t as usize]);
+                rows.push(self.order.rank[t as usize]);
                 continue;
             }
             // Where the node's state comes from, in the order before the patch.
@@ -288,7 +288,7 @@ impl ValenceLayout {
             } else {
                 let idx = self.order.rank[t as usize];
                 self.vacate(idx);
-                rows.insert(idx);
+                rows.push(idx);
                 moves.entry(idx).or_insert(StateMove {
                     to: idx,
                     from: None,
@@ -310,29 +310,31 @@ impl ValenceLayout {
             self.order.order[idx as usize] = t;
             self.order.rank[t as usize] = idx;
             moves.insert(idx, StateMove { to: idx, ..source });
-            rows.insert(idx);
+            rows.push(idx);
             moved.push(t);
         }
         // Rewrite the rows of touched nodes, and of neighbours that point at a moved node.
-        for (&t, list) in &lists {
-            let old = old_rows.get(&t).map_or(&[][..], Vec::as_slice);
+        for (t, list) in touched.iter() {
+            let old = touched.old(t);
             let row = patched_row_slots(model, t, list, old, &springs, &self.order.rank)?;
             self.write_row(t, &row, model);
-            rows.insert(self.order.rank[t as usize]);
+            rows.push(self.order.rank[t as usize]);
         }
         let mut pointing: Vec<u32> = moved
             .iter()
-            .flat_map(|t| &lists[t])
+            .flat_map(|&t| touched.list(t))
             .copied()
-            .filter(|nb| !lists.contains_key(nb))
+            .filter(|&nb| !touched.contains(nb))
             .collect();
         pointing.sort_unstable();
         pointing.dedup();
         for t in pointing {
             let row = renumbered(self.row_slots_of(t), |o| remap.get(&o).copied());
             self.write_row(t, &row, model);
-            rows.insert(self.order.rank[t as usize]);
+            rows.push(self.order.rank[t as usize]);
         }
+        rows.sort_unstable();
+        rows.dedup();
         for &idx in &rows {
             let row = self.row_range(idx);
             patch.mark(LayoutArray::Slots, row.start as u32..row.end as u32, 1, 32);
@@ -413,7 +415,7 @@ impl ValenceLayout {
     /// buckets per valence. Only the tail's nodes move; their rows are taken from the rows the
     /// patch left (their other ends renumbered), and the rows pointing at them are remapped.
     /// `moves` are that part's state moves (destination in the fragmented layout, sources
-    /// before the patch), `rows` the rows it rewrote; each moved node's state goes on from
+    /// before the patch), `rows` the rows it rewrote (ascending); each moved node's state goes on from
     /// there to its new place. The node slots may shrink: the slots dropped that the layout had
     /// before the patch (`slots_before`) are cleared.
     fn regroup(
@@ -421,7 +423,7 @@ impl ValenceLayout {
         model: &PackedModel,
         diff: &ModelDiff,
         moves: &BTreeMap<u32, StateMove>,
-        rows: &BTreeSet<u32>,
+        rows: &[u32],
         slots_before: usize,
     ) -> LayoutPatch {
         let (k, first, offset) = self.tail_start();
@@ -529,12 +531,12 @@ impl ValenceLayout {
             blend: None,
         }));
         // The rows the incremental part rewrote before the tail, those remapped, and the tail.
-        let before_tail: Vec<u32> = rows.range(..first).copied().collect();
+        let before_tail = &rows[..rows.partition_point(|&r| r < first)];
         for &idx in before_tail.iter().chain(&heads) {
             let row = self.row_range(idx);
             patch.mark(LayoutArray::Slots, row.start as u32..row.end as u32, 1, 32);
         }
-        patch.mark(LayoutArray::InvMass, before_tail, 1, 4);
+        patch.mark(LayoutArray::InvMass, before_tail.iter().copied(), 1, 4);
         patch.mark_range(
             LayoutArray::Slots,
             offset as u64..self.slots.len() as u64,
