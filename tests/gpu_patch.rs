@@ -282,8 +282,9 @@ fn dispatched_buckets(layout: &lancet::layout::PackedLayout) -> usize {
     v.buckets.iter().filter(|b| b.count > 0).count()
 }
 
-/// Cut-like patches on the valence engine until its layout regroups (packs the buckets
-/// patches appended anew by valence, their nodes renumbered): the device follows every node's
+/// Cut-like patches on the valence engine, built on a fragmented layout (more buckets than its
+/// bound, `fragmented_valence`), so that its first patch regroups (packs the buckets after the
+/// packing's anew by valence, their nodes renumbered): the device follows every node's
 /// state through each patch, holds every layout buffer as the host does, steps after a
 /// regroup like its CPU twin and like an engine built from scratch, and its surface
 /// culler, given before the run and brought up to date only through the patches'
@@ -295,7 +296,9 @@ fn a_valence_regroup_on_the_device_keeps_every_node_its_state_and_surface() {
     let Some(ctx) = common::gpu() else { return };
     let mut model = random_model(21, false);
     let config = SimConfig::new(2e-5);
-    let mut engine = GpuEngine::with_context(ctx, &model, config, LayoutKind::Valence).unwrap();
+    let fragmented = models::fragmented_valence(&model, &config.node_order.order(&model));
+    let mut engine =
+        GpuEngine::with_layout(ctx, &model, config, PackedLayout::Valence(fragmented)).unwrap();
     let (x, v) = random_state(&model, 21);
     engine.set_state(&x, &v);
     engine.step(3);

@@ -630,7 +630,7 @@ fn rising_prefix(layout: &PackedLayout) -> Vec<lancet::layout::valence::Bucket> 
 }
 
 /// A valence arrangement whose first bucket's slot table lies past the others' (as no patch
-/// lays it out, but [`ValenceLayout::arranged`] accepts), cut into up to four buckets per
+/// lays it out, but [`ValenceLayout::arranged`] accepts), cut into up to sixteen buckets per
 /// valence: the regroup cannot keep the packing's buckets apart from the appended ones, so it
 /// packs the whole layout anew by valence, from layout index 0. The result equals a packing
 /// from scratch of its arrangement, has one bucket per valence, and every node keeps its state.
@@ -639,10 +639,10 @@ fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
     use lancet::layout::valence::{Bucket, ValenceLayout};
     let model = random_model(31, false);
     let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
-    // Each bucket in up to four pieces, then the first piece's table moved past every other.
+    // Each bucket in up to sixteen pieces (more buckets than the bound), then the first piece's table moved past every other.
     let mut buckets: Vec<Bucket> = Vec::new();
     for b in &packed.buckets {
-        let pieces = b.count.min(4);
+        let pieces = b.count.min(16);
         let cut: Vec<u32> = (0..=pieces).map(|k| k * b.count / pieces).collect();
         for w in cut.windows(2) {
             buckets.push(Bucket {
@@ -659,9 +659,9 @@ fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
     }
     buckets[0].offset = packed.slots.len() as u32 - first_table;
     let valences: std::collections::BTreeSet<u32> = buckets.iter().map(|b| b.valence).collect();
-    assert!(buckets.len() > 2 * valences.len() + lancet::layout::valence::SPARE_BUCKETS);
     let room: Vec<u32> = buckets.iter().map(|b| b.count).collect();
     let arranged = ValenceLayout::arranged(&model, packed.order.clone(), buckets, room).unwrap();
+    assert!(arranged.dispatched_buckets() > arranged.bucket_limit());
     let mut layout = PackedLayout::Valence(arranged);
     let mut rng = Rng(31);
     let want: Vec<[f32; 4]> = (0..model.node_count())
@@ -710,23 +710,26 @@ fn dispatched_buckets(layout: &PackedLayout) -> usize {
     v.buckets.iter().filter(|b| b.count > 0).count()
 }
 
-/// A long run of cut-like patches on the valence layout: each patch appends a bucket where a
-/// node's new valence has no hole or room left, and every bucket brings room the step covers
-/// idly, so the layout regroups the buckets patches appended (packs them anew by valence) once
-/// the buckets outnumber twice the valences plus `SPARE_BUCKETS`. Across the run the buckets
-/// stay within that bound, at least one patch regroups, a regroup leaves the packing's buckets
-/// in place and at most two buckets per valence (the packing's and the regrouped tail's), every
-/// patch still equals a packing from scratch of its arrangement with every changed byte in a
-/// dirty range, no move writes past the slots before and after the patch, and the state moves
-/// keep every node its own state through the regroups.
+/// A long run of cut-like patches on a valence layout that starts fragmented (as a long run of
+/// cuts that changed many valences would leave it: half of each valence's nodes in small
+/// buckets after the packing's, more buckets than its bound): the first patch regroups the
+/// buckets after the packing's (packs them anew by valence), and the patches after it append a
+/// bucket only where a node's new valence has no hole or room left, each with as much room as
+/// that valence's appended buckets had, so the buckets stay within
+/// [`ValenceLayout::bucket_limit`] for the rest of the run. A regroup leaves the packing's
+/// buckets in place and at most two buckets per valence (the packing's and the regrouped
+/// tail's), every patch still equals a packing from scratch of its arrangement with every
+/// changed byte in a dirty range, no move writes past the slots before and after the patch,
+/// and the state moves keep every node its own state through the regroups.
 #[rstest]
 fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     #[values(21, 22, 23)] seed: u64,
 ) {
-    use lancet::layout::valence::SPARE_BUCKETS;
     let mut model = random_model(seed, false);
-    let mut layout =
-        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let mut layout = PackedLayout::Valence(models::fragmented_valence(
+        &model,
+        &NodeOrder::locality(&model),
+    ));
     let mut rng = Rng(seed);
     // The state each model node should have, and the device's, by layout index.
     let mut want: Vec<[f32; 4]> = (0..model.node_count())
@@ -763,11 +766,25 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
             .map(|b| b.valence)
             .collect();
         assert!(
-            dispatched <= 2 * valences.len() + SPARE_BUCKETS,
+            dispatched <= v.bucket_limit(),
             "round {round}: {dispatched} buckets for {} valences",
             valences.len()
         );
         most = most.max(dispatched);
+        // Each bucket appended for a valence has room for at least as many nodes as those
+        // appended for it before (after the packing's rising buckets): their number grows with
+        // the logarithm of the nodes a valence takes, not with the count.
+        let prefix = rising_prefix(&layout).len();
+        let mut appended: std::collections::BTreeMap<u32, u32> = Default::default();
+        for (b, &room) in v.buckets.iter().zip(&v.room).skip(prefix) {
+            let before = appended.entry(b.valence).or_default();
+            assert!(
+                *before == 0 || room >= (*before).min(layout.node_slots() as u32),
+                "round {round}: a valence-{} bucket with room {room} after {before}",
+                b.valence
+            );
+            *before += room;
+        }
         // Nothing else lowers the buckets dispatched: a node that leaves one leaves a hole.
         if dispatched < dispatched_before {
             regrouped += 1;
@@ -821,4 +838,7 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
         model = next;
     }
     assert!(regrouped > 0, "no patch regrouped (at most {most} buckets)");
+    // Ever more buckets would have regrouped again and again: the run's appended buckets keep
+    // well inside the bound.
+    assert_eq!(regrouped, 1, "regrouped {regrouped} times");
 }

@@ -30,8 +30,9 @@ fn valences(model: &PackedModel) -> Vec<u32> {
     valence
 }
 
-/// Buckets a patched layout may have beyond twice the valences it holds before the buckets
-/// patches appended are regrouped (packed anew by valence): see [`ValenceLayout::patch`].
+/// Buckets a patched layout may have beyond its bound ([`ValenceLayout::bucket_limit`]) before
+/// the buckets patches appended are regrouped (packed anew by valence): see
+/// [`ValenceLayout::patch`].
 pub const SPARE_BUCKETS: usize = 8;
 
 /// Put layout index `new`, of valence `v` with its row at slot `offset`, into the buckets of a
@@ -226,15 +227,16 @@ impl ValenceLayout {
 
     /// Apply `diff` (already applied to `model`, the model after the change). A node whose
     /// valence changes moves to a bucket of its new valence: into a hole, into room at the end
-    /// of a bucket, or into a new bucket appended with room for more (a size class of a
-    /// sixteenth of that valence's nodes, at least 32, or a sixteenth of the nodes on a mesh of
-    /// fewer than 512); no other node moves, the rows pointing at a moved node are rewritten,
-    /// and its state moves with it. The result equals
-    /// [`ValenceLayout::arranged`] of `model` in the patched arrangement. When that leaves
-    /// more than twice as many buckets as valences plus [`SPARE_BUCKETS`], the buckets patches
-    /// appended are instead packed anew by valence, keeping the node order within each valence:
-    /// their nodes may move, the packing's buckets before them stay (see `regroup`). Not a
-    /// repack: the device writes the tail and the rows that point into it, as for any patch.
+    /// of a bucket, or into a new bucket appended with room for more (the size class of a
+    /// sixteenth of that valence's nodes or of all the room the buckets appended for it already
+    /// have, whichever is larger; at least 32, or a sixteenth of the nodes on a mesh of fewer
+    /// than 512); no other node moves, the rows pointing at a moved node are rewritten, and its
+    /// state moves with it. The result equals [`ValenceLayout::arranged`] of `model` in the
+    /// patched arrangement. When that leaves more buckets than [`ValenceLayout::bucket_limit`],
+    /// the buckets patches appended are instead packed anew by valence, keeping the node order
+    /// within each valence: their nodes may move, the packing's buckets before them stay (see
+    /// `regroup`). Not a repack: the device writes the tail and the rows that point into it, as
+    /// for any patch.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<LayoutPatch> {
         let before = self.order.rank.len();
         let slots_before = self.order.order.len();
@@ -363,21 +365,36 @@ impl ValenceLayout {
         Ok(patch)
     }
 
-    /// Whether the buckets outnumber twice the valences they hold by more than
-    /// [`SPARE_BUCKETS`]: patches append buckets (a node whose valence changes goes to a hole,
-    /// to room at a bucket's end, or to a new bucket), each with room that the step's dispatch
-    /// covers idly and the host and device hold, and an entry that every node's search of the
-    /// table reads; without a bound a long run of cuts would make the step ever slower and
-    /// the arrays ever larger.
-    fn fragmented(&self) -> bool {
-        let dispatched: Vec<u32> = self
+    /// The most buckets a patched layout dispatches before it regroups: per valence it holds,
+    /// the packing's bucket, the buckets patches append for it (each with room for as many
+    /// nodes as those before it, so their number grows with the logarithm of the nodes they
+    /// take, at most that of the nodes over 32), and one more, plus [`SPARE_BUCKETS`].
+    /// Patches append buckets (a node whose valence changes goes to a hole, to room at a
+    /// bucket's end, or to a new bucket), each with room that the step's dispatch covers idly
+    /// and the host and device hold, and an entry that every node's search of the table reads;
+    /// without a bound a long run of cuts would make the step ever slower and the arrays ever
+    /// larger.
+    pub fn bucket_limit(&self) -> usize {
+        let valences: BTreeSet<u32> = self
             .buckets
             .iter()
             .filter(|b| b.count > 0)
             .map(|b| b.valence)
             .collect();
-        let valences: BTreeSet<u32> = dispatched.iter().copied().collect();
-        dispatched.len() > 2 * valences.len() + SPARE_BUCKETS
+        let doublings = (self.node_count().max(32) as u32 / 32)
+            .next_power_of_two()
+            .trailing_zeros() as usize;
+        valences.len() * (2 + doublings) + SPARE_BUCKETS
+    }
+
+    /// Buckets that hold nodes or holes (the step dispatches them).
+    pub fn dispatched_buckets(&self) -> usize {
+        self.buckets.iter().filter(|b| b.count > 0).count()
+    }
+
+    /// Whether the dispatched buckets outnumber [`ValenceLayout::bucket_limit`].
+    fn fragmented(&self) -> bool {
+        self.dispatched_buckets() > self.bucket_limit()
     }
 
     /// Where the buckets patches appended begin: the bucket after the longest run of strictly
@@ -624,6 +641,20 @@ impl ValenceLayout {
             .filter(|b| b.valence == v)
             .map(|b| b.count)
             .sum();
+        // The room of the buckets patches appended for this valence so far (after the
+        // packing's, which rise in valence): a new one has as much again, so a valence that
+        // keeps receiving nodes takes a number of buckets that grows with the logarithm of
+        // their count, not with the count (which made a long run of cuts regroup ever larger
+        // tails, each a pause).
+        let packing = (1..self.buckets.len())
+            .find(|&k| self.buckets[k].valence <= self.buckets[k - 1].valence)
+            .unwrap_or(self.buckets.len());
+        let appended: u32 = self.buckets[packing..]
+            .iter()
+            .zip(&self.room[packing..])
+            .filter(|(b, _)| b.valence == v)
+            .map(|(_, &r)| r)
+            .sum();
         // Room for a sixteenth more of this valence's nodes, and at least for a few more cuts:
         // 32 nodes, or a sixteenth of a mesh smaller than 512 nodes (32 slots of a high valence
         // would outgrow a small mesh's buffers at every cut).
@@ -631,6 +662,7 @@ impl ValenceLayout {
         let room = (same / 16)
             .max(least)
             .max(want)
+            .max(appended)
             .next_power_of_two()
             .min(nodes.max(32) as u32)
             .max(want);

@@ -402,3 +402,59 @@ pub fn floating_ring(model: &PackedModel, n: usize, reach: usize) -> lancet::mod
         ..ModelDiff::default()
     }
 }
+
+/// `model` packed by valence as patches would leave it after a long run of cuts that changed
+/// many valences: the packing's buckets (rising valences) hold the first quarter of each
+/// valence's nodes, and the rest follow in buckets of one node, valences taken in turn, so the
+/// layout dispatches several times more buckets than its bound and its next patch regroups
+/// that tail. Nodes keep `base` order within each valence.
+pub fn fragmented_valence(
+    model: &PackedModel,
+    base: &lancet::layout::NodeOrder,
+) -> lancet::layout::valence::ValenceLayout {
+    use lancet::layout::valence::{Bucket, ValenceLayout};
+    use lancet::layout::NodeOrder;
+    let packed = ValenceLayout::new(model, base);
+    let mut head: Vec<(u32, Vec<u32>)> = Vec::new();
+    let mut tail: Vec<(u32, Vec<u32>)> = Vec::new();
+    for b in &packed.buckets {
+        let nodes = &packed.order.order[b.first as usize..(b.first + b.count) as usize];
+        let keep = nodes.len().div_ceil(4);
+        head.push((b.valence, nodes[..keep].to_vec()));
+        tail.push((b.valence, nodes[keep..].to_vec()));
+    }
+    let (mut order, mut buckets) = (Vec::new(), Vec::new());
+    let mut offset = 0u32;
+    let mut push = |valence: u32, nodes: &[u32], order: &mut Vec<u32>| {
+        buckets.push(Bucket {
+            valence,
+            first: order.len() as u32,
+            count: nodes.len() as u32,
+            offset,
+        });
+        order.extend_from_slice(nodes);
+        offset += valence * nodes.len() as u32;
+    };
+    for (v, nodes) in &head {
+        push(*v, nodes, &mut order);
+    }
+    while tail.iter().any(|(_, n)| !n.is_empty()) {
+        for (v, nodes) in &mut tail {
+            if !nodes.is_empty() {
+                let rest = nodes.split_off(1);
+                push(*v, nodes, &mut order);
+                *nodes = rest;
+            }
+        }
+    }
+    let room = buckets.iter().map(|b| b.count).collect();
+    let layout = ValenceLayout::arranged(model, NodeOrder::from_order(order), buckets, room)
+        .expect("every node in a bucket of its valence");
+    assert!(
+        layout.dispatched_buckets() > 2 * layout.bucket_limit(),
+        "{} buckets, bound {}",
+        layout.dispatched_buckets(),
+        layout.bucket_limit()
+    );
+    layout
+}
