@@ -369,3 +369,57 @@ fn re_sweeping_an_opened_cut_under_load_makes_nothing_new(
     assert_eq!(b.nodes_added, a.nodes_added, "the re-sweep added nodes");
     assert_eq!(b.tets_removed, a.tets_removed, "the re-sweep carved more");
 }
+
+/// Every cut fixture meets its expectations on the GPU engine too, with each method it lists,
+/// the layouts taken in turn so that each fixture and method meets another layout (the three
+/// above run in every layout), checked against a rebuild after every cut (`check: true`
+/// compares the device buffers with the host's), and uploading no more than a rebuild per cut
+/// (all of it only on the smallest meshes, of two to four tets). The liver runs where
+/// `LANCET_MESH_DIR` is set.
+#[test]
+fn every_cut_fixture_passes_on_the_gpu_with_each_method_it_lists() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let mesh_dir = std::env::var_os("LANCET_MESH_DIR").is_some();
+    let mut names: Vec<_> = std::fs::read_dir(fixture(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with("cut_") && n.ends_with(".ron"))
+        .collect();
+    names.sort();
+    let layouts = [
+        LayoutKind::Connectivity,
+        LayoutKind::Valence,
+        LayoutKind::Edges,
+    ];
+    let mut turn = 0;
+    let mut ran = 0;
+    for name in &names {
+        let scene = Scene::read(&fixture(name)).unwrap();
+        if !mesh_dir && format!("{:?}", scene.mesh).contains("LANCET_MESH_DIR") {
+            eprintln!("skipped {name}: LANCET_MESH_DIR is not set");
+            continue;
+        }
+        for &method in &scene.cut.as_ref().unwrap().methods {
+            let layout = layouts[turn % layouts.len()];
+            turn += 1;
+            let s = run(name, EngineKind::Gpu, layout, method);
+            assert!(
+                s.expectations_passed,
+                "{name} {layout:?} {method}: {:#?}",
+                s.expectations
+            );
+            let c = s.cuts.as_ref().unwrap();
+            assert!(
+                c.bytes_uploaded - c.bytes_rebuild <= c.bytes_full * c.cuts as u64,
+                "{name} {layout:?} {method}: uploaded {} ({} rebuilding) of {} per cut",
+                c.bytes_uploaded,
+                c.bytes_rebuild,
+                c.bytes_full
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 30, "{ran} runs");
+}

@@ -537,10 +537,17 @@ impl GpuEngine {
         {
             self.uniform_data.damped = 1;
         }
+        // What a rebuild writes: every array, and the bucket table's header with its buckets
+        // (a patch that changes the table writes it whole, header included).
+        let table_header = match self.layout {
+            PackedLayout::Valence(_) => crate::layout::valence::TABLE_HEADER,
+            _ => 0,
+        };
         let layout_bytes: u64 = LayoutArray::ALL
             .iter()
             .map(|&a| self.layout.array(a).len() as u64)
-            .sum();
+            .sum::<u64>()
+            + table_header;
         let mut cost = PatchCost {
             uploaded_bytes: layout_bytes,
             copied_bytes: 0,
