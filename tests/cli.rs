@@ -973,16 +973,14 @@ fn run_warns_about_a_cut_section_without_a_blade() {
     );
 }
 
-/// `--check` turns the invariant checks on for a scene that leaves them off (no `check: true`,
-/// no `InvariantsHold`): without it no cut is checked, with it every cut is; and the run's
-/// per-cut latencies are ordered (p50 <= p99 <= max).
-#[test]
-fn run_check_turns_the_invariant_checks_on() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("unchecked_cut.ron");
+/// A 3 cm box, hanging from its y = 0 face, that a blade cuts through at y = 1.7 cm by
+/// separating (two pieces), with checks off and the expectations `expect`, written in `dir`.
+fn separated_box_scene(dir: &Path, expect: &str) -> PathBuf {
+    let scene = dir.join("separated_box.ron");
     std::fs::write(
         &scene,
-        r#"Scene(
+        format!(
+            r#"Scene(
     name: "cut, checks off",
     mesh: Box((cells: (3, 3, 3), size: (0.03, 0.03, 0.03))),
     material: (stiffness: Material(youngs_modulus: 2e4, poisson_ratio: 0.3), mass: Density(1000.0)),
@@ -999,10 +997,21 @@ fn run_check_turns_the_invariant_checks_on() {
         ]),
     )],
     cut: Some((methods: [Separate], check: false)),
-    expect: [Fragments(min: Some(2), max: Some(2))],
-)"#,
+    expect: [{expect}],
+)"#
+        ),
     )
     .unwrap();
+    scene
+}
+
+/// `--check` turns the invariant checks on for a scene that leaves them off (no `check: true`,
+/// no `InvariantsHold`): without it no cut is checked, with it every cut is; and the run's
+/// per-cut latencies are ordered (p50 <= p99 <= max).
+#[test]
+fn run_check_turns_the_invariant_checks_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = separated_box_scene(dir.path(), "Fragments(min: Some(2), max: Some(2))");
     let path = scene.to_str().unwrap();
     let cuts = |extra: &[&str]| {
         let mut args = vec!["run", "--no-output", "--json"];
@@ -1072,4 +1081,16 @@ fn bench_cut_bytes_per_cut_stay_flat_as_the_mesh_grows() {
             "{r:#}"
         );
     }
+}
+
+/// A cut expectation that fails (two pieces where three are expected) fails the run with exit
+/// code 1, naming it.
+#[test]
+fn a_failing_cut_expectation_exits_with_code_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = separated_box_scene(dir.path(), "Fragments(min: Some(3))");
+    let out = lancet(&["run", "--no-output", scene.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("FAIL  fragments"), "{stdout}");
 }
