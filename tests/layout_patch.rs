@@ -616,17 +616,12 @@ fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
     }
 }
 
-/// The buckets of a valence layout up to the first that breaks their rising valences: those of
-/// the packing, which a regroup keeps.
+/// The buckets of a valence layout that its packing laid out, which a regroup keeps.
 fn rising_prefix(layout: &PackedLayout) -> Vec<lancet::layout::valence::Bucket> {
     let PackedLayout::Valence(v) = layout else {
         unreachable!("packed as valence")
     };
-    let b = &v.buckets;
-    let k = (1..b.len())
-        .find(|&k| b[k].valence <= b[k - 1].valence)
-        .unwrap_or(b.len());
-    b[..k].to_vec()
+    v.buckets[..v.packing].to_vec()
 }
 
 /// A valence arrangement whose first bucket's slot table lies past the others' (as no patch
@@ -639,7 +634,8 @@ fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
     use lancet::layout::valence::{Bucket, ValenceLayout};
     let model = random_model(31, false);
     let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
-    // Each bucket in up to sixteen pieces (more buckets than the bound), then the first piece's table moved past every other.
+    // Each bucket in up to sixteen pieces (more buckets than the bound), then the first
+    // piece's table moved past every other.
     let mut buckets: Vec<Bucket> = Vec::new();
     for b in &packed.buckets {
         let pieces = b.count.min(16);
@@ -779,7 +775,7 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
         for (b, &room) in v.buckets.iter().zip(&v.room).skip(prefix) {
             let before = appended.entry(b.valence).or_default();
             assert!(
-                *before == 0 || room >= (*before).min(layout.node_slots() as u32),
+                *before == 0 || room >= (*before).min(next.node_count().max(32) as u32),
                 "round {round}: a valence-{} bucket with room {room} after {before}",
                 b.valence
             );
@@ -788,6 +784,16 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
         // Nothing else lowers the buckets dispatched: a node that leaves one leaves a hole.
         if dispatched < dispatched_before {
             regrouped += 1;
+            // The tail's holes and room are gone: the slots dropped are cleared by moves.
+            assert!(
+                layout.node_slots() < slots_before
+                    && patch
+                        .moves
+                        .iter()
+                        .any(|m| m.from.is_none() && m.to as usize >= layout.node_slots()),
+                "round {round}: the regroup kept {} of {slots_before} slots",
+                layout.node_slots()
+            );
             for &valence in &valences {
                 let of = v
                     .buckets
@@ -841,4 +847,34 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
     // Ever more buckets would have regrouped again and again: the run's appended buckets keep
     // well inside the bound.
     assert_eq!(regrouped, 1, "regrouped {regrouped} times");
+}
+
+/// A patch that appends a bucket of a valence above all of the packing's leaves the packing's
+/// count as it was: the appended bucket is not taken for one of the packing's (a regroup would
+/// keep it where it is, and the room rule would not count it among the valence's appended
+/// buckets), as a guess from rising valences would take it.
+#[test]
+fn a_bucket_appended_above_the_packings_valences_is_not_the_packings() {
+    let model = random_model(41, false);
+    let mut layout =
+        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let PackedLayout::Valence(v) = &layout else {
+        unreachable!("packed as valence")
+    };
+    let packing = v.packing;
+    assert_eq!(
+        packing,
+        v.buckets.len(),
+        "a packing's buckets are all its own"
+    );
+    let top = v.buckets.iter().map(|b| b.valence).max().unwrap();
+    // Node 0, the first touched, takes valence top + 1: the first bucket appended.
+    let diff = widen_node_0(&model, top, 1);
+    let next = applied(&model, &diff);
+    patch_checked(&mut layout, &next, &diff, 0);
+    let PackedLayout::Valence(v) = &layout else {
+        unreachable!("packed as valence")
+    };
+    assert_eq!(v.buckets[packing].valence, top + 1);
+    assert_eq!(v.packing, packing);
 }

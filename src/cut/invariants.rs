@@ -422,7 +422,7 @@ mod tests {
     }
 
     #[test]
-    fn a_differently_split_face_leaves_untwinned_area() {
+    fn untwinned_area_other_than_the_uncut_surfaces_is_reported() {
         let (mut cutter, volume, _) = cut_box();
         cutter.surface_area *= 1.01;
         assert!(violated(

@@ -35,6 +35,13 @@ fn valences(model: &PackedModel) -> Vec<u32> {
 /// [`ValenceLayout::patch`].
 pub const SPARE_BUCKETS: usize = 8;
 
+/// The least room a bucket appended to a layout of a `nodes`-node model gets: room for a few
+/// more cuts, 32 nodes, or a sixteenth of a mesh smaller than 512 nodes (32 slots of a high
+/// valence would outgrow a small mesh's buffers at every cut), at least 4.
+fn least_room(nodes: usize) -> u32 {
+    (nodes as u32 / 16).clamp(4, 32)
+}
+
 /// Put layout index `new`, of valence `v` with its row at slot `offset`, into the buckets of a
 /// packing laid out up to it: the last bucket where it has that valence, else a new one.
 fn push_node(buckets: &mut Vec<Bucket>, new: u32, v: u32, offset: u32) {
@@ -100,6 +107,10 @@ pub struct ValenceLayout {
     /// Nodes each bucket has room for (`>= count`); its layout indices and slot table extend
     /// that far.
     pub room: Vec<u32>,
+    /// How many of the first buckets the packing laid out (one per valence, rising); those
+    /// after them were appended by patches or regrouped from such. Kept, not guessed from the
+    /// valences: a patch may append a bucket of a valence above all of the packing's.
+    pub packing: usize,
     /// All tables, back to back; exactly two slots per spring until patches leave room.
     pub slots: Vec<Slot>,
     /// Per-node arrays, layout order.
@@ -131,7 +142,8 @@ impl ValenceLayout {
 
     /// Pack `model` in a given arrangement: node order (with holes), buckets and their room.
     /// Every node must sit in a bucket of its valence, inside the bucket's `count`. This is the
-    /// from-scratch packing that a patched layout equals.
+    /// from-scratch packing that a patched layout equals (with the patched layout's
+    /// [`ValenceLayout::packing`]: here the buckets of rising valence at the start).
     pub fn arranged(
         model: &PackedModel,
         order: NodeOrder,
@@ -215,10 +227,16 @@ impl ValenceLayout {
             )));
         }
         let nodes = NodeArrays::new(model, &order);
+        // The buckets of rising valence at the start, as a packing lays them out; a patched
+        // layout's own count replaces this where it differs (see `packing`).
+        let packing = (1..buckets.len())
+            .find(|&k| buckets[k].valence <= buckets[k - 1].valence)
+            .unwrap_or(buckets.len());
         Ok(ValenceLayout {
             order,
             buckets,
             room,
+            packing,
             slots,
             nodes,
             free,
@@ -367,8 +385,8 @@ impl ValenceLayout {
 
     /// The most buckets a patched layout dispatches before it regroups: per valence it holds,
     /// the packing's bucket, the buckets patches append for it (each with room for as many
-    /// nodes as those before it, so their number grows with the logarithm of the nodes they
-    /// take, at most that of the nodes over 32), and one more, plus [`SPARE_BUCKETS`].
+    /// nodes as those before it, from the smallest room `place` gives, so at most the
+    /// logarithm of the model's nodes over that room), and one more, plus [`SPARE_BUCKETS`].
     /// Patches append buckets (a node whose valence changes goes to a hole, to room at a
     /// bucket's end, or to a new bucket), each with room that the step's dispatch covers idly
     /// and the host and device hold, and an entry that every node's search of the table reads;
@@ -381,7 +399,9 @@ impl ValenceLayout {
             .filter(|b| b.count > 0)
             .map(|b| b.valence)
             .collect();
-        let doublings = (self.node_count().max(32) as u32 / 32)
+        let nodes = self.order.rank.len().max(1) as u32;
+        let doublings = nodes
+            .div_ceil(least_room(nodes as usize))
             .next_power_of_two()
             .trailing_zeros() as usize;
         valences.len() * (2 + doublings) + SPARE_BUCKETS
@@ -397,16 +417,13 @@ impl ValenceLayout {
         self.dispatched_buckets() > self.bucket_limit()
     }
 
-    /// Where the buckets patches appended begin: the bucket after the longest run of strictly
-    /// increasing valences at the start (what a packing lays out, [`ValenceLayout::new`]),
-    /// with the first layout index and slot of that tail. Every bucket before it lies, with
-    /// its room, below both; where an arrangement does not (one given to
-    /// [`ValenceLayout::arranged`]), the whole layout is the tail.
+    /// Where the buckets patches appended begin: the bucket after the packing's
+    /// ([`ValenceLayout::packing`]), with the first layout index and slot of that tail. Every
+    /// bucket before it lies, with its room, below both; where an arrangement does not (one
+    /// given to [`ValenceLayout::arranged`]), the whole layout is the tail.
     fn tail_start(&self) -> (usize, u32, u32) {
         let b = &self.buckets;
-        let k = (1..b.len())
-            .find(|&k| b[k].valence <= b[k - 1].valence)
-            .unwrap_or(b.len());
+        let k = self.packing.min(b.len());
         if k == 0 || k == b.len() {
             return (0, 0, 0);
         }
@@ -425,16 +442,16 @@ impl ValenceLayout {
         }
     }
 
-    /// Pack the buckets patches appended anew by valence (one bucket per valence, no holes,
-    /// no room), keeping the node order within each valence, after the incremental part of a
-    /// patch left the layout fragmented. The buckets of the packing before them keep their
-    /// nodes and holes: their valences are distinct, so the layout is left with at most two
-    /// buckets per valence. Only the tail's nodes move; their rows are taken from the rows the
-    /// patch left (their other ends renumbered), and the rows pointing at them are remapped.
-    /// `moves` are that part's state moves (destination in the fragmented layout, sources
-    /// before the patch), `rows` the rows it rewrote (ascending); each moved node's state goes on from
-    /// there to its new place. The node slots may shrink: the slots dropped that the layout had
-    /// before the patch (`slots_before`) are cleared.
+    /// Pack the buckets patches appended anew by valence (one bucket per valence, no holes, no
+    /// room), keeping the node order within each valence, after the incremental part of a patch
+    /// left the layout fragmented. The buckets of the packing before them keep their nodes and
+    /// holes: their valences are distinct, so the layout is left with at most two buckets per
+    /// valence. Only the tail's nodes move; their rows are taken from the rows the patch left
+    /// (their other ends renumbered), and the rows pointing at them are remapped. `moves` are that
+    /// part's state moves (destination in the fragmented layout, sources before the patch), `rows`
+    /// the rows it rewrote (ascending); each moved node's state goes on from there to its new
+    /// place. The node slots may shrink: the slots dropped that the layout had before the patch
+    /// (`slots_before`) are cleared.
     fn regroup(
         &mut self,
         model: &PackedModel,
@@ -510,6 +527,10 @@ impl ValenceLayout {
         self.room.extend(buckets.iter().map(|b| b.count));
         self.buckets.truncate(k);
         self.buckets.extend_from_slice(&buckets);
+        // Regrouping the whole layout (no packing before the tail) packed it anew.
+        if k == 0 {
+            self.packing = self.buckets.len();
+        }
         self.free.retain(|_, holes| {
             holes.retain(|&h| h < first);
             !holes.is_empty()
@@ -521,7 +542,10 @@ impl ValenceLayout {
                 self.buckets.clone(),
                 self.room.clone()
             )
-            .is_ok_and(|packed| packed == *self),
+            .is_ok_and(|mut packed| {
+                packed.packing = self.packing;
+                packed == *self
+            }),
             "a regroup packs what a packing from scratch of its arrangement does"
         );
         let mut patch = LayoutPatch::default();
@@ -642,25 +666,20 @@ impl ValenceLayout {
             .map(|b| b.count)
             .sum();
         // The room of the buckets patches appended for this valence so far (after the
-        // packing's, which rise in valence): a new one has as much again, so a valence that
+        // packing's): a new one has as much again, so a valence that
         // keeps receiving nodes takes a number of buckets that grows with the logarithm of
         // their count, not with the count (which made a long run of cuts regroup ever larger
         // tails, each a pause).
-        let packing = (1..self.buckets.len())
-            .find(|&k| self.buckets[k].valence <= self.buckets[k - 1].valence)
-            .unwrap_or(self.buckets.len());
+        let packing = self.packing.min(self.buckets.len());
         let appended: u32 = self.buckets[packing..]
             .iter()
             .zip(&self.room[packing..])
             .filter(|(b, _)| b.valence == v)
             .map(|(_, &r)| r)
             .sum();
-        // Room for a sixteenth more of this valence's nodes, and at least for a few more cuts:
-        // 32 nodes, or a sixteenth of a mesh smaller than 512 nodes (32 slots of a high valence
-        // would outgrow a small mesh's buffers at every cut).
-        let least = (nodes as u32 / 16).clamp(4, 32);
+        // Room for a sixteenth more of this valence's nodes, and at least for a few more cuts.
         let room = (same / 16)
-            .max(least)
+            .max(least_room(nodes))
             .max(want)
             .max(appended)
             .next_power_of_two()

@@ -280,10 +280,13 @@ pub fn fresh(
         PackedLayout::Connectivity(c) => PackedLayout::Connectivity(
             ConnectivityLayout::new(model, c.order.clone(), Some(c.capacity)).unwrap(),
         ),
-        PackedLayout::Valence(v) => PackedLayout::Valence(
-            ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
-                .unwrap(),
-        ),
+        PackedLayout::Valence(v) => {
+            let mut fresh =
+                ValenceLayout::arranged(model, v.order.clone(), v.buckets.clone(), v.room.clone())
+                    .unwrap();
+            fresh.packing = v.packing;
+            PackedLayout::Valence(fresh)
+        }
         PackedLayout::Edges(e) => PackedLayout::Edges(EdgeLayout::new(model, e.order.clone())),
     }
 }
@@ -405,9 +408,11 @@ pub fn floating_ring(model: &PackedModel, n: usize, reach: usize) -> lancet::mod
 
 /// `model` packed by valence as patches would leave it after a long run of cuts that changed
 /// many valences: the packing's buckets (rising valences) hold the first quarter of each
-/// valence's nodes, and the rest follow in buckets of one node, valences taken in turn, so the
-/// layout dispatches several times more buckets than its bound and its next patch regroups
-/// that tail. Nodes keep `base` order within each valence.
+/// valence's nodes, and the rest follow in buckets of one node, valences taken in turn, every
+/// third of them with a hole after its node and every fifth with room for one more, so the
+/// layout dispatches more buckets than its bound and its next patch regroups
+/// that tail (dropping the holes and the room: the node slots shrink). Nodes keep `base` order
+/// within each valence.
 pub fn fragmented_valence(
     model: &PackedModel,
     base: &lancet::layout::NodeOrder,
@@ -423,35 +428,45 @@ pub fn fragmented_valence(
         head.push((b.valence, nodes[..keep].to_vec()));
         tail.push((b.valence, nodes[keep..].to_vec()));
     }
-    let (mut order, mut buckets) = (Vec::new(), Vec::new());
+    let (mut order, mut buckets, mut room) = (Vec::new(), Vec::new(), Vec::new());
     let mut offset = 0u32;
-    let mut push = |valence: u32, nodes: &[u32], order: &mut Vec<u32>| {
+    // A bucket of `nodes` and `holes` holes dispatched, with room for `spare` more.
+    let mut push = |valence: u32, nodes: &[u32], holes: usize, spare: usize| {
+        let count = nodes.len() + holes;
         buckets.push(Bucket {
             valence,
             first: order.len() as u32,
-            count: nodes.len() as u32,
+            count: count as u32,
             offset,
         });
+        room.push((count + spare) as u32);
         order.extend_from_slice(nodes);
-        offset += valence * nodes.len() as u32;
+        order.extend(std::iter::repeat_n(NodeOrder::HOLE, holes + spare));
+        offset += valence * (count + spare) as u32;
     };
     for (v, nodes) in &head {
-        push(*v, nodes, &mut order);
+        push(*v, nodes, 0, 0);
     }
+    let mut piece = 0;
     while tail.iter().any(|(_, n)| !n.is_empty()) {
         for (v, nodes) in &mut tail {
             if !nodes.is_empty() {
                 let rest = nodes.split_off(1);
-                push(*v, nodes, &mut order);
+                push(
+                    *v,
+                    nodes,
+                    usize::from(piece % 3 == 0),
+                    usize::from(piece % 5 == 0),
+                );
+                piece += 1;
                 *nodes = rest;
             }
         }
     }
-    let room = buckets.iter().map(|b| b.count).collect();
     let layout = ValenceLayout::arranged(model, NodeOrder::from_order(order), buckets, room)
         .expect("every node in a bucket of its valence");
     assert!(
-        layout.dispatched_buckets() > 2 * layout.bucket_limit(),
+        layout.dispatched_buckets() > layout.bucket_limit(),
         "{} buckets, bound {}",
         layout.dispatched_buckets(),
         layout.bucket_limit()
