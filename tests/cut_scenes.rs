@@ -24,6 +24,17 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The cut fixtures' file names, sorted.
+fn cut_fixture_names() -> Vec<String> {
+    let mut names: Vec<_> = std::fs::read_dir(fixture(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with("cut_") && n.ends_with(".ron"))
+        .collect();
+    names.sort();
+    names
+}
+
 fn run(name: &str, engine: EngineKind, layout: LayoutKind, method: CutMethod) -> RunSummary {
     let path = fixture(name);
     let scene = Scene::read(&path).unwrap();
@@ -88,12 +99,7 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
 #[test]
 fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() {
     let mesh_dir = std::env::var_os("LANCET_MESH_DIR").is_some();
-    let mut names: Vec<_> = std::fs::read_dir(fixture(""))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| n.starts_with("cut_") && n.ends_with(".ron"))
-        .collect();
-    names.sort();
+    let names = cut_fixture_names();
     assert!(names.len() >= 16, "{names:?}");
     for name in &names {
         let path = fixture(name);
@@ -382,12 +388,7 @@ fn every_cut_fixture_passes_on_the_gpu_with_each_method_it_lists() {
         return;
     }
     let mesh_dir = std::env::var_os("LANCET_MESH_DIR").is_some();
-    let mut names: Vec<_> = std::fs::read_dir(fixture(""))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| n.starts_with("cut_") && n.ends_with(".ron"))
-        .collect();
-    names.sort();
+    let names = cut_fixture_names();
     let layouts = [
         LayoutKind::Connectivity,
         LayoutKind::Valence,
