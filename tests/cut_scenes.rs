@@ -35,6 +35,17 @@ fn cut_fixture_names() -> Vec<String> {
     names
 }
 
+/// Run fixture `name` on the GPU engine in `layout` with `method`; its expectations must pass.
+fn run_on_gpu(name: &str, layout: LayoutKind, method: CutMethod) -> RunSummary {
+    let s = run(name, EngineKind::Gpu, layout, method);
+    assert!(
+        s.expectations_passed,
+        "{name} {layout:?} {method}: {:#?}",
+        s.expectations
+    );
+    s
+}
+
 fn run(name: &str, engine: EngineKind, layout: LayoutKind, method: CutMethod) -> RunSummary {
     let path = fixture(name);
     let scene = Scene::read(&path).unwrap();
@@ -62,12 +73,7 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
     if common::gpu().is_none() {
         return;
     }
-    let s = run(name, EngineKind::Gpu, layout, method);
-    assert!(
-        s.expectations_passed,
-        "{name} {layout:?} {method}: {:#?}",
-        s.expectations
-    );
+    let s = run_on_gpu(name, layout, method);
     let c = s.cuts.as_ref().unwrap();
     assert!(c.cuts > 0);
     // A blade that touched the tissue at the step before, or was about to, is read ahead with
@@ -405,12 +411,7 @@ fn every_cut_fixture_passes_on_the_gpu_with_each_method_it_lists() {
         for &method in &scene.cut.as_ref().unwrap().methods {
             let layout = layouts[turn % layouts.len()];
             turn += 1;
-            let s = run(name, EngineKind::Gpu, layout, method);
-            assert!(
-                s.expectations_passed,
-                "{name} {layout:?} {method}: {:#?}",
-                s.expectations
-            );
+            let s = run_on_gpu(name, layout, method);
             let c = s.cuts.as_ref().unwrap();
             assert!(
                 c.bytes_uploaded - c.bytes_rebuild <= c.bytes_full * c.cuts as u64,
