@@ -358,6 +358,19 @@ impl PackedLayout {
         }
     }
 
+    /// Bytes a device upload of the whole layout writes: every array, and the valence bucket
+    /// table's header (the base a patch's upload is measured against).
+    pub fn upload_bytes(&self) -> u64 {
+        let arrays: u64 = patch::LayoutArray::ALL
+            .iter()
+            .map(|&a| self.array(a).len() as u64)
+            .sum();
+        match self {
+            Self::Valence(_) => arrays + valence::TABLE_HEADER,
+            _ => arrays,
+        }
+    }
+
     /// One step on the CPU exactly as the layout's GPU passes take it (the gather variant for
     /// edges); see [`connectivity::ConnectivityLayout::step_cpu`].
     pub fn step_cpu(

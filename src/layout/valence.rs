@@ -74,6 +74,11 @@ fn renumbered(row: &[Slot], remap: impl Fn(u32) -> Option<u32>) -> Vec<Slot> {
 /// a bucket's size (`struct BucketTable` in `shaders/springs_valence.wgsl`).
 pub const TABLE_HEADER: u64 = 16;
 
+/// Bytes of a device bucket table holding `buckets` buckets, header included.
+pub fn table_bytes(buckets: usize) -> u64 {
+    TABLE_HEADER + buckets as u64 * std::mem::size_of::<Bucket>() as u64
+}
+
 /// One bucket of nodes with the same valence. Mirrors `struct Bucket` in
 /// `shaders/springs_valence.wgsl` (16 bytes).
 #[repr(C)]
@@ -714,7 +719,7 @@ impl ValenceLayout {
     pub fn memory(&self, integrator: Integrator) -> (MemoryStats, u64) {
         let n = self.node_count() as u64;
         let slots = self.slots.len() as u64 * 32;
-        let table = TABLE_HEADER + self.buckets.len() as u64 * 16;
+        let table = table_bytes(self.buckets.len());
         let mut buffers = vec![
             ("slots".to_string(), slots),
             ("inverse masses".to_string(), n * 4),

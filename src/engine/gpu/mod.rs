@@ -537,17 +537,7 @@ impl GpuEngine {
         {
             self.uniform_data.damped = 1;
         }
-        // What a rebuild writes: every array, and the bucket table's header with its buckets
-        // (a patch that changes the table writes it whole, header included).
-        let table_header = match self.layout {
-            PackedLayout::Valence(_) => crate::layout::valence::TABLE_HEADER,
-            _ => 0,
-        };
-        let layout_bytes: u64 = LayoutArray::ALL
-            .iter()
-            .map(|&a| self.layout.array(a).len() as u64)
-            .sum::<u64>()
-            + table_header;
+        let layout_bytes = self.layout.upload_bytes();
         let mut cost = PatchCost {
             uploaded_bytes: layout_bytes,
             copied_bytes: 0,
@@ -725,7 +715,7 @@ impl GpuEngine {
             if dirty.iter().any(|d| d.array == LayoutArray::Buckets) {
                 let stage = |table: &wgpu::Buffer, bytes: &[u8]| upload.write(table, 0, bytes);
                 grown += p.set_buckets(&self.ctx, &v.buckets, stage) as usize;
-                written += crate::layout::valence::TABLE_HEADER + v.buckets.len() as u64 * 16;
+                written += crate::layout::valence::table_bytes(v.buckets.len());
             }
         }
         (written, grown)

@@ -10,7 +10,7 @@ use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
 use super::{GpuContext, NodeState};
 use crate::error::Result;
-use crate::layout::valence::{Bucket, ValenceLayout, TABLE_HEADER};
+use crate::layout::valence::{table_bytes, Bucket, ValenceLayout, TABLE_HEADER};
 
 /// WGSL has no includes: the shared parts are prepended.
 const SOURCE: &str = concat!(
@@ -83,7 +83,7 @@ impl ValencePass {
     /// The bucket table as the device holds it, `count` buckets (read back: for checks), and
     /// the count it says it holds.
     pub fn read_buckets(&self, ctx: &GpuContext, count: usize) -> Result<(u32, Vec<Bucket>)> {
-        let bytes = (TABLE_HEADER + count as u64 * 16).min(self.table.size());
+        let bytes = table_bytes(count).min(self.table.size());
         let raw = buffers::read_bytes(ctx, &self.table, bytes)?;
         let held = bytemuck::pod_read_unaligned::<u32>(&raw[..4]);
         let buckets = raw[TABLE_HEADER as usize..]
@@ -103,7 +103,7 @@ impl ValencePass {
         buckets: &[Bucket],
         write: impl FnOnce(&wgpu::Buffer, &[u8]),
     ) -> bool {
-        let bytes = TABLE_HEADER + buckets.len() as u64 * 16;
+        let bytes = table_bytes(buckets.len());
         let grow = bytes > self.table.size();
         if grow {
             let entries = buckets.len().next_power_of_two();
@@ -135,7 +135,7 @@ fn bucket_table(
 ) -> (wgpu::Buffer, wgpu::BindGroup) {
     let table = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("valence buckets"),
-        size: TABLE_HEADER + entries as u64 * 16,
+        size: table_bytes(entries),
         // Read back by checks (`read_buckets`).
         usage: wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_DST
