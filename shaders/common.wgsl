@@ -23,7 +23,7 @@ struct Params {
     damped: u32,         // 1 when any spring has damping
     row: u32,            // invocations per dispatch row (2D dispatch of large meshes)
     springs: u32,        // springs (edge layout)
-    pad0: u32,
+    rescale: f32,        // new h / old h at the last change of time step (time_step.wgsl)
     pad1: u32,
     pad2: u32,
 }

@@ -24,6 +24,7 @@ pub use mesh::{NodeKey, TetKey, TetMesh};
 pub mod engine;
 pub mod layout;
 pub mod model;
+pub mod physics;
 pub mod report;
 
 pub use engine::{EngineKind, Integrator, SimConfig, Simulation};

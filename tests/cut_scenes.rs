@@ -86,13 +86,13 @@ fn cut_fixtures_pass_on_the_gpu_in_every_layout(
         r.ahead,
         r.direct
     );
-    // Patches, not rebuilds: over the run the device got less than one full layout per cut
-    // (besides the engine rebuilt whole where a cut lowered the time step).
+    // Patches, not rebuilds: over the run the device got less than one full layout per cut,
+    // a lowered time step's parameters included.
     assert!(
-        c.bytes_uploaded - c.bytes_rebuild < c.bytes_full,
-        "{name} {layout:?} {method}: uploaded {} ({} rebuilding) of {}",
+        c.bytes_uploaded < c.bytes_full,
+        "{name} {layout:?} {method}: uploaded {} ({} step parameters) of {}",
         c.bytes_uploaded,
-        c.bytes_rebuild,
+        c.bytes_time_step,
         c.bytes_full
     );
 }
@@ -152,11 +152,13 @@ fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() 
                 e.windows(2).all(|w| w[0].step <= w[1].step),
                 "{name} {method}"
             );
-            // A patch uploads at most the layout; an engine rebuilt at a lowered time step
-            // (and only that) adds all of itself.
+            // A patch uploads at most the layout; a lowered time step (and only that) adds the
+            // step parameters, a few dozen bytes.
             assert!(e.iter().all(|e| e.ms > 0.0
-                && e.bytes_uploaded - e.rebuild_bytes <= e.layout_bytes
-                && (e.rebuild_bytes > 0) == e.time_step.is_some_and(|t| t.dt_after < t.dt_before)));
+                && e.bytes_uploaded - e.time_step_bytes <= e.layout_bytes
+                && e.time_step_bytes <= 64
+                && (e.time_step_bytes > 0)
+                    == e.time_step.is_some_and(|t| t.dt_after < t.dt_before)));
             let sum = |f: fn(&lancet::scene::cuts::CutEvent) -> u64| e.iter().map(f).sum::<u64>();
             assert_eq!(
                 (
@@ -164,14 +166,14 @@ fn every_cut_fixture_runs_with_every_method_and_reports_the_state_it_ended_in() 
                     sum(|e| e.nodes_added as u64),
                     sum(|e| e.springs_touched as u64),
                     sum(|e| e.bytes_uploaded),
-                    sum(|e| e.rebuild_bytes)
+                    sum(|e| e.time_step_bytes)
                 ),
                 (
                     c.tets_touched as u64,
                     c.nodes_added as u64,
                     c.springs_touched as u64,
                     c.bytes_uploaded,
-                    c.bytes_rebuild
+                    c.bytes_time_step
                 ),
                 "{name} {method}"
             );
@@ -414,14 +416,70 @@ fn every_cut_fixture_passes_on_the_gpu_with_each_method_it_lists() {
             let s = run_on_gpu(name, layout, method);
             let c = s.cuts.as_ref().unwrap();
             assert!(
-                c.bytes_uploaded - c.bytes_rebuild <= c.bytes_full * c.cuts as u64,
-                "{name} {layout:?} {method}: uploaded {} ({} rebuilding) of {} per cut",
+                c.bytes_uploaded <= c.bytes_full * c.cuts as u64,
+                "{name} {layout:?} {method}: uploaded {} ({} step parameters) of {} per cut",
                 c.bytes_uploaded,
-                c.bytes_rebuild,
+                c.bytes_time_step,
                 c.bytes_full
             );
             ran += 1;
         }
     }
     assert!(ran >= 30, "{ran} runs");
+}
+
+/// A cut that lowers the stable bound below the step changes the step as a parameter of it
+/// (policy `Substep`): in the crossing-cut and liver fixtures, subdividing, no cut event on the
+/// fast engine or any GPU layout uploads more than half of the layout, the new step's
+/// parameters included, and a new step costs a few dozen bytes. When a new step rebuilt the
+/// engine, the crossing cut's largest event uploaded 1.3 (fast) to 1.9 (edges) layouts.
+///
+/// One exception, the valence layout's own patch on the crossing cut's 125-node box: the cut
+/// that first opens it adds 26 nodes, whose new valences go into appended buckets uploaded
+/// whole with their room (empty slots), 0.73 of the grown layout; it is held to 0.75. The
+/// float64 reference engine is left out: it is rebuilt at every change by design and uploads
+/// nowhere.
+#[rstest]
+fn subdividing_fixtures_upload_at_most_half_a_layout_per_cut_event(
+    #[values("cut_two_crossing.ron", "cut_liver_incision.ron")] name: &str,
+    #[values(
+        (EngineKind::Fast, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Valence),
+        (EngineKind::Gpu, LayoutKind::Edges)
+    )]
+    engine: (EngineKind, LayoutKind),
+) {
+    let (kind, layout) = engine;
+    let scene = Scene::read(&fixture(name)).unwrap();
+    if std::env::var_os("LANCET_MESH_DIR").is_none()
+        && format!("{:?}", scene.mesh).contains("LANCET_MESH_DIR")
+    {
+        eprintln!("skipped {name}: LANCET_MESH_DIR is not set");
+        return;
+    }
+    if kind == EngineKind::Gpu && common::gpu().is_none() {
+        return;
+    }
+    let s = run(name, kind, layout, CutMethod::Subdivide);
+    let c = s.cuts.as_ref().unwrap();
+    assert!(c.cuts > 0, "{name} {kind:?} {layout:?}: no cut");
+    let worst = c
+        .events
+        .iter()
+        .map(|e| e.bytes_uploaded as f64 / e.layout_bytes as f64)
+        .fold(0.0, f64::max);
+    assert_eq!(worst, c.max_upload_fraction, "{name} {kind:?} {layout:?}");
+    let bound = match (name, kind, layout) {
+        ("cut_two_crossing.ron", EngineKind::Gpu, LayoutKind::Valence) => 0.75,
+        _ => 0.5,
+    };
+    assert!(
+        worst <= bound,
+        "{name} {kind:?} {layout:?}: a cut event uploaded {worst:.2} of the layout"
+    );
+    assert!(
+        c.events.iter().all(|e| e.time_step_bytes <= 64),
+        "{name} {kind:?} {layout:?}: a new time step wrote more than its parameters"
+    );
 }

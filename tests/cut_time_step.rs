@@ -1,8 +1,8 @@
 //! What a scene does when a cut lowers the stable time step below the one in use, under each
 //! policy of its `cut` section: `Warn` goes on at the same step and says so, `Stop` ends the run
 //! naming the step and the policies that would go on, and `Substep` goes on at the scene's
-//! fraction of the lowered bound, with the engine's rebuild counted in the upload and the
-//! simulated time summed over the steps taken at each time step.
+//! fraction of the lowered bound, writing only the step parameters (counted in the upload), with
+//! the simulated time summed over the steps taken at each time step.
 //!
 //! The scene: a 4 x 4 x 4 cm box, hanging from its y = 0 face, that a blade sweeps down through
 //! (as in `fixtures/scenes/cut_box_through.ron`) and subdivides. Splitting an edge at a
@@ -99,7 +99,7 @@ fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
     assert_eq!((change.bound, change.node), (bound.dt, bound.node));
     assert!(change.bound < dt, "{} >= {dt}", change.bound);
     assert_eq!((change.dt_before, change.dt_after), (dt, dt));
-    assert_eq!(event.rebuild_bytes, 0);
+    assert_eq!(event.time_step_bytes, 0);
     let warning = stage.cut.as_ref().unwrap().report.time_step_events.last();
     let warning = warning.expect("a time-step event is listed").clone();
     assert!(
@@ -121,8 +121,8 @@ fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
 
 /// `Substep` on `engine`: at every cut that lowers the bound below the step, the new step is
 /// the scene's fraction of the bound recomputed from the cut model, the engine now runs it,
-/// and the cut's upload counts the whole rebuilt engine. The simulated time is the sum of the
-/// steps taken at each step size.
+/// and the cut's upload counts the step parameters besides the patch, never the whole engine.
+/// The simulated time is the sum of the steps taken at each step size.
 fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) {
     let (mut sim, mut stage) = start("Substep", engine);
     let mut time = 0.0;
@@ -133,7 +133,7 @@ fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) 
             continue;
         };
         let Some(change) = event.time_step else {
-            assert_eq!(event.rebuild_bytes, 0);
+            assert_eq!(event.time_step_bytes, 0);
             assert!(event.bytes_uploaded <= event.layout_bytes);
             continue;
         };
@@ -143,13 +143,22 @@ fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) 
         assert!(change.bound < change.dt_before);
         assert_eq!(change.dt_after, FRACTION * bound.dt);
         assert_eq!(sim.config().dt, change.dt_after);
-        // The rebuilt engine uploaded all of itself, besides the patch (which is part of a
-        // layout, and not empty: the cut changed springs).
-        assert_eq!(event.rebuild_bytes, sim.memory().stats.total);
-        let patch = event.bytes_uploaded - event.rebuild_bytes;
+        // The new step wrote the engine's step parameters and nothing else (a rebuild wrote
+        // all of the engine's memory), besides the patch, which is part of a layout and not
+        // empty: the cut changed springs.
+        let params = event.time_step_bytes;
         assert!(
-            patch > 0 && patch <= event.layout_bytes,
-            "{patch} of {}",
+            params > 0 && params <= 64,
+            "{params} bytes of step parameters"
+        );
+        if engine == EngineKind::Gpu {
+            let uniform = std::mem::size_of::<lancet::engine::gpu::StepUniform>() as u64;
+            assert_eq!(params, uniform);
+        }
+        let patch = event.bytes_uploaded - params;
+        assert!(
+            patch > 0 && event.bytes_uploaded <= event.layout_bytes,
+            "{patch} + {params} of {}",
             event.layout_bytes
         );
     }
@@ -160,8 +169,8 @@ fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) 
         sim.time()
     );
     let report = &stage.cut.as_ref().unwrap().report;
-    let rebuilt: u64 = report.events.iter().map(|e| e.rebuild_bytes).sum();
-    assert_eq!(report.bytes_rebuild, rebuilt);
+    let params: u64 = report.events.iter().map(|e| e.time_step_bytes).sum();
+    assert_eq!(report.bytes_time_step, params);
     assert_eq!(
         report.bytes_uploaded,
         report.events.iter().map(|e| e.bytes_uploaded).sum::<u64>()
@@ -311,7 +320,7 @@ fn substep_reports_the_final_step_and_the_time_summed_over_the_steps_taken() {
     for e in events {
         let c = &e["time_step"];
         if c.is_null() {
-            assert_eq!(e["rebuild_bytes"].as_u64().unwrap(), 0);
+            assert_eq!(e["time_step_bytes"].as_u64().unwrap(), 0);
             continue;
         }
         changes += 1;
@@ -320,15 +329,15 @@ fn substep_reports_the_final_step_and_the_time_summed_over_the_steps_taken() {
         assert_eq!(f(&c["dt_after"]), FRACTION * f(&c["bound"]));
         time += (step - at) as f64 * current;
         (at, current) = (step, f(&c["dt_after"]));
-        // Counted: the patch (at most a layout) and the rebuilt engine (at least a layout:
-        // it holds one, besides the state).
-        let (uploaded, layout, rebuild) = (
+        // Counted: the patch (not empty, at most a layout) and the step parameters (a few
+        // dozen bytes, not a rebuilt engine).
+        let (uploaded, layout, params) = (
             e["bytes_uploaded"].as_u64().unwrap(),
             e["layout_bytes"].as_u64().unwrap(),
-            e["rebuild_bytes"].as_u64().unwrap(),
+            e["time_step_bytes"].as_u64().unwrap(),
         );
-        assert!(rebuild >= layout && uploaded > rebuild, "{e}");
-        assert!(uploaded - rebuild <= layout, "{e}");
+        assert!(params > 0 && params <= 64 && uploaded > params, "{e}");
+        assert!(uploaded <= layout, "{e}");
     }
     assert!(changes > 0, "{events:#?}");
     time += (300 - at) as f64 * current;
@@ -341,11 +350,11 @@ fn substep_reports_the_final_step_and_the_time_summed_over_the_steps_taken() {
     assert_eq!(f(&v["dt_final"]), current);
     assert!(f(&v["dt_final"]) <= f(&v["dt_bound_final"]));
     let c = &v["cuts"];
-    let rebuilt: u64 = events
+    let params: u64 = events
         .iter()
-        .map(|e| e["rebuild_bytes"].as_u64().unwrap())
+        .map(|e| e["time_step_bytes"].as_u64().unwrap())
         .sum();
-    assert_eq!(c["bytes_rebuild"].as_u64().unwrap(), rebuilt);
+    assert_eq!(c["bytes_time_step"].as_u64().unwrap(), params);
     let uploaded: u64 = events
         .iter()
         .map(|e| e["bytes_uploaded"].as_u64().unwrap())

@@ -1,18 +1,20 @@
 //! A model change applied to a running simulation (what a cut does between steps): every
 //! engine carries on from the same state, the engines agree with the float64 reference
 //! afterwards, copies of split nodes start where their originals are, and a change that makes
-//! the time step unstable is refused with nothing changed.
+//! the time step unstable is refused with nothing changed. A change of time step is a
+//! parameter: it writes the step parameters alone and goes on as a run built at the new step.
 
 mod common;
 #[path = "common/models.rs"]
 mod models;
 
-use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, Integrator, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::model::{stable_time_step, AddedNode, ModelDiff, PackedSpring, StateBlend};
 use lancet::report::bench::relative_l2;
 use lancet::Error;
 use models::{random_diff, random_model, random_state};
+use rstest::rstest;
 
 /// Run 40 steps, apply two random changes with 60 steps after each, and return the positions.
 fn cut_run(kind: EngineKind, layout: LayoutKind) -> (Vec<[f64; 3]>, Vec<[f64; 3]>, Simulation) {
@@ -224,5 +226,96 @@ fn applying_at_known_positions_equals_reading_them_back() {
                 "{kind:?} round {round}"
             );
         }
+    }
+}
+
+/// The bytes of each engine's step parameters: the float64 engine's `dt`; the fast engine's
+/// h, h², 1/h, gravity and mass damping in float32; the GPU engine's uniform.
+fn step_parameter_bytes(kind: EngineKind) -> u64 {
+    match kind {
+        EngineKind::Reference => 8,
+        EngineKind::Fast => 7 * 4,
+        _ => std::mem::size_of::<lancet::engine::gpu::StepUniform>() as u64,
+    }
+}
+
+/// A time step changed mid-run is a parameter of the step. On every engine, layout and
+/// integrator, lowering it and then raising it again each writes the engine's step parameters
+/// and nothing else (no layout uploaded, no state moved, nothing rebuilt), and the run goes on
+/// as a simulation built at the new step from the same positions and velocities does, step for
+/// step: bit for bit on the CPU engines, within float32 rounding on the GPU, which moves
+/// Verlet's previous positions on the device (its pass against its twin:
+/// `tests/gpu_patch.rs`). Before this, a change rebuilt the engine and uploaded all of it.
+#[rstest]
+fn a_time_step_change_writes_only_the_step_parameters_and_goes_on_as_a_fresh_run(
+    // The CPU engines have one arrangement each; the layouts are the GPU's.
+    #[values(
+        (EngineKind::Reference, LayoutKind::Connectivity),
+        (EngineKind::Fast, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Valence),
+        (EngineKind::Gpu, LayoutKind::Edges)
+    )]
+    engine: (EngineKind, LayoutKind),
+    #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
+) {
+    let (kind, layout) = engine;
+    if kind == EngineKind::Gpu && common::gpu().is_none() {
+        return;
+    }
+    let model = random_model(61, true);
+    let bound = stable_time_step(&model).dt;
+    let mut config = SimConfig::new(0.8 * bound);
+    config.layout = layout;
+    config.integrator = integrator;
+    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let (x, v) = random_state(&model, 61);
+    sim.set_state(&x, &v).unwrap();
+    sim.run(20).unwrap();
+    let what = format!("{} {integrator:?}", sim.engine_name());
+    let mut time = 20.0 * config.dt;
+    for fraction in [0.3, 0.7] {
+        let dt = fraction * bound;
+        let (x, v) = (sim.positions(), sim.velocities());
+        let cost = sim.set_time_step(dt).unwrap();
+        assert_eq!(
+            (cost.uploaded_bytes, cost.copied_bytes, cost.buffers_grown),
+            (step_parameter_bytes(kind), 0, 0),
+            "{what}: {cost:?}"
+        );
+        assert!(
+            !cost.reallocated && cost.state_moves == 0,
+            "{what}: {cost:?}"
+        );
+        assert_eq!(sim.config().dt, dt);
+        let mut fresh = Simulation::new(model.clone(), kind, SimConfig { dt, ..config }).unwrap();
+        fresh.set_state(&x, &v).unwrap();
+        let rest = &model.rest;
+        for step in 1..=30 {
+            sim.run(1).unwrap();
+            fresh.run(1).unwrap();
+            let (got, want) = (sim.positions(), fresh.positions());
+            if kind == EngineKind::Gpu {
+                // The rescaled previous positions differ from a fresh upload's by float32
+                // rounding (a few ulps of the displacement), which the steps carry along.
+                let moved = (0..rest.len())
+                    .map(|i| dist(want[i], rest[i]))
+                    .fold(0.0, f64::max);
+                let worst = (0..rest.len())
+                    .map(|i| dist(got[i], want[i]))
+                    .fold(0.0, f64::max);
+                assert!(
+                    worst <= 1e-6 * moved,
+                    "{what} at {fraction} of the bound, step {step}: {worst:e} m off a fresh \
+                     run (displacements up to {moved:e} m)"
+                );
+            } else {
+                assert_eq!(got, want, "{what} at {fraction} of the bound, step {step}");
+                assert_eq!(sim.velocities(), fresh.velocities(), "{what}, step {step}");
+            }
+        }
+        // Time is summed over the steps taken at each step size.
+        time += 30.0 * dt;
+        assert!((sim.time() - time).abs() < 1e-12 * time, "{what}");
     }
 }

@@ -7,13 +7,14 @@ mod models;
 
 use lancet::engine::gpu::{step_params, GpuEngine};
 use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
-use lancet::layout::connectivity::{ConnectivityLayout, StepParams};
+use lancet::layout::connectivity::ConnectivityLayout;
 use lancet::layout::edges::{EdgeLayout, B_END};
 use lancet::layout::valence::ValenceLayout;
 use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::model::{
     stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringModel,
 };
+use lancet::physics::StepParams;
 use lancet::report::bench::relative_l2;
 use lancet::Error;
 use models::{random_box as random_model, Rng};

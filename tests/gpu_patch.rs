@@ -616,3 +616,55 @@ fn buffers_outgrown_by_a_patch_grow_alone_and_the_passes_are_kept(
         steps_like_twin_and_rebuild(&mut engine, &model, config, accumulation, round);
     }
 }
+
+/// A change of time step on the device: the step parameters change and, under Verlet, the
+/// previous displacements become `cur - (cur - prev) h'/h` (the velocity kept), bit for bit as
+/// the pass's CPU twin computes it where the device rounds like the CPU; the current
+/// displacements and symplectic Euler's state do not change. Afterwards the engine steps like
+/// its twin and bit for bit like an engine built at the new step from the same raw state: the
+/// step reads nothing of the old one. Nothing but the 64-byte uniform is uploaded.
+#[rstest]
+fn a_time_step_change_rescales_like_its_twin_and_steps_like_a_rebuild(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+    #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let model = random_model(62, true);
+    let mut config = SimConfig::new(2e-5);
+    config.integrator = integrator;
+    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let (x, v) = random_state(&model, 62);
+    engine.set_state(&x, &v);
+    engine.step(7);
+    for (round, dt) in [7.4e-6, 1.9e-5].into_iter().enumerate() {
+        let (cur, mut second) = engine.raw_state().unwrap();
+        let before = second.clone();
+        let rescale = (dt / config.dt) as f32;
+        let cost = engine.set_time_step(dt).unwrap();
+        assert_eq!(cost.uploaded_bytes, 64);
+        assert_eq!(engine.step_params().h, dt as f32);
+        let (cur_after, second_after) = engine.raw_state().unwrap();
+        assert_eq!(
+            bits(&cur_after),
+            bits(&cur),
+            "round {round}: displacements moved"
+        );
+        if integrator == Integrator::Verlet {
+            lancet::physics::rescale_previous(&cur, &mut second, rescale);
+            assert_ne!(
+                bits(&second),
+                bits(&before),
+                "round {round}: nothing to rescale"
+            );
+        }
+        common::assert_twin(
+            &second_after,
+            &second,
+            &before,
+            1,
+            &format!("round {round}: the rescaled second state"),
+        );
+        config.dt = dt;
+        steps_like_twin_and_rebuild(&mut engine, &model, config, Accumulation::Gather, round);
+    }
+}

@@ -4,10 +4,10 @@
 
 use lancet::engine::fast::FastEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
-use lancet::layout::connectivity::StepParams;
 use lancet::layout::valence::ValenceLayout;
 use lancet::layout::NodeOrder;
 use lancet::model::{stable_time_step, PackedModel};
+use lancet::physics::StepParams;
 use rstest::rstest;
 
 #[path = "common/models.rs"]

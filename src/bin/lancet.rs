@@ -677,7 +677,7 @@ fn print_summary(s: &RunSummary) {
              {} violations; lowest tet quality {:.3} (uncut {:.3}, floor {})",
             c.bytes_uploaded,
             c.bytes_full,
-            rebuilt(c.bytes_rebuild),
+            time_step_part(c.bytes_time_step),
             100.0 * c.bytes_uploaded as f64 / c.bytes_full.max(1) as f64,
             100.0 * c.max_upload_fraction,
             c.passes_rebuilt,
@@ -714,7 +714,7 @@ fn print_summary(s: &RunSummary) {
                 e.springs_touched,
                 e.bytes_uploaded,
                 e.layout_bytes,
-                rebuilt(e.rebuild_bytes),
+                time_step_part(e.time_step_bytes),
                 patched(e),
                 e.ms
             );
@@ -772,11 +772,11 @@ fn patched(e: &lancet::scene::cuts::CutEvent) -> String {
     }
 }
 
-fn rebuilt(bytes: u64) -> String {
+fn time_step_part(bytes: u64) -> String {
     if bytes == 0 {
         String::new()
     } else {
-        format!(" ({bytes} of them rebuilding the engine at a new dt)")
+        format!(" ({bytes} of them step parameters at a new dt)")
     }
 }
 

@@ -17,20 +17,10 @@ use surface_list::surface_key;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::physics::Integrator;
+
 use crate::error::{Error, Result};
 use crate::model::{stable_time_step, ModelDiff, PackedModel, StabilityBound};
-
-/// Time integration scheme.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-pub enum Integrator {
-    /// Position Verlet over the two most recent position buffers:
-    /// `x+ = x + (x - x-) + h^2 a(x, (x - x-)/h)`.
-    #[default]
-    Verlet,
-    /// Symplectic (semi-implicit) Euler in velocity form: `v+ = v + h a(x, v)`, `x+ = x + h v+`
-    /// (what Warp, Newton and Taichi use).
-    SymplecticEuler,
-}
 
 /// Which engine to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -71,6 +61,16 @@ pub trait Engine: Send {
     }
     /// Replace the state (fixed nodes keep their rest position whatever is given).
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]);
+    /// Go on at the time step `dt` (s, finite and positive; [`Simulation::set_time_step`]
+    /// checks it against the stable bound) from the same positions and velocities: the step
+    /// parameters are written and nothing else is rebuilt or uploaded. Verlet keeps the
+    /// previous positions, so its velocity `(x - x-) / h` is kept by moving them to
+    /// `x - (x - x-) h' / h`; symplectic Euler keeps the velocity itself and its state does not
+    /// change. The CPU engines continue exactly as an engine built at `dt` and given
+    /// [`Engine::state`] would; the GPU engine rescales on the device in float32
+    /// (`shaders/time_step.wgsl`). The cost counts the bytes of the step parameters written
+    /// (on the GPU, the uniform uploaded).
+    fn set_time_step(&mut self, dt: f64) -> Result<PatchCost>;
     /// Block until the steps submitted have run, and with them (a queue runs in order)
     /// whatever this engine submitted before them (GPU engines; CPU engines finish in `step`).
     fn wait(&mut self) {}
@@ -266,6 +266,22 @@ pub struct PatchCost {
     pub state_moves: usize,
     /// Whether the passes (or the engine) were rebuilt and the layout uploaded whole.
     pub reallocated: bool,
+}
+
+impl PatchCost {
+    /// The cost of a change of the step parameters alone (a new time step): `uploaded` bytes of
+    /// step parameters written (the engine's parameter block), no layout data, no state moved,
+    /// nothing rebuilt.
+    pub fn parameters_only(uploaded: u64, layout_bytes: u64) -> Self {
+        PatchCost {
+            uploaded_bytes: uploaded,
+            copied_bytes: 0,
+            buffers_grown: 0,
+            layout_bytes,
+            state_moves: 0,
+            reallocated: false,
+        }
+    }
 }
 
 /// What an engine keeps in memory and moves per step.
@@ -865,11 +881,12 @@ impl Simulation {
         Ok((energy(&old), energy(&new)))
     }
 
-    /// Change the time step between steps, keeping the state (positions and velocities): the
-    /// engine is rebuilt for the new step (on the GPU its pipelines are made again), so this is
-    /// for rare events such as a cut that lowers the stable bound. A step above the bound is
-    /// refused unless `allow_unstable`. Returns what the rebuild cost: the new engine uploads
-    /// all of itself (layout and state), so `uploaded_bytes` is its whole memory.
+    /// Change the time step between steps, keeping the state (positions and velocities): a
+    /// parameter of the step, so only the step parameters are written ([`Engine::set_time_step`]:
+    /// no pipeline is rebuilt and no layout uploaded; Verlet's previous positions are moved
+    /// where the state lives so that its velocity is kept). A step above the bound is refused
+    /// unless `allow_unstable`, with nothing changed. Returns what it cost: the bytes of the
+    /// engine's step parameters.
     pub fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::Model(format!(
@@ -883,27 +900,13 @@ impl Simulation {
                 node: self.bound.node,
             });
         }
-        let (x, v) = self.engine.state();
-        let config = SimConfig { dt, ..self.config };
-        let (mut engine, _, _) = make_engine(&self.model, self.kind, config)?;
-        engine.set_state(&x, &v);
-        if let Some(t) = &self.surface {
-            engine.set_surface(t)?;
-        }
+        // The time reached so far is counted at the old step before it changes.
         self.time_at_dt_change = self.time();
         self.steps_at_dt_change = self.steps;
-        let total = engine.memory().stats.total;
-        self.engine = engine;
-        self.config = config;
+        let cost = self.engine.set_time_step(dt)?;
+        self.config.dt = dt;
         self.reset_energy_reference();
-        Ok(PatchCost {
-            uploaded_bytes: total,
-            copied_bytes: 0,
-            buffers_grown: 0,
-            layout_bytes: total,
-            state_moves: 0,
-            reallocated: true,
-        })
+        Ok(cost)
     }
 
     /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.
@@ -1414,6 +1417,17 @@ impl Simulation {
     /// Simulated time so far, s.
     pub fn time(&self) -> f64 {
         self.time_at_dt_change + (self.steps - self.steps_at_dt_change) as f64 * self.config.dt
+    }
+
+    /// The stable time-step bound (s) the model would have after `diff`, and the node that
+    /// sets it, without applying it: what a caller asks before a change that may lower the
+    /// bound below the time step (as [`Simulation::apply`] would refuse), to choose a new step
+    /// or to go on. Touches only what the diff names.
+    pub fn bound_after(&mut self, diff: &ModelDiff) -> (f64, usize) {
+        let undo = self.bound.update(&self.model, diff);
+        let after = (self.bound.dt, self.bound.node);
+        self.bound.undo(undo);
+        after
     }
 
     /// The stable time-step bound of the model.

@@ -159,6 +159,17 @@ impl Engine for ReferenceEngine {
         Ok(())
     }
 
+    fn set_time_step(&mut self, dt: f64) -> crate::Result<super::PatchCost> {
+        // Exactly what an engine built at `dt` and given this state would hold.
+        let (x, v) = self.state();
+        self.dt = dt;
+        self.set_state(&x, &v);
+        Ok(super::PatchCost::parameters_only(
+            std::mem::size_of::<f64>() as u64,
+            self.memory().stats.total,
+        ))
+    }
+
     fn set_state(&mut self, positions: &[V3], velocities: &[V3]) {
         for i in 0..self.x.len() {
             let (x, v) = if self.model.fixed[i] {

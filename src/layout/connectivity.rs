@@ -11,9 +11,10 @@ use rustc_hash::FxHashMap;
 
 use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
-use crate::engine::Integrator;
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
+use crate::physics::{integrate, spring_force, state_buffers, state_traffic, velocity};
+use crate::physics::{Integrator, StepParams};
 
 /// Per-node data shared by the node-centric layouts, in the layout's node order.
 #[derive(Debug, Clone, PartialEq)]
@@ -666,21 +667,6 @@ impl ConnectivityLayout {
     }
 }
 
-/// Constants of one step, as the shaders see them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepParams {
-    /// Time step, s.
-    pub h: f32,
-    /// Gravity, m/s^2.
-    pub gravity: [f32; 3],
-    /// Mass-proportional damping, 1/s.
-    pub alpha: f32,
-    /// Integration scheme.
-    pub integrator: Integrator,
-    /// Whether springs are damped (neighbour velocities are read only then).
-    pub damped: bool,
-}
-
 /// The update of node `i` from its slots: the arithmetic shared by every node-centric twin,
 /// written in the order the WGSL kernels use.
 pub(crate) fn node_update(
@@ -713,90 +699,10 @@ pub(crate) fn node_update(
         } else {
             [0.0; 3]
         };
-        let fs = spring_force(p, s, d, dv);
+        let fs = spring_force(p, s.k, s.rest, s.c, d, dv);
         for a in 0..3 {
             f[a] += fs[a];
         }
     }
     integrate(p, ui, second[i], vi, f, inv_mass)
-}
-
-/// Velocity of a node from its state, as the WGSL `velocity` computes it: backward difference
-/// for Verlet (`second` = previous displacement), the stored velocity for symplectic Euler.
-pub(crate) fn velocity(p: &StepParams, cur: [f32; 4], second: [f32; 4]) -> [f32; 3] {
-    if p.integrator == Integrator::Verlet {
-        let inv_h = 1.0 / p.h;
-        [
-            (cur[0] - second[0]) * inv_h,
-            (cur[1] - second[1]) * inv_h,
-            (cur[2] - second[2]) * inv_h,
-        ]
-    } else {
-        [second[0], second[1], second[2]]
-    }
-}
-
-/// Force of spring `s` on the node it is seen from, given the current spring vector `d` and
-/// the relative velocity `dv` (other minus self), as the WGSL `slot_force` computes it.
-pub(crate) fn spring_force(p: &StepParams, s: &Slot, d: [f32; 3], dv: [f32; 3]) -> [f32; 3] {
-    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    if l <= 0.0 {
-        return [0.0; 3];
-    }
-    let dir = [d[0] / l, d[1] / l, d[2] / l];
-    let mut mag = s.k * (l - s.rest);
-    if p.damped {
-        mag += s.c * (dv[0] * dir[0] + dv[1] * dir[1] + dv[2] * dir[2]);
-    }
-    [mag * dir[0], mag * dir[1], mag * dir[2]]
-}
-
-/// The next displacement and second state of a free node under spring force `f`, as the WGSL
-/// `integrate` computes it.
-pub(crate) fn integrate(
-    p: &StepParams,
-    ui: [f32; 4],
-    second_i: [f32; 4],
-    vi: [f32; 3],
-    f: [f32; 3],
-    inv_mass: f32,
-) -> ([f32; 4], [f32; 4]) {
-    let mut a = [0.0f32; 3];
-    for c in 0..3 {
-        a[c] = f[c] * inv_mass + p.gravity[c] - p.alpha * vi[c];
-    }
-    if p.integrator == Integrator::Verlet {
-        let mut next = [0.0f32; 4];
-        for c in 0..3 {
-            next[c] = ui[c] + (ui[c] - second_i[c]) + (p.h * p.h) * a[c];
-        }
-        (next, [0.0; 4])
-    } else {
-        let (mut next, mut v) = ([0.0f32; 4], [0.0f32; 4]);
-        for c in 0..3 {
-            v[c] = vi[c] + p.h * a[c];
-            next[c] = ui[c] + p.h * v[c];
-        }
-        (next, v)
-    }
-}
-
-/// Node-state buffers of an integrator: three displacement buffers rotate for Verlet; symplectic
-/// Euler uses two displacement and two velocity buffers.
-pub(crate) fn state_buffers(n: u64, integrator: Integrator) -> Vec<(String, u64)> {
-    match integrator {
-        Integrator::Verlet => vec![("displacements (3 x vec4)".to_string(), 3 * n * 16)],
-        Integrator::SymplecticEuler => vec![
-            ("displacements (2 x vec4)".to_string(), 2 * n * 16),
-            ("velocities (2 x vec4)".to_string(), 2 * n * 16),
-        ],
-    }
-}
-
-/// Bytes of node state one step reads and writes (each buffer once).
-pub(crate) fn state_traffic(n: u64, integrator: Integrator) -> u64 {
-    match integrator {
-        Integrator::Verlet => 3 * n * 16,
-        Integrator::SymplecticEuler => 4 * n * 16,
-    }
 }

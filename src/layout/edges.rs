@@ -21,17 +21,17 @@
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use super::connectivity::{
-    integrate, spring_force, state_buffers, state_traffic, velocity, NodeArrays, StepParams,
-};
+use super::connectivity::NodeArrays;
 use std::collections::BTreeSet;
 
 use super::connectivity::inv_mass_of;
 use super::patch::{incidence_room, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder};
-use crate::engine::Integrator;
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel};
+use crate::physics::{
+    integrate, spring_force, state_buffers, state_traffic, velocity, Integrator, StepParams,
+};
 
 /// One spring. Mirrors `struct EdgeSpring` in `shaders/springs_edges.wgsl` (32 bytes).
 #[repr(C)]
@@ -609,7 +609,7 @@ impl EdgeLayout {
                 } else {
                     [0.0; 3]
                 };
-                let f = spring_force(p, &s.as_slot(), d, dv);
+                let f = spring_force(p, s.k, s.rest, s.c, d, dv);
                 [f[0], f[1], f[2], 0.0]
             })
             .collect()

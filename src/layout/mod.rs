@@ -375,7 +375,7 @@ impl PackedLayout {
     /// edges); see [`connectivity::ConnectivityLayout::step_cpu`].
     pub fn step_cpu(
         &self,
-        p: &connectivity::StepParams,
+        p: &crate::physics::StepParams,
         cur: &[[f32; 4]],
         second: &[[f32; 4]],
     ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {

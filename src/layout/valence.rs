@@ -11,14 +11,13 @@ use std::collections::{BTreeMap, BTreeSet};
 use rustc_hash::FxHashMap;
 
 use super::connectivity::{
-    inv_mass_of, node_update, patched_row_slots, row_slots, state_buffers, state_traffic,
-    touched_rows, DiffSprings, NodeArrays, StepParams,
+    inv_mass_of, node_update, patched_row_slots, row_slots, touched_rows, DiffSprings, NodeArrays,
 };
 use super::patch::{LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
-use crate::engine::Integrator;
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel};
+use crate::physics::{state_buffers, state_traffic, Integrator, StepParams};
 
 /// Springs at each node of `model`.
 fn valences(model: &PackedModel) -> Vec<u32> {

@@ -28,7 +28,8 @@ pub enum TimeStepPolicy {
     /// Go on at the same step and record a warning (the run may then diverge, and is stopped
     /// and reported if it does).
     Warn,
-    /// Lower the step to `BoundFraction` of the new bound (the scene's fraction, or 0.9) and go
+    /// Lower the step to `BoundFraction` of the new bound (the scene's fraction, or
+    /// [`DEFAULT_BOUND_FRACTION`](super::schema::DEFAULT_BOUND_FRACTION)) and go
     /// on.
     Substep,
 }
@@ -80,14 +81,13 @@ pub struct CutEvent {
     pub nodes_added: usize,
     /// Springs removed, added or changed.
     pub springs_touched: usize,
-    /// Bytes uploaded: the patch, plus `rebuild_bytes` when the engine was rebuilt at a new
-    /// time step (so it can exceed `layout_bytes`).
+    /// Bytes uploaded: the patch, plus `time_step_bytes` when the cut lowered the time step.
     pub bytes_uploaded: u64,
     /// Layout bytes a full rebuild would have uploaded.
     pub layout_bytes: u64,
-    /// Bytes the engine rebuilt at a lowered time step uploaded (all its memory: layout and
-    /// state; policy `Substep`), included in `bytes_uploaded`; 0 when it was not rebuilt.
-    pub rebuild_bytes: u64,
+    /// Bytes of step parameters written at a lowered time step (policy `Substep`), included
+    /// in `bytes_uploaded`; 0 when the step did not change.
+    pub time_step_bytes: u64,
     /// Whether the patch rebuilt the engine's passes and uploaded the layout whole (a repack,
     /// or node state outgrowing its buffers).
     pub passes_rebuilt: bool,
@@ -98,8 +98,8 @@ pub struct CutEvent {
     /// The stable bound this cut lowered below the time step, and what the policy did about
     /// it; `None` when the bound stayed at or above the step.
     pub time_step: Option<TimeStepChange>,
-    /// Time taken (classify, edit, patch the engine, refresh the surface, rebuild the engine
-    /// at a new time step), ms.
+    /// Time taken (classify, edit, patch the engine, refresh the surface, change the time
+    /// step), ms.
     pub ms: f64,
 }
 
@@ -120,8 +120,8 @@ pub struct TimeStepChange {
 /// What giving one cut to the simulation did.
 struct Applied {
     cost: PatchCost,
-    /// Bytes uploaded by rebuilding the engine at a new time step (0 if it was not).
-    rebuild_bytes: u64,
+    /// Bytes of step parameters written at a new time step (0 if it did not change).
+    time_step_bytes: u64,
     time_step: Option<TimeStepChange>,
     /// The error that ends the run once this cut is reported (policy `Stop`).
     stop: Option<Error>,
@@ -144,12 +144,13 @@ pub struct CutReport {
     pub springs_touched: usize,
     /// Rest volume removed, as a fraction of the volume before cutting.
     pub volume_removed_fraction: f64,
-    /// Bytes uploaded by all cuts, engine rebuilds at a new time step included.
+    /// Bytes uploaded by all cuts, step parameters at a new time step included.
     pub bytes_uploaded: u64,
     /// Layout bytes a full rebuild would have uploaded at each cut, summed.
     pub bytes_full: u64,
-    /// Of `bytes_uploaded`, the bytes of engine rebuilds at a new time step (`Substep`).
-    pub bytes_rebuild: u64,
+    /// Of `bytes_uploaded`, the bytes of step parameters written at a new time step
+    /// (`Substep`).
+    pub bytes_time_step: u64,
     /// Cuts whose patch rebuilt the engine's passes and uploaded the layout whole.
     pub passes_rebuilt: usize,
     /// Layout buffers grown by patches (replaced by larger ones, the passes kept).
@@ -245,7 +246,7 @@ impl CutStage {
             .collect();
         let bound_fraction = match scene.dt {
             super::schema::TimeStep::BoundFraction(f) => f,
-            super::schema::TimeStep::Seconds(_) => 0.9,
+            super::schema::TimeStep::Seconds(_) => super::schema::DEFAULT_BOUND_FRACTION,
         };
         let min_quality_uncut = mesh.min_volume_length_ratio();
         let quality_floor = settings.quality_floor;
@@ -370,7 +371,7 @@ impl CutStage {
                 }
             }
             let cost = &applied.cost;
-            let uploaded = cost.uploaded_bytes + applied.rebuild_bytes;
+            let uploaded = cost.uploaded_bytes + applied.time_step_bytes;
             let r = &mut self.report;
             r.events.push(CutEvent {
                 step: sim.steps(),
@@ -381,7 +382,7 @@ impl CutStage {
                 springs_touched: outcome.springs_touched,
                 bytes_uploaded: uploaded,
                 layout_bytes: cost.layout_bytes,
-                rebuild_bytes: applied.rebuild_bytes,
+                time_step_bytes: applied.time_step_bytes,
                 passes_rebuilt: cost.reallocated,
                 buffers_grown: cost.buffers_grown,
                 bytes_copied: cost.copied_bytes,
@@ -395,7 +396,7 @@ impl CutStage {
             r.springs_touched += outcome.springs_touched;
             r.bytes_uploaded += uploaded;
             r.bytes_full += cost.layout_bytes;
-            r.bytes_rebuild += applied.rebuild_bytes;
+            r.bytes_time_step += applied.time_step_bytes;
             r.passes_rebuilt += cost.reallocated as usize;
             r.buffers_grown += cost.buffers_grown;
             r.bytes_copied += cost.copied_bytes;
@@ -427,18 +428,16 @@ impl CutStage {
     /// lowers the stable bound below the time step, do what the scene's policy says.
     fn apply(&mut self, sim: &mut Simulation, diff: &ModelDiff) -> Result<Applied> {
         let positions = self.cutter.positions_read().positions();
-        let (dt, bound, node) = match sim.apply_at(diff, false, positions) {
-            Ok(cost) => {
-                return Ok(Applied {
-                    cost,
-                    rebuild_bytes: 0,
-                    time_step: None,
-                    stop: None,
-                })
-            }
-            Err(Error::UnstableTimeStep { dt, bound, node }) => (dt, bound, node),
-            Err(e) => return Err(e),
-        };
+        let dt = sim.config().dt;
+        let (bound, node) = sim.bound_after(diff);
+        if dt <= bound {
+            return Ok(Applied {
+                cost: sim.apply_at(diff, false, positions)?,
+                time_step_bytes: 0,
+                time_step: None,
+                stop: None,
+            });
+        }
         // Under every policy the simulation takes the cut: under `Stop` the run ends after it
         // (no step is taken with it), but the cutter already holds it, and the report must
         // count it and measure a mesh and positions that agree.
@@ -446,7 +445,7 @@ impl CutStage {
         let step = sim.steps();
         let mut applied = Applied {
             cost,
-            rebuild_bytes: 0,
+            time_step_bytes: 0,
             time_step: None,
             stop: None,
         };
@@ -471,9 +470,10 @@ impl CutStage {
             )),
             TimeStepPolicy::Substep => {
                 change.dt_after = self.bound_fraction * bound;
-                // The engine is rebuilt for the new step: it uploads all of itself, which the
-                // report counts with the patch.
-                applied.rebuild_bytes = sim.set_time_step(change.dt_after)?.uploaded_bytes;
+                // A parameter of the step: the engine writes its step parameters (and Verlet's
+                // previous positions move where the state lives), which the report counts with
+                // the patch.
+                applied.time_step_bytes = sim.set_time_step(change.dt_after)?.uploaded_bytes;
                 self.report.time_step_events.push(format!(
                     "step {step}: the cut lowered the stable bound to {bound:e} s (node {node}); \
                      dt {dt:e} s -> {:e} s",

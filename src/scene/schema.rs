@@ -67,6 +67,10 @@ pub struct RegionBox {
     pub max: [f64; 3],
 }
 
+/// The fraction of the new stable bound a cut lowers the step to under `Substep` when the
+/// scene gives its step in seconds (a scene with a `BoundFraction` step uses that fraction).
+pub const DEFAULT_BOUND_FRACTION: f64 = 0.9;
+
 /// The time step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum TimeStep {

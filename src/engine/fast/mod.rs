@@ -502,6 +502,21 @@ impl Engine for FastEngine {
         Ok(())
     }
 
+    fn set_time_step(&mut self, dt: f64) -> crate::Result<super::PatchCost> {
+        // Exactly what an engine built at `dt` and given this state would hold: the state
+        // through float64, the parameters as `new` computes them.
+        let (x, v) = self.state();
+        let h = dt as f32;
+        self.params.h = h;
+        self.params.h2 = h * h;
+        self.params.inv_h = 1.0 / h;
+        self.set_state(&x, &v);
+        Ok(super::PatchCost::parameters_only(
+            std::mem::size_of::<Params>() as u64,
+            self.memory().stats.total,
+        ))
+    }
+
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
         self.read_ahead = None;
         let h = self.params.h as f64;

@@ -5,7 +5,7 @@
 use super::buffers::{self, Sizing};
 use super::{GpuContext, NodeState};
 use crate::error::{Error, Result};
-use crate::layout::connectivity::{velocity, StepParams};
+use crate::physics::{velocity, StepParams};
 
 const SOURCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),

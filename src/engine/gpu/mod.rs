@@ -22,6 +22,7 @@ pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
 pub mod surface_nodes;
+pub mod time_step;
 pub mod timing;
 pub mod upload;
 
@@ -34,11 +35,11 @@ pub use context::GpuContext;
 use super::{Engine, EngineMemory, Health, Integrator, NearReads, PatchCost, SimConfig};
 use crate::collide::broad::ToolBox;
 use crate::error::Result;
-use crate::layout::connectivity::StepParams;
 use crate::layout::edges::{Accumulation, FixedPoint};
 use crate::layout::patch::{Dirty, LayoutArray};
 use crate::layout::{LayoutKind, NodeOrder, PackedLayout};
 use crate::model::{ModelDiff, PackedModel};
+use crate::physics::StepParams;
 use buffers::{Growth, Sizing};
 use layout_buffers::LayoutBuffers;
 
@@ -57,7 +58,9 @@ pub struct StepUniform {
     damped: u32,
     row: u32,
     springs: u32,
-    pad: [u32; 3],
+    /// New h over old h at the last change of time step (read by `time_step.wgsl` only).
+    rescale: f32,
+    pad: [u32; 2],
 }
 
 const _: () = assert!(std::mem::size_of::<StepUniform>() == 64);
@@ -254,6 +257,9 @@ pub struct GpuEngine {
     /// The pass that moves node state within the layout at a patch. Built with the engine:
     /// compiling it at the first cut would stall that cut (about 10 ms on lavapipe).
     mover: move_state::MovePass,
+    /// The pass that keeps Verlet's velocity through a change of time step (Verlet only;
+    /// built with the engine for the same reason as `mover`).
+    rescale: Option<time_step::RescalePass>,
     /// Staging buffers of patches' uploads, reused.
     staging: upload::StagingPool,
     /// A box whose nodes the next step finds as its last pass ([`Engine::prefetch_near`]).
@@ -331,7 +337,8 @@ impl GpuEngine {
             damped: params.damped as u32,
             row: 0,
             springs: 0,
-            pad: [0; 3],
+            rescale: 1.0,
+            pad: [0; 2],
         };
         let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("step constants"),
@@ -365,7 +372,12 @@ impl GpuEngine {
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         let timer = timing::PassTimer::new(&ctx);
         let mover = move_state::MovePass::new(&ctx)?;
+        let rescale = match config.integrator {
+            Integrator::Verlet => Some(time_step::RescalePass::new(&ctx)?),
+            Integrator::SymplecticEuler => None,
+        };
         Ok(GpuEngine {
+            rescale,
             timer,
             surface_sync: SurfaceSync::Current,
             surface: None,
@@ -1376,6 +1388,31 @@ impl Engine for GpuEngine {
 
     fn state(&self) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
         self.state_f64()
+    }
+
+    fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
+        let h = dt as f32;
+        let u = &mut self.uniform_data;
+        u.rescale = (dt / self.config.dt) as f32;
+        (u.h, u.h2, u.inv_h) = (h, h * h, 1.0 / h);
+        self.config.dt = dt;
+        let bytes = bytemuck::bytes_of(&self.uniform_data);
+        self.ctx.queue.write_buffer(&self.uniform, 0, bytes);
+        if let Some(pass) = &self.rescale {
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("time step"),
+                });
+            let b = self.state.bindings(self.phase);
+            pass.record(&self.ctx, &mut enc, &self.uniform, &b, self.dispatch.nodes);
+            self.last_submission = Some(self.ctx.queue.submit([enc.finish()]));
+        }
+        Ok(PatchCost::parameters_only(
+            bytes.len() as u64,
+            self.layout.upload_bytes(),
+        ))
     }
 
     fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) {
