@@ -1,7 +1,8 @@
 //! The self-contact broad phase on the device: on deformed surfaces (generated and real) the
 //! GPU pair list equals its CPU twin, contains every pair the brute-force float64 test finds,
 //! never pairs triangles that share a node and lists each pair once; a surface stretched past
-//! the grid's cells and a pair buffer that is too small are handled by running again.
+//! the grid's cells and a pair buffer that is too small are handled by running again; the
+//! culler follows surface edits (cuts) without being built again.
 
 mod common;
 #[path = "common/models.rs"]
@@ -141,4 +142,78 @@ fn a_stretched_surface_and_a_full_pair_buffer_run_again_and_lose_nothing() {
     engine.set_state(&model.rest, &vec![[0.0; 3]; x.len()]);
     let (n, reruns) = check(&mut engine, &surface, 0.05);
     assert!(n > 1024 && reruns >= 1, "{n} pairs after {reruns} reruns");
+}
+
+/// The self-contact culler survives surface edits, as cuts make them: after slots are
+/// replaced, the list grows past the culler's hash table (tet faces inside the box are
+/// appended, as carving exposes them) and then shrinks, the device pairs still equal the twin's
+/// on the edited surface and contain every exact pair, and the culler was built once (it used
+/// to be dropped at every edit and built again, pipelines and all, at the next cull).
+#[test]
+fn the_self_culler_follows_surface_edits_without_being_built_again() {
+    let Some(ctx) = common::gpu() else { return };
+    let mesh = BoxGrid::cube_cells([8, 8, 6], 0.004).build().unwrap();
+    let (model, surface) = (model_of(&mesh), Surface::of(&mesh));
+    let mut engine =
+        GpuEngine::with_context(ctx, &model, SimConfig::new(1e-5), LayoutKind::Valence).unwrap();
+    engine.set_surface(&surface.triangles).unwrap();
+    deform(&mut engine, &model, 3, 2e-3, 8e-3);
+    let margin = 1e-3;
+    check(&mut engine, &surface, margin);
+    assert_eq!(engine.self_culler_builds(), 1);
+    let table = engine.cull_self(margin).unwrap().grid.table as usize;
+    // Faces of the tets in the box's lower half, none of them on the boundary: more than
+    // the table has buckets for, with the surface.
+    let dense = mesh.dense_nodes();
+    let on_surface: std::collections::HashSet<[u32; 3]> = surface
+        .triangles
+        .iter()
+        .map(|t| {
+            let mut t = *t;
+            t.sort_unstable();
+            t
+        })
+        .collect();
+    let mut inner: Vec<[u32; 3]> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for (_, tet) in mesh.tets() {
+        let n = tet.nodes.map(|k| dense.index[k]);
+        for skip in 0..4 {
+            let mut f: Vec<u32> = (0..4).filter(|&i| i != skip).map(|i| n[i]).collect();
+            f.sort_unstable();
+            let f = [f[0], f[1], f[2]];
+            if !on_surface.contains(&f) && seen.insert(f) {
+                inner.push(f);
+            }
+        }
+    }
+    let grow = table - surface.triangles.len() / 2 + 64;
+    assert!(inner.len() > grow, "{} inner faces", inner.len());
+    let mut edited = Surface {
+        triangles: surface.triangles.clone(),
+    };
+    // Three slots replaced by inner faces, then enough appended to outgrow the table.
+    let replaced = [0u32, 17, 101];
+    for (k, &slot) in replaced.iter().enumerate() {
+        edited.triangles[slot as usize] = inner[k];
+    }
+    edited.triangles.extend_from_slice(&inner[3..3 + grow]);
+    engine.edit_surface(&edited.triangles, &replaced).unwrap();
+    assert!(2 * edited.triangles.len() > table);
+    for seed in [4, 5] {
+        deform(&mut engine, &model, seed, 2e-3, 8e-3);
+        check(&mut engine, &edited, margin);
+    }
+    let grown = engine.cull_self(margin).unwrap().grid;
+    assert!(
+        grown.table as usize >= 2 * edited.triangles.len(),
+        "{grown:?}"
+    );
+    // Shrunk back below the first list: slots past the end leave the surface.
+    edited.triangles.truncate(surface.triangles.len() - 40);
+    engine.edit_surface(&edited.triangles, &[]).unwrap();
+    check(&mut engine, &edited, margin);
+    // A new margin: a new grid for the same passes.
+    check(&mut engine, &edited, 2e-3);
+    assert_eq!(engine.self_culler_builds(), 1, "the culler was built again");
 }

@@ -2,7 +2,13 @@
 //! prefix-sum steps, scatter, pair tests) over the surface, reading back the overflow flag, the
 //! pair count and the pairs. Built only when a program asks for self-contact. The twin is
 //! `collide::self_broad::self_pairs_cpu`.
+//!
+//! The surface triangles and rest positions are the tool culler's ([`ToolCuller`]): one copy
+//! on the device, which a cut's surface edit writes once for both broad phases. The culler
+//! follows an edit by growing its hash table and entries when the surface grows and binding
+//! afresh ([`SelfCuller::regrid`]); its pipelines are built once.
 
+use super::broad_tool::ToolCuller;
 use super::buffers::{self, Sizing};
 use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
 use crate::collide::self_broad::GridParams;
@@ -51,8 +57,6 @@ impl Pass {
 pub struct SelfCuller {
     passes: [Pass; 6],
     params: wgpu::Buffer,
-    triangles: wgpu::Buffer,
-    rest: wgpu::Buffer,
     counts: wgpu::Buffer,
     block_sums: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -67,19 +71,17 @@ pub struct SelfCuller {
 }
 
 impl SelfCuller {
-    /// Upload the surface (layout order) and build the passes for `grid`.
+    /// Build the passes for `grid` over the surface the tool culler `tool` holds (layout
+    /// order).
     pub fn new(
         ctx: &GpuContext,
-        triangles: &[[u32; 3]],
-        rest: &[[f32; 4]],
         grid: GridParams,
+        tool: &ToolCuller,
         state: &NodeState,
     ) -> Result<Self> {
         let d = &ctx.device;
-        let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
-        let storage = |label: &str, bytes: u64| {
-            buffers::storage_buffer(ctx, label, &vec![0u8; bytes as usize], Sizing::Exact)
-        };
+        let storage =
+            |label: &str, bytes: u64| buffers::zeroed_storage(ctx, label, bytes, Sizing::Exact);
         let table = grid.table as u64;
         let passes = [
             Pass::new(ctx, "self_count", &[true, true, true, false, false])?,
@@ -101,36 +103,60 @@ impl SelfCuller {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            triangles: buffers::storage_buffer(
-                ctx,
-                "surface triangles",
-                bytemuck::cast_slice(&tris),
-                Sizing::Exact,
-            )?,
-            rest: buffers::storage_buffer(
-                ctx,
-                "rest positions",
-                bytemuck::cast_slice(rest),
-                Sizing::Exact,
-            )?,
             counts: storage("bucket counts", table * 4)?,
             block_sums: storage("block sums", table / 256 * 4)?,
             offsets: storage("bucket offsets", table * 4)?,
             cursors: storage("bucket cursors", table * 4)?,
             // Each triangle lands in at most MAX_SPAN^3 = 8 cells.
-            entries: storage("bucket entries", tris.len().max(1) as u64 * 8 * 4)?,
+            entries: storage("bucket entries", grid.triangles.max(1) as u64 * 8 * 4)?,
             pairs: storage("self pairs", 8 * 1024)?,
             count: storage("self pair count", 4)?,
             overflow: storage("grid overflow", 4)?,
             grid,
             bind_groups: Vec::new(),
         };
-        culler.rebind(ctx, state);
+        culler.rebind(ctx, tool, state);
         Ok(culler)
     }
 
-    /// Rebuild the bind groups (after the node state or the pair buffer was reallocated).
-    pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
+    /// Go on with `grid` (a surface edited to `grid.triangles` triangles, or a new margin)
+    /// over the tool culler's surface, keeping the pipelines: the hash table and the entries
+    /// grow where the grid needs more (scratch the passes fill, nothing uploaded), and the
+    /// passes are bound afresh (the tool culler's buffers may have moved with the edit).
+    pub fn regrid(
+        &mut self,
+        ctx: &GpuContext,
+        grid: GridParams,
+        tool: &ToolCuller,
+        state: &NodeState,
+    ) -> Result<()> {
+        let storage =
+            |label: &str, bytes: u64| buffers::zeroed_storage(ctx, label, bytes, Sizing::SizeClass);
+        let table = grid.table as u64;
+        if self.counts.size() < table * 4 {
+            self.counts = storage("bucket counts", table * 4)?;
+            self.block_sums = storage("block sums", table / 256 * 4)?;
+            self.offsets = storage("bucket offsets", table * 4)?;
+            self.cursors = storage("bucket cursors", table * 4)?;
+        }
+        let entries = grid.triangles.max(1) as u64 * 8 * 4;
+        if self.entries.size() < entries {
+            self.entries = storage("bucket entries", entries)?;
+        }
+        self.grid = grid;
+        self.rebind(ctx, tool, state);
+        Ok(())
+    }
+
+    /// The grid the culler uses (its cell grown where a stretched surface needed it).
+    pub fn grid(&self) -> GridParams {
+        self.grid
+    }
+
+    /// Rebuild the bind groups (after the node state, the tool culler's surface or the pair
+    /// buffer was reallocated).
+    pub fn rebind(&mut self, ctx: &GpuContext, tool: &ToolCuller, state: &NodeState) {
+        let (triangles, rest) = (tool.triangles(), tool.rest());
         let group = |pass: &Pass, buffers: &[&wgpu::Buffer]| {
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("self broad phase"),
@@ -147,8 +173,8 @@ impl SelfCuller {
                         &p[0],
                         &[
                             &self.params,
-                            &self.triangles,
-                            &self.rest,
+                            triangles,
+                            rest,
                             disp,
                             &self.counts,
                             &self.overflow,
@@ -170,8 +196,8 @@ impl SelfCuller {
                         &p[4],
                         &[
                             &self.params,
-                            &self.triangles,
-                            &self.rest,
+                            triangles,
+                            rest,
                             disp,
                             &self.cursors,
                             &self.entries,
@@ -181,8 +207,8 @@ impl SelfCuller {
                         &p[5],
                         &[
                             &self.params,
-                            &self.triangles,
-                            &self.rest,
+                            triangles,
+                            rest,
                             disp,
                             &self.counts,
                             &self.offsets,
@@ -202,6 +228,7 @@ impl SelfCuller {
     pub fn cull(
         &mut self,
         ctx: &GpuContext,
+        tool: &ToolCuller,
         state: &NodeState,
         phase: usize,
     ) -> Result<SelfCullResult> {
@@ -275,7 +302,7 @@ impl SelfCuller {
                     &vec![0u8; n as usize * 8],
                     Sizing::SizeClass,
                 )?;
-                self.rebind(ctx, state);
+                self.rebind(ctx, tool, state);
                 reruns += 1;
                 continue;
             }

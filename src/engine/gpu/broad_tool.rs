@@ -253,6 +253,12 @@ impl ToolCuller {
         ))
     }
 
+    /// The surface triangles, layout order, `[a, b, c, 0]` each (for passes that share them;
+    /// the first `count` of the last edit are live).
+    pub fn triangles(&self) -> &wgpu::Buffer {
+        &self.triangles
+    }
+
     /// The rest positions of every node slot, layout order (for passes that share them).
     pub fn rest(&self) -> &wgpu::Buffer {
         &self.rest

@@ -2,6 +2,7 @@
 //! phases and the nodes near a blade, kept in step with the layout through patches and edits.
 
 use super::*;
+use crate::collide::self_broad::GridParams;
 
 /// What changed under the surface culler since it last saw the layout. A patch moves a node
 /// to another layout index only with a state move to it (its state must follow it: a
@@ -26,8 +27,24 @@ pub(super) struct SurfaceCulling {
     /// Nodes near a blade, over the culler's rest positions (built with it: a cut that reads
     /// them never waits for a pipeline).
     pub(super) near: nodes_near::NodesNear,
-    /// The self-contact broad phase and the margin it was built for, once asked for.
+    /// The self-contact broad phase and the margin it culls at, once asked for. It shares
+    /// `tool`'s triangles and rest positions and follows every edit of them.
     pub(super) self_contact: Option<(f64, broad_self::SelfCuller)>,
+    /// Self-contact cullers built (pipelines compiled): one per engine, whatever the edits.
+    pub(super) self_builds: usize,
+}
+
+/// The self-contact grid after an edit left `triangles` triangles: the same cell and margin,
+/// a hash table of at least twice as many buckets as triangles (never smaller than before).
+fn edited_grid(grid: GridParams, triangles: usize) -> GridParams {
+    let table = (2 * triangles).next_power_of_two().max(256) as u32;
+    let table = table.max(grid.table);
+    GridParams {
+        triangles: triangles as u32,
+        table,
+        blocks: table / 256,
+        ..grid
+    }
 }
 
 /// The error for culling before a surface was given.
@@ -61,7 +78,11 @@ impl GpuEngine {
                 s.near.rebind(&self.ctx, s.tool.rest(), &self.state);
                 s.triangles = triangles.to_vec();
                 s.at_nodes = surface_nodes::TrianglesAtNodes::of(triangles, n);
-                s.self_contact = None;
+                // A whole new surface: the grid is made for it, the passes kept.
+                if let Some((margin, culler)) = &mut s.self_contact {
+                    let grid = GridParams::for_surface(&self.rest, triangles, *margin);
+                    culler.regrid(&self.ctx, grid, &s.tool, &self.state)?;
+                }
             }
             None => {
                 let tool = broad_tool::ToolCuller::new(&self.ctx, &tris, &rest, &self.state)?;
@@ -72,6 +93,7 @@ impl GpuEngine {
                     tool,
                     near,
                     self_contact: None,
+                    self_builds: 0,
                 });
             }
         }
@@ -188,7 +210,12 @@ impl GpuEngine {
                 .same_as(&surface_nodes::TrianglesAtNodes::of(triangles, n)),
             "the triangles at the nodes follow the edits"
         );
-        s.self_contact = None;
+        // The self-contact culler reads the tool culler's buffers, which the edit wrote: it
+        // follows the surface's size and binds afresh.
+        if let Some((_, culler)) = &mut s.self_contact {
+            let grid = edited_grid(culler.grid(), triangles.len());
+            culler.regrid(&self.ctx, grid, &s.tool, &self.state)?;
+        }
         self.surface_sync = SurfaceSync::Current;
         Ok(())
     }
@@ -327,35 +354,34 @@ impl GpuEngine {
 
     /// Broad phase of the tissue against itself on the device: pairs of surface triangles that
     /// share no node and whose boxes, widened by `margin / 2` (m), overlap at the current
-    /// state. The passes are built at the first call (and again when the margin changes).
+    /// state. The passes are built at the first call; a new margin makes a new grid for the
+    /// same passes, and surface edits (cuts) update the culler in place.
     pub fn cull_self(&mut self, margin: f64) -> Result<broad_self::SelfCullResult> {
         self.refresh_surface()?;
-        let Some(surface) = &self.surface else {
+        let Some(s) = &mut self.surface else {
             return Err(no_surface());
         };
-        // Built at the first call and when the margin changes; otherwise nothing is made here.
-        if surface
-            .self_contact
-            .as_ref()
-            .is_none_or(|(m, _)| *m != margin)
-        {
-            let tris = self.in_layout_order(&surface.triangles);
-            let grid = crate::collide::self_broad::GridParams::for_surface(
-                &self.rest,
-                &surface.triangles,
-                margin,
-            );
-            let culler =
-                broad_self::SelfCuller::new(&self.ctx, &tris, &self.rest_f32(), grid, &self.state)?;
-            if let Some(s) = &mut self.surface {
+        match &mut s.self_contact {
+            Some((m, _)) if *m == margin => {}
+            Some((m, culler)) => {
+                let grid = GridParams::for_surface(&self.rest, &s.triangles, margin);
+                culler.regrid(&self.ctx, grid, &s.tool, &self.state)?;
+                *m = margin;
+            }
+            None => {
+                let grid = GridParams::for_surface(&self.rest, &s.triangles, margin);
+                let culler = broad_self::SelfCuller::new(&self.ctx, grid, &s.tool, &self.state)?;
                 s.self_contact = Some((margin, culler));
+                s.self_builds += 1;
             }
         }
-        let (_, culler) = self
-            .surface
-            .as_mut()
-            .and_then(|s| s.self_contact.as_mut())
-            .expect("built above");
-        culler.cull(&self.ctx, &self.state, self.phase)
+        let (_, culler) = s.self_contact.as_mut().expect("built above");
+        culler.cull(&self.ctx, &s.tool, &self.state, self.phase)
+    }
+
+    /// Self-contact cullers this engine built (their pipelines compiled): 0 before the first
+    /// [`GpuEngine::cull_self`], then 1 whatever the cuts and margins since.
+    pub fn self_culler_builds(&self) -> usize {
+        self.surface.as_ref().map_or(0, |s| s.self_builds)
     }
 }
