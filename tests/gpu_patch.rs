@@ -27,20 +27,9 @@ fn bits(v: &[[f32; 4]]) -> Vec<[u32; 4]> {
 /// `steps` steps of the patched layout's CPU twin from raw state (layout order).
 fn twin(engine: &GpuEngine, accumulation: Accumulation, raw: Raw, steps: usize) -> Raw {
     let p = engine.step_params();
-    let (mut cur, mut second) = raw;
-    for _ in 0..steps {
-        let (next, s) = match engine.layout() {
-            PackedLayout::Edges(e) => {
-                e.step_variant_cpu(accumulation, &p, &engine.fixed_point(), &cur, &second)
-            }
-            other => other.step_cpu(&p, &cur, &second),
-        };
-        match p.integrator {
-            Integrator::Verlet => second = std::mem::replace(&mut cur, next),
-            Integrator::SymplecticEuler => (cur, second) = (next, s),
-        }
-    }
-    (cur, second)
+    engine
+        .layout()
+        .steps_cpu(&p, accumulation, &engine.fixed_point(), raw, steps)
 }
 
 /// `steps` steps of an engine built from scratch on `model` in `engine`'s arrangement (a fresh

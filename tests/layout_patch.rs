@@ -205,18 +205,16 @@ fn twin_steps(
     model: &PackedModel,
     accumulation: Accumulation,
     fp: &lancet::layout::edges::FixedPoint,
-    mut cur: Vec<[f32; 4]>,
-    mut prev: Vec<[f32; 4]>,
+    cur: Vec<[f32; 4]>,
+    prev: Vec<[f32; 4]>,
     steps: usize,
 ) -> Vec<[f32; 4]> {
     let config = SimConfig::new(2e-5);
     let p = step_params(model, config);
     assert_eq!(p.integrator, Integrator::Verlet);
-    for _ in 0..steps {
-        let (next, _) = layout.step_variant_cpu(accumulation, &p, fp, &cur, &prev);
-        prev = std::mem::replace(&mut cur, next);
-    }
-    cur
+    PackedLayout::Edges(layout.clone())
+        .steps_cpu(&p, accumulation, fp, (cur, prev), steps)
+        .0
 }
 
 #[rstest]

@@ -23,16 +23,9 @@ fn twin(
     steps: usize,
 ) -> Raw {
     let p = step_params(model, config);
-    let (mut cur, mut second) = raw.clone();
-    for _ in 0..steps {
-        let (next, s) = layout.step_cpu(&p, &cur, &second);
-        second = match config.integrator {
-            Integrator::Verlet => cur,
-            Integrator::SymplecticEuler => s,
-        };
-        cur = next;
-    }
-    (cur, second)
+    let gather = lancet::layout::edges::Accumulation::Gather;
+    let unused = lancet::layout::edges::FixedPoint::new(1.0, 1);
+    layout.steps_cpu(&p, gather, &unused, raw.clone(), steps)
 }
 
 #[rstest]

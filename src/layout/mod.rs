@@ -385,4 +385,35 @@ impl PackedLayout {
             Self::Edges(e) => e.step_cpu(p, cur, second),
         }
     }
+
+    /// `steps` steps of the layout's CPU twin from `state` (layout order: the current
+    /// displacements and the second state), the state rotating as the device's buffers do
+    /// (Verlet's previous displacements become the current ones; symplectic Euler keeps the new
+    /// velocities): the one twin stepper that the device tests share. The edge layout steps in
+    /// `accumulation`, with the fixed-point constants `fixed` (read by `AtomicFixed` only); the
+    /// node-centric layouts have one pass and ignore both.
+    pub fn steps_cpu(
+        &self,
+        p: &crate::physics::StepParams,
+        accumulation: edges::Accumulation,
+        fixed: &edges::FixedPoint,
+        state: (Vec<[f32; 4]>, Vec<[f32; 4]>),
+        steps: usize,
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+        let (mut cur, mut second) = state;
+        for _ in 0..steps {
+            let (next, s) = match self {
+                Self::Edges(e) => e.step_variant_cpu(accumulation, p, fixed, &cur, &second),
+                other => other.step_cpu(p, &cur, &second),
+            };
+            second = match p.integrator {
+                crate::physics::Integrator::Verlet => std::mem::replace(&mut cur, next),
+                crate::physics::Integrator::SymplecticEuler => {
+                    cur = next;
+                    s
+                }
+            };
+        }
+        (cur, second)
+    }
 }
