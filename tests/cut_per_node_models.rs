@@ -299,8 +299,9 @@ fn cuts_of_a_per_node_spring_model_conserve_mass_and_keep_each_share(
 }
 
 /// The defect this file was written for: a subdividing cut gave each node it made a whole
-/// node's mass (and more, one tet at a time), so a box of 28 nodes of 10 g weighed far more
-/// than 280 g after one cut.
+/// node's mass and more (each new tet at it gave `m / n`, `n` counting the tets added so far:
+/// `m (1 + 1/2 + ...)`), so this box of 64 nodes of 10 g, 0.64 kg, weighed 0.94 kg after one
+/// cut.
 #[test]
 fn subdividing_a_box_of_per_node_mass_keeps_its_mass() {
     let mesh = BoxGrid {

@@ -152,9 +152,10 @@ impl Cutter {
             }
             let m = model.mass(n).unwrap_or(0.0);
             mass += m;
-            let wrong = !(m > 0.0 && m.is_finite())
-                || !close(m, given.get(&n).copied().unwrap_or(0.0))
-                || (by_density && !close(m, expected_mass.get(&n).copied().unwrap_or(0.0)));
+            let positive = m > 0.0 && m.is_finite();
+            let as_given = close(m, given.get(&n).copied().unwrap_or(0.0));
+            let as_density = !by_density || close(m, expected_mass.get(&n).copied().unwrap_or(0.0));
+            let wrong = !(positive && as_given && as_density);
             if wrong {
                 bad_mass += 1;
             }
