@@ -12,6 +12,11 @@
 //!   its nodes by separating) gives each corner and edge what the uncut tet gave it;
 //! - a tet made by subdividing lies in one uncut tet and carries that tet's mass per rest
 //!   volume, `rho V / 4` to each corner: subdividing passes each parent's mass to its sub-tets.
+//!
+//! Springs that a sub-tet holds are not checked: a sub-tet gives a per-spring edge `k / n`
+//! with `n` the tets holding it when the sub-tet is added, which no rule yet bounds (one
+//! subdividing cut through the 64-node box below leaves 88 of 371 springs stiffer than `k`, the
+//! stiffest 2.45 `k`).
 
 #[path = "common/models.rs"]
 mod models;
