@@ -2,16 +2,17 @@
 //! with depth and points away from the tissue, no tissue node ends a step inside the probe by
 //! more than a stated tolerance, and after the probe leaves the block returns to rest. On the
 //! fast CPU engine and, where there is an adapter, on the GPU (whose broad phase then runs on
-//! the device).
+//! the device). A probe within the contact skin, touching nothing, is found on every engine.
 
 #[path = "common/tissue.rs"]
 mod tissue;
 
 mod common;
 
-use lancet::collide::response::ContactSettings;
+use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
 use lancet::engine::{EngineKind, Simulation};
+use lancet::layout::LayoutKind;
 use lancet::mesh::generate::{BoxGrid, TetSplit};
 use nalgebra::{Isometry3, Vector3};
 use rstest::rstest;
@@ -167,4 +168,76 @@ fn where_the_surface_cannot_slide_off_the_force_keeps_growing_to_three_quarters_
             "{split:?}, friction {friction}: forces {forces:?} level off"
         );
     }
+}
+
+/// A sphere 5 um above the block's top, within the 10 um contact skin but touching nothing: the
+/// tool's bounds, widened by the skin, reach the surface, so contact is found, and the node
+/// under the sphere (the surface's nearest point to it) alone is pushed down to the skin, the
+/// reaction on the sphere being that node's mass times its move over the step squared, upwards.
+/// On every engine, the GPU in each layout.
+#[rstest]
+fn a_probe_within_the_skin_but_touching_nothing_pushes_the_surface_out_to_the_skin(
+    #[values(
+        (EngineKind::Reference, LayoutKind::Connectivity),
+        (EngineKind::Fast, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Connectivity),
+        (EngineKind::Gpu, LayoutKind::Valence),
+        (EngineKind::Gpu, LayoutKind::Edges)
+    )]
+    case: (EngineKind, LayoutKind),
+) {
+    let (kind, layout) = case;
+    if kind == EngineKind::Gpu && common::gpu().is_none() {
+        return;
+    }
+    let s = ContactSettings::default();
+    let gap = 5e-6;
+    assert!(gap < s.skin, "the probe is within the skin");
+    let grid = BoxGrid::cube_cells([12, 12, 6], 0.002);
+    let mut sim = tissue::tissue_in(grid, &tissue::clamped([0.0, 0.0, 1.0], 80.0), kind, layout);
+    let tool = Tool::new(ToolShape::Sphere { radius: RADIUS }, pose(-gap)).unwrap();
+    let before = sim.positions();
+    let f = resolve_contacts(&mut sim, std::slice::from_ref(&tool), &s).unwrap()[0];
+    assert!(
+        f.contacts > 0,
+        "{kind:?} {layout:?}: no contact within the skin"
+    );
+    assert_eq!(f.deepest, 0.0, "{kind:?} {layout:?}: nothing penetrates");
+    let after = sim.positions();
+    let rest = &sim.model().rest;
+    let under = rest
+        .iter()
+        .position(|r| {
+            (r[0] - 0.012).abs() < 1e-9 && (r[1] - 0.012).abs() < 1e-9 && r[2] > TOP - 1e-9
+        })
+        .expect("a top node under the probe");
+    // The node goes straight down by the skin less the gap. Dented, the surface slopes up
+    // from it, and the sphere is then nearest a point of its faces a few um off the node (by a
+    // few nm): later sweeps move the node's neighbours by a fraction of that.
+    let push = s.skin - gap;
+    let mut neighbours = 0.0f64;
+    for (i, (a, b)) in after.iter().zip(&before).enumerate() {
+        let moved = Vector3::from(*a) - Vector3::from(*b);
+        if i == under {
+            eprintln!("{kind:?} {layout:?}: the node under the probe moved {moved:?}");
+            assert!(
+                (moved.z + push).abs() < 0.01 * push && moved.xy().norm() < 1e-3 * push,
+                "{kind:?} {layout:?}: the node under the probe moved {moved:?}, not {push} down"
+            );
+        } else {
+            neighbours = neighbours.max(moved.norm());
+        }
+    }
+    eprintln!("{kind:?} {layout:?}: other nodes moved {neighbours:e} m at most");
+    assert!(
+        neighbours < 1e-3 * push,
+        "{kind:?} {layout:?}: another node moved {neighbours} m"
+    );
+    let dt = sim.config().dt;
+    let want = sim.model().mass[under] * (s.skin - gap) / (dt * dt);
+    assert!(
+        (f.force - Vector3::new(0.0, 0.0, want)).norm() < 0.01 * want,
+        "{kind:?} {layout:?}: force {:?} on the probe, expected {want:e} N up",
+        f.force
+    );
 }

@@ -1,6 +1,7 @@
 //! The tool broad phase on the device: on random millimetre tool boxes around deformed
 //! surfaces (generated and real), the GPU candidate list equals its CPU twin as a set and
-//! contains every pair the exact float64 test finds (no false negatives); a candidate buffer
+//! contains every pair the exact float64 test finds (no false negatives), boxes whose faces pass
+//! exactly through deformed nodes among them; a candidate buffer
 //! that is too small grows and the pass runs again, dropping nothing; a patched engine culls
 //! its new surface.
 
@@ -190,4 +191,115 @@ fn a_patched_engine_culls_its_surface_like_the_twin(
         cpu.sort_unstable();
         assert_eq!(engine.cull_tools(&boxes).unwrap().candidates, cpu);
     }
+}
+
+/// A float32 box rounded outwards from `lo..hi`, without the pad for how the passes form node
+/// positions: what `ToolBox::containing` would be without it.
+fn rounded_outwards(lo: [f64; 3], hi: [f64; 3]) -> ToolBox {
+    let down = |x: f64| {
+        let f = x as f32;
+        if f as f64 > x {
+            f.next_down()
+        } else {
+            f
+        }
+    };
+    let up = |x: f64| {
+        let f = x as f32;
+        if (f as f64) < x {
+            f.next_up()
+        } else {
+            f
+        }
+    };
+    ToolBox {
+        lo: [down(lo[0]), down(lo[1]), down(lo[2]), 0.0],
+        hi: [up(hi[0]), up(hi[1]), up(hi[2]), 0.0],
+    }
+}
+
+/// Boxes with a face exactly through a deformed surface node, one on each side of it along each
+/// axis: the node's position in float64 (its rest position plus its float32 displacement, as
+/// the exact test and the engine's positions take it) is on the face, so the triangles whose
+/// farthest corner that way is the node touch the box there alone. The passes form the node in
+/// float32 (rest position rounded, then the displacement added), which can land outside a box
+/// merely rounded outwards; the twin and the device must still return every pair the exact test
+/// finds. Boxes merely rounded outwards do miss some: the test depends on the pad.
+#[rstest]
+fn boxes_through_deformed_nodes_miss_no_pair(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let cell = 0.004;
+    let mesh = BoxGrid::cube_cells([8, 6, 5], cell).build().unwrap();
+    let model = model_of(&mesh);
+    let surface = Surface::of(&mesh);
+    let config = SimConfig::new(0.5 * stable_time_step(&model).dt);
+    let mut engine = GpuEngine::with_context(ctx, &model, config, layout).unwrap();
+    engine.set_surface(&surface.triangles).unwrap();
+    let (mut pairs, mut unpadded_missed, mut boxes_total) = (0, 0, 0);
+    for seed in [84, 85, 86] {
+        deformed(&mut engine, &model, seed, 1e-3);
+        let x = engine.positions();
+        let (disp, _) = engine.raw_state().unwrap();
+        let (rest, tris) = (engine.rest_f32(), engine.surface_layout_order().unwrap());
+        let mut nodes: Vec<u32> = surface.triangles.iter().flatten().copied().collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let mut exact_boxes = Vec::new();
+        for &n in &nodes {
+            let p = x[n as usize];
+            for axis in 0..3 {
+                // Half a cell across, a cell deep on one side of the node.
+                let (mut lo, mut hi) = (p.map(|v| v - 0.5 * cell), p.map(|v| v + 0.5 * cell));
+                lo[axis] = p[axis];
+                hi[axis] = p[axis] + cell;
+                exact_boxes.push((lo, hi));
+                let (mut lo, mut hi) = (p.map(|v| v - 0.5 * cell), p.map(|v| v + 0.5 * cell));
+                lo[axis] = p[axis] - cell;
+                hi[axis] = p[axis];
+                exact_boxes.push((lo, hi));
+            }
+        }
+        let boxes: Vec<ToolBox> = exact_boxes
+            .iter()
+            .map(|&(lo, hi)| ToolBox::containing(lo, hi))
+            .collect();
+        let gpu = engine.cull_tools(&boxes).unwrap().candidates;
+        let mut cpu = cull_cpu(&rest, &disp, &tris, &boxes);
+        cpu.sort_unstable();
+        assert_eq!(gpu, cpu, "seed {seed} {layout:?}: device and twin differ");
+        let exact = cull_exact(&x, &surface.triangles, &exact_boxes);
+        let missed: Vec<_> = exact
+            .iter()
+            .filter(|pair| cpu.binary_search(pair).is_err())
+            .collect();
+        assert!(
+            missed.is_empty(),
+            "seed {seed} {layout:?}: the broad phase missed {} of {} pairs: {:?}",
+            missed.len(),
+            exact.len(),
+            &missed[..missed.len().min(5)]
+        );
+        let unpadded: Vec<ToolBox> = exact_boxes
+            .iter()
+            .map(|&(lo, hi)| rounded_outwards(lo, hi))
+            .collect();
+        let mut bare = cull_cpu(&rest, &disp, &tris, &unpadded);
+        bare.sort_unstable();
+        unpadded_missed += exact
+            .iter()
+            .filter(|pair| bare.binary_search(pair).is_err())
+            .count();
+        pairs += exact.len();
+        boxes_total += boxes.len();
+    }
+    eprintln!(
+        "{layout:?}: {boxes_total} boxes, {pairs} exact pairs, {unpadded_missed} missed by boxes \
+         rounded outwards without the pad"
+    );
+    assert!(
+        unpadded_missed > 0,
+        "no pair needs the pad: the boxes do not touch nodes where float32 rounding matters"
+    );
 }

@@ -20,6 +20,7 @@ impl Cutter {
         self.model.record_changes();
         for &tk in tets {
             outcome.volume_removed += self.mesh.tet_volume(tk);
+            self.mass_removed += self.model.share(tk).map_or(0.0, |s| s.mass.iter().sum());
             self.faces.remove(tk);
             self.model.remove_tet(&self.mesh, tk)?;
             self.mesh.remove_tet(tk);

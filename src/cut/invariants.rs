@@ -1,8 +1,10 @@
 //! What a cut mesh must satisfy, checked after every cut by tests and by `lancet run --check`:
 //!
 //! - rest volume conserved, or reduced by exactly the removed tets;
-//! - every node a tet uses has a positive mass, and with `Mass::Density` each node's mass is
-//!   `rho V / 4` summed over its tets (so the total is density times volume);
+//! - every node a tet uses has a positive mass, the sum of what its tets give it, and with
+//!   `Mass::Density` each node's mass is `rho V / 4` summed over its tets (so the total is
+//!   density times volume); whatever the mass model, the total mass is the mass before cutting
+//!   less what carving removed (a cut that splits or separates tets conserves mass);
 //! - every fragment's boundary is closed and consistently outward oriented (each directed
 //!   boundary edge meets its reverse), and encloses its tet volume;
 //! - the mesh is conforming: every boundary triangle is on the uncut surface or has a twin at
@@ -38,6 +40,8 @@ pub struct InvariantReport {
     pub volume_expected: f64,
     /// Total mass of the nodes tets use, kg.
     pub mass: f64,
+    /// What it must be: the mass before cutting minus what carving removed.
+    pub mass_expected: f64,
     /// Boundary edges without a matching reverse edge (0 for closed surfaces).
     pub open_edges: usize,
     /// Largest relative difference between a fragment's enclosed volume and its tet volume.
@@ -108,14 +112,25 @@ impl Cutter {
             ));
         }
 
-        // Masses of the nodes tets use.
+        // Masses of the nodes tets use: what their tets give them (the shares a cut moves,
+        // removes and adds), and with a density, that density's share of their volume.
         let mut expected_mass: HashMap<NodeKey, f64> = HashMap::new();
+        let mut given: HashMap<NodeKey, f64> = HashMap::new();
         let density = |region: i32| match model.config().material_of(region).mass {
             Mass::Density(rho) => Some(rho),
             Mass::PerNode(_) => None,
         };
         let mut by_density = true;
+        let mut unshared = 0;
         for (tk, t) in mesh.tets() {
+            match model.share(tk) {
+                Some(share) => {
+                    for (&n, m) in t.nodes.iter().zip(share.mass) {
+                        *given.entry(n).or_insert(0.0) += m;
+                    }
+                }
+                None => unshared += 1,
+            }
             match density(t.region) {
                 Some(rho) => {
                     let share = rho * mesh.tet_volume(tk) / 4.0;
@@ -126,6 +141,9 @@ impl Cutter {
                 None => by_density = false,
             }
         }
+        if unshared > 0 {
+            violations.push(format!("{unshared} tets have no share in the spring model"));
+        }
         let mut mass = 0.0;
         let mut bad_mass = 0;
         for (n, _) in mesh.nodes() {
@@ -134,16 +152,25 @@ impl Cutter {
             }
             let m = model.mass(n).unwrap_or(0.0);
             mass += m;
-            let wrong = !(m > 0.0 && m.is_finite())
-                || (by_density && !close(m, expected_mass.get(&n).copied().unwrap_or(0.0)));
+            let positive = m > 0.0 && m.is_finite();
+            let as_given = close(m, given.get(&n).copied().unwrap_or(0.0));
+            let as_density = !by_density || close(m, expected_mass.get(&n).copied().unwrap_or(0.0));
+            let wrong = !(positive && as_given && as_density);
             if wrong {
                 bad_mass += 1;
             }
         }
         if bad_mass > 0 {
             violations.push(format!(
-                "{bad_mass} nodes have a mass that is not positive or not the density share of \
-                 their tets"
+                "{bad_mass} nodes have a mass that is not positive, not what their tets give \
+                 them, or not the density share of their tets"
+            ));
+        }
+        let mass_expected = self.mass_before - self.mass_removed;
+        if !close(mass, mass_expected) {
+            violations.push(format!(
+                "total mass {mass:e} kg, expected {mass_expected:e} kg (the mass before cutting \
+                 less what carving removed)"
             ));
         }
 
@@ -273,6 +300,7 @@ impl Cutter {
             volume,
             volume_expected,
             mass,
+            mass_expected,
             open_edges,
             worst_enclosed_volume_error: worst,
             untwinned_area,
@@ -341,9 +369,14 @@ mod tests {
     /// A 3-cell box split in two along faces by an upright blade at y = 1.7 cells, its volume
     /// and the box before the cut.
     fn cut_box() -> (Cutter, f64, TetMesh) {
+        cut_box_of(&config())
+    }
+
+    /// [`cut_box`] on a model of `config`.
+    fn cut_box_of(config: &ModelConfig) -> (Cutter, f64, TetMesh) {
         let mesh = BoxGrid::cube_cells([3, 3, 3], H).build().unwrap();
         let volume = mesh.volume();
-        let model = SpringModel::build(&mesh, &config()).unwrap();
+        let model = SpringModel::build(&mesh, config).unwrap();
         let mut cutter = Cutter::new(mesh.clone(), model, CutMethod::Separate).unwrap();
         let blade = ToolShape::Blade {
             width: 0.1,
@@ -393,6 +426,50 @@ mod tests {
         let report = cutter.check_invariants(volume, 0.0);
         assert!(violated(&report, "mass"), "{:?}", report.violations);
         assert!(violated(&report, "differ from a model rebuilt"));
+    }
+
+    /// The cut box on a model with a mass per node (which tets share unequally: the box's
+    /// nodes are held by different numbers of tets).
+    fn per_node_cut_box() -> (Cutter, f64) {
+        let mut config = config();
+        config.material.mass = Mass::PerNode(0.01);
+        let (cutter, volume, _) = cut_box_of(&config);
+        (cutter, volume)
+    }
+
+    #[test]
+    fn mass_made_or_lost_is_reported_whatever_the_mass_model() {
+        let (mut cutter, volume) = per_node_cut_box();
+        assert!(cutter.check_invariants(volume, 0.0).passed());
+        cutter.mass_before *= 1.001;
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(violated(&report, "total mass"), "{:?}", report.violations);
+    }
+
+    #[test]
+    fn a_share_of_mass_moved_to_the_wrong_node_is_reported() {
+        // A tet's share for one corner moved to another corner's node and back the other way:
+        // the total stays, each node's mass is no longer what its tets give it.
+        let (mut cutter, volume) = per_node_cut_box();
+        let (tk, t) = cutter
+            .mesh
+            .tets()
+            .find(|(tk, _)| {
+                let m = cutter.model.share(*tk).unwrap().mass;
+                m[0] != m[1]
+            })
+            .map(|(tk, t)| (tk, *t))
+            .expect("corners with unequal shares");
+        let mut swapped = t.nodes;
+        swapped.swap(0, 1);
+        cutter.model.renode_tet(tk, t.nodes, swapped).unwrap();
+        let report = cutter.check_invariants(volume, 0.0);
+        assert!(
+            violated(&report, "not what their tets give them"),
+            "{:?}",
+            report.violations
+        );
+        assert!(!violated(&report, "total mass"), "{:?}", report.violations);
     }
 
     #[test]

@@ -155,6 +155,10 @@ pub struct Cutter {
     /// new where the load carried a lip across the blade's plane (see `resweep.rs`).
     partners: resweep::CutPartners,
     volume_removed: f64,
+    /// Total node mass when the cutter was made, kg, and the mass carving has removed since:
+    /// every other cut conserves mass, whatever the mass model (the mass invariant).
+    mass_before: f64,
+    mass_removed: f64,
     /// Nodes displaced less than this from rest are classified at rest (m).
     snap: f64,
     /// The mesh's longest rest edge: with how far apart the displacements near the blade are,
@@ -219,6 +223,8 @@ impl Cutter {
             })
             .sum();
         Ok(Cutter {
+            mass_before: model.total_mass(),
+            mass_removed: 0.0,
             surface_area,
             longest_rest,
             spread: None,
@@ -286,6 +292,11 @@ impl Cutter {
     /// Total rest volume removed by carving so far, m^3.
     pub fn volume_removed(&self) -> f64 {
         self.volume_removed
+    }
+
+    /// Total node mass removed by carving so far, kg (what the removed tets gave their nodes).
+    pub fn mass_removed(&self) -> f64 {
+        self.mass_removed
     }
 
     /// Face-neighbour pairs cut but not yet opened (the crack front of a partial cut).

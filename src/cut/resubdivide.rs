@@ -134,11 +134,15 @@ impl Cutter {
                 .filter(|(_, w)| !had.contains(w))
                 .map(|(n, _)| n)
                 .collect();
+            // All the family's sub-tets carry its parent's mass per volume: the new ones take
+            // it, so the gone ones' mass passes to them whatever the region's mass model.
+            let density = self.model.mass_density(&self.mesh, &old);
             plans.push(Resubdivision {
                 family: f,
                 kept,
                 gone,
                 fresh,
+                density,
             });
         }
         // Out with every sub-tet that goes first, so that faces between two parents are not
@@ -156,6 +160,7 @@ impl Cutter {
             kept,
             gone,
             fresh,
+            density,
         } in plans
         {
             let region = self.families.get(f).region;
@@ -172,7 +177,7 @@ impl Cutter {
                 };
                 self.note_tet(t);
                 keys.push(t);
-                made.push(t);
+                made.push((t, density));
             }
             for &t in gone.iter().skip(count) {
                 self.mesh.remove_tet(t);
@@ -181,8 +186,11 @@ impl Cutter {
             children.extend(keys.iter().copied());
             self.families.set_children(f, keys);
         }
-        for &t in &made {
-            self.model.add_tet(&self.mesh, t)?;
+        for &(t, density) in &made {
+            match density {
+                Some(d) => self.model.add_split_tet(&self.mesh, t, d)?,
+                None => self.model.add_tet(&self.mesh, t)?,
+            }
             let tet = *self.mesh.tet(t).expect("a sub-tet");
             self.faces.insert(t, &tet)?;
         }
@@ -207,12 +215,14 @@ pub(super) struct ParentPlan {
 }
 
 /// A family's sub-tets before and after a new mark: those the template keeps, those it drops
-/// (their keys go to new ones) and the new ones' corners.
+/// (their keys go to new ones), the new ones' corners, and the family's mass per rest volume
+/// (its sub-tets' before the mark), which the new ones take.
 struct Resubdivision {
     family: FamilyKey,
     kept: Vec<TetKey>,
     gone: Vec<TetKey>,
     fresh: Vec<[NodeKey; 4]>,
+    density: Option<f64>,
 }
 
 /// The parents a cut subdivides anew, and the families it ends.

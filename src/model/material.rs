@@ -23,6 +23,14 @@
 //! Lumped: each tet gives `rho V_T / 4` to each of its nodes. With a uniform node mass `m`
 //! instead, each tet gives `m / n_i` to node `i`, `n_i` being the number of tets at that node.
 //!
+//! Cuts conserve mass whatever the mass model: separating moves each tet's share with it to
+//! the copies of its nodes, carving removes exactly the carved tets' shares, and a tet split by
+//! subdividing passes its mass to its sub-tets by volume. A sub-tet of a parent holding mass
+//! `M_T` in rest volume `V_T` gives `(M_T / V_T) V / 4` to each of its corners, as if the parent
+//! had the density `M_T / V_T` (with a density, that is the density itself): the nodes a split
+//! makes get their mass from the parent's nodes, not a new node's `m`, so after subdividing a
+//! per-node model's nodes no longer all weigh `m`, but the whole still weighs what it did.
+//!
 //! # Damping
 //!
 //! Along each spring, `c_e (v_b - v_a) . u u`, with `c_e` given in N s/m per spring or as
@@ -66,7 +74,9 @@ pub enum Stiffness {
 pub enum Mass {
     /// Density, kg/m^3: each tet gives `rho V / 4` to each of its nodes.
     Density(f64),
-    /// Uniform mass per node, kg, shared equally among the tets at the node.
+    /// Uniform mass per node, kg, shared equally among the tets at the node. A subdividing cut
+    /// passes a split tet's mass to its sub-tets by volume (see the module documentation), so
+    /// the nodes it makes take their mass from their neighbours': mass is conserved.
     PerNode(f64),
 }
 

@@ -171,7 +171,7 @@ impl SpringModel {
         for (tk, t) in mesh.tets() {
             let at_node = t.nodes.map(|n| tets_at_node.get(n).copied().unwrap_or(1));
             let at_edge = TET_EDGES.map(|[a, b]| tets_at_edge[&edge_key(t.nodes[a], t.nodes[b])]);
-            let share = model.tet_share(mesh, tk, at_node, at_edge)?;
+            let share = model.tet_share(mesh, tk, at_node, at_edge, None)?;
             model.apply_share(mesh, tk, share, 1.0);
         }
         for sel in &config.fixed {
@@ -226,13 +226,16 @@ impl SpringModel {
     /// hold each of its corners (`at_node`, in corner order) and each of its edges (`at_edge`,
     /// in [`TET_EDGES`] order), counting this one: the "per node" and "per spring" values are
     /// split equally among them. Arrays rather than maps, because adding one tet to a large
-    /// model must not cost a map sized to the model.
+    /// model must not cost a map sized to the model. With `parent_density` (kg/m^3, a tet
+    /// split from a parent of that mass per rest volume), a "per node" region's tet gives
+    /// `parent_density V / 4` to each corner instead, so that splitting conserves mass.
     fn tet_share(
         &mut self,
         mesh: &TetMesh,
         tk: TetKey,
         at_node: [u32; 4],
         at_edge: [u32; 6],
+        parent_density: Option<f64>,
     ) -> Result<TetShare> {
         let t = *mesh
             .tet(tk)
@@ -269,9 +272,10 @@ impl SpringModel {
             share.damping[e] = c;
         }
         for (i, held) in at_node.iter().enumerate() {
-            share.mass[i] = match mat.mass {
-                Mass::Density(rho) => rho * volume / 4.0,
-                Mass::PerNode(m) => m / (*held).max(1) as f64,
+            share.mass[i] = match (mat.mass, parent_density) {
+                (Mass::Density(rho), _) => rho * volume / 4.0,
+                (Mass::PerNode(_), Some(density)) => density * volume / 4.0,
+                (Mass::PerNode(m), None) => m / (*held).max(1) as f64,
             };
         }
         Ok(share)
@@ -423,11 +427,37 @@ impl SpringModel {
         Ok(removed)
     }
 
-    /// Add what a new tet `tk` of `mesh` contributes (a cut that subdivides adds tets). Material
-    /// stiffness and density shares depend only on the tet's geometry, so they are exact; the
-    /// "per spring" and "per node" parameterisations split their value among the tets holding
-    /// an edge or node counted now, this one included (earlier tets keep their shares).
+    /// Add what a new tet `tk` of `mesh` contributes. Material stiffness and density shares
+    /// depend only on the tet's geometry, so they are exact; the "per spring" and "per node"
+    /// parameterisations split their value among the tets holding an edge or node counted now,
+    /// this one included (earlier tets keep their shares). A tet split from a parent takes
+    /// [`SpringModel::add_split_tet`] instead, which conserves the parent's mass.
     pub fn add_tet(&mut self, mesh: &TetMesh, tk: TetKey) -> Result<()> {
+        self.add_tet_with(mesh, tk, None)
+    }
+
+    /// Add a tet `tk` that a cut split from parent tets whose mass was `parent_density` per
+    /// rest volume ([`SpringModel::mass_density`] of the tets it replaces). Stiffness and
+    /// damping as [`SpringModel::add_tet`]; the mass as for a density: `parent_density V / 4`
+    /// to each corner, whatever the region's mass model, so that the sub-tets of a parent
+    /// carry exactly the parent's mass. With [`Mass::Density`] that is the region's density,
+    /// and the region's own rule is kept (it is exact already).
+    pub fn add_split_tet(&mut self, mesh: &TetMesh, tk: TetKey, parent_density: f64) -> Result<()> {
+        if !(parent_density.is_finite() && parent_density > 0.0) {
+            return Err(Error::Model(format!(
+                "a split tet's parent has mass density {parent_density}; it must be finite and \
+                 positive"
+            )));
+        }
+        self.add_tet_with(mesh, tk, Some(parent_density))
+    }
+
+    fn add_tet_with(
+        &mut self,
+        mesh: &TetMesh,
+        tk: TetKey,
+        parent_density: Option<f64>,
+    ) -> Result<()> {
         let t = *mesh
             .tet(tk)
             .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
@@ -436,9 +466,21 @@ impl SpringModel {
             let key = edge_key(t.nodes[a], t.nodes[b]);
             self.by_edge.get(&key).map_or(0, |s| self.springs[*s].tets) + 1
         });
-        let share = self.tet_share(mesh, tk, at_node, at_edge)?;
+        let share = self.tet_share(mesh, tk, at_node, at_edge, parent_density)?;
         self.apply_share(mesh, tk, share, 1.0);
         Ok(())
+    }
+
+    /// The mass the tets `tets` of `mesh` give their nodes, per unit of their rest volume,
+    /// kg/m^3: what their sub-tets take when a cut splits them
+    /// ([`SpringModel::add_split_tet`]). `None` when they hold no volume or have no share.
+    pub fn mass_density(&self, mesh: &TetMesh, tets: &[TetKey]) -> Option<f64> {
+        let (mut mass, mut volume) = (0.0, 0.0);
+        for &t in tets {
+            mass += self.shares.get(t)?.mass.iter().sum::<f64>();
+            volume += mesh.tet_volume(t);
+        }
+        (volume > 0.0 && mass > 0.0).then(|| mass / volume)
     }
 
     /// Number of tets holding node `n`.

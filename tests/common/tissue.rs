@@ -5,6 +5,7 @@ use lancet::collide::broad::Surface;
 use lancet::collide::response::{resolve_contacts, ContactSettings, ToolForce};
 use lancet::collide::Tool;
 use lancet::engine::{EngineKind, SimConfig, Simulation};
+use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{stable_time_step, FixedSelector, Material, ModelConfig, SpringModel};
 use nalgebra::{Isometry3, Vector3};
@@ -25,13 +26,25 @@ pub fn clamped(normal: [f64; 3], alpha: f64) -> ModelConfig {
 /// A simulation of `grid` under `config` on engine `kind` at half the stable step, with its
 /// surface given for contact.
 pub fn tissue(grid: BoxGrid, config: &ModelConfig, kind: EngineKind) -> Simulation {
+    tissue_in(grid, config, kind, LayoutKind::default())
+}
+
+/// [`tissue`] with the GPU engine's spring layout chosen (ignored by the CPU engines).
+pub fn tissue_in(
+    grid: BoxGrid,
+    config: &ModelConfig,
+    kind: EngineKind,
+    layout: LayoutKind,
+) -> Simulation {
     let mesh = grid.build().unwrap();
     let model = SpringModel::build(&mesh, config)
         .unwrap()
         .pack(&mesh)
         .unwrap();
     let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim = Simulation::new(model, kind, SimConfig::new(dt)).unwrap();
+    let mut sim_config = SimConfig::new(dt);
+    sim_config.layout = layout;
+    let mut sim = Simulation::new(model, kind, sim_config).unwrap();
     sim.set_surface(Surface::of(&mesh).triangles).unwrap();
     sim
 }
