@@ -3,8 +3,8 @@
 //! Soft-tissue simulation with cutting, for surgical simulators: unstructured tetrahedral
 //! meshes ([`mesh`]), a mass-spring model ([`model`]) stepped by a float64 reference engine, a
 //! fast float32 CPU engine or a wgpu engine in three memory layouts ([`engine`], [`layout`]),
-//! surgical tools with GPU broad phase, parry3d narrow phase and contact response
-//! ([`collide`]), incisions that edit the mesh and patch the engine ([`cut`]), scenes with
+//! surgical tools with GPU broad phase and parry3d narrow phase ([`collide`]) and contact
+//! response ([`contact`]), incisions that edit the mesh and patch the engine ([`cut`]), scenes with
 //! checked expectations and reports.
 //!
 //! ```
@@ -16,6 +16,8 @@
 #![warn(missing_docs)]
 
 pub mod collide;
+#[cfg(feature = "collide")]
+pub mod contact;
 pub mod error;
 pub mod mesh;
 

@@ -9,8 +9,8 @@
 mod common;
 
 use lancet::collide::broad::Surface;
-use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
+use lancet::contact::response::{resolve_contacts, ContactSettings};
 use lancet::engine::{EngineKind, SimConfig, Simulation};
 use lancet::error::Error;
 use lancet::mesh::generate::BoxGrid;

@@ -8,8 +8,8 @@ mod tissue;
 
 mod common;
 
-use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolPart, ToolShape};
+use lancet::contact::response::{resolve_contacts, ContactSettings};
 use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
 use nalgebra::{Isometry3, Point3, Vector3};

@@ -4,9 +4,9 @@
 #[path = "common/tissue.rs"]
 mod tissue;
 
-use lancet::collide::grasp::Grasp;
-use lancet::collide::response::{resolve_contacts, resolve_contacts_excluding, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
+use lancet::contact::grasp::Grasp;
+use lancet::contact::response::{resolve_contacts, resolve_contacts_excluding, ContactSettings};
 use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
 use nalgebra::{Isometry3, Vector3};

@@ -9,8 +9,8 @@ mod tissue;
 
 mod common;
 
-use lancet::collide::response::{resolve_contacts, ContactSettings};
 use lancet::collide::{Tool, ToolShape};
+use lancet::contact::response::{resolve_contacts, ContactSettings};
 use lancet::engine::{EngineKind, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::{BoxGrid, TetSplit};

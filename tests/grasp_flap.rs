@@ -5,8 +5,8 @@
 #[path = "common/tissue.rs"]
 mod tissue;
 
-use lancet::collide::grasp::Grasp;
 use lancet::collide::{Tool, ToolShape};
+use lancet::contact::grasp::Grasp;
 use lancet::engine::{EngineKind, Simulation};
 use lancet::mesh::generate::BoxGrid;
 use nalgebra::{Isometry3, Vector3};

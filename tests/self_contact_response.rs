@@ -9,7 +9,7 @@ mod common;
 
 use lancet::collide::broad::Surface;
 use lancet::collide::self_narrow::closest_on_triangle;
-use lancet::collide::self_response::{
+use lancet::contact::self_response::{
     resolve_self_contacts, SelfContactReport, SelfContactSettings,
 };
 use lancet::engine::{EngineKind, SimConfig, Simulation};

@@ -1,4 +1,6 @@
-//! Surgical tools and their contact with the tissue.
+//! Surgical tools and finding what they touch: shapes and poses, the broad phases and the
+//! narrow phases. Below the engines (which run the broad phases on the device); what contact
+//! does to the tissue is [`crate::contact`], above them.
 //!
 //! A [`Tool`] is a rigid [`ToolShape`] (probe or needle, sphere, blade, grasper) with a pose in
 //! the scene frame (metres, `nalgebra::Isometry3<f64>`). Where the pose comes from is up to the
@@ -21,27 +23,16 @@
 //!   triangle or tetrahedron, computed in a local frame centred on the tool part and scaled to
 //!   unit size so that parry's float32 arithmetic stays accurate for millimetre tools in scenes
 //!   measured in metres.
-//! - `grasp.rs` (feature `collide`): a closed grasper holds the surface nodes between its jaws.
-//! - `response.rs` (feature `collide`): penetrating surface triangles pushed out of the tools by
-//!   position correction, and the reaction force on each tool.
 //! - `self_narrow.rs` (feature `collide`): triangle against triangle through parry3d (in a
 //!   unit frame centred on the pair), and the float64 node–triangle and edge–edge proximity
 //!   primitives.
-//! - `self_response.rs` (feature `collide`): self-contacts (surfaces closer than a thickness or
-//!   a little inside each other) separated by equal and opposite, mass-weighted corrections.
 
 pub mod broad;
 #[cfg(feature = "collide")]
-pub mod grasp;
-#[cfg(feature = "collide")]
 pub mod narrow;
-#[cfg(feature = "collide")]
-pub mod response;
 pub mod self_broad;
 #[cfg(feature = "collide")]
 pub mod self_narrow;
-#[cfg(feature = "collide")]
-pub mod self_response;
 pub mod tool;
 
 pub use tool::{Aabb, Keyframe, Tool, ToolPart, ToolShape, Trajectory};

@@ -12,9 +12,9 @@ use nalgebra::{Isometry3, Point3};
 
 use crate::collide::broad::{cull_cpu, Surface, ToolBox};
 use crate::collide::narrow::tool_triangle;
-use crate::collide::response::{resolve_contacts, ContactSettings};
 use crate::collide::self_broad::{self_pairs_cpu, GridParams};
 use crate::collide::{Tool, ToolShape};
+use crate::contact::response::{resolve_contacts, ContactSettings};
 use crate::engine::gpu::{GpuContext, GpuEngine};
 use crate::engine::{Engine, EngineKind, SimConfig, Simulation};
 use crate::error::Result;

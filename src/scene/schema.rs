@@ -294,7 +294,7 @@ pub struct Scene {
     #[serde(default)]
     pub cut: Option<super::cuts::SceneCut>,
     /// Tissue against itself: each step its surfaces that come closer than `thickness` are
-    /// pushed apart symmetrically (`collide::self_response`).
+    /// pushed apart symmetrically (`contact::self_response`).
     #[serde(default)]
     pub self_contact: Option<SceneSelfContact>,
 }
@@ -355,7 +355,7 @@ pub struct SceneTool {
     /// Keyframed poses or a scripted velocity.
     pub trajectory: Trajectory,
     /// When a grasper holds the tissue: at each window's `close` time it captures the surface
-    /// nodes between its jaws ([`crate::collide::grasp::Grasp::close`]), carries them with it
+    /// nodes between its jaws ([`crate::contact::grasp::Grasp::close`]), carries them with it
     /// every step, and lets them go at `open`. Only for a `Grasper`; windows in increasing
     /// time, not overlapping.
     #[serde(default)]

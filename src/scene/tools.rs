@@ -1,7 +1,7 @@
 //! Tools in a scene run: each step the tools take their poses from their trajectories, the
 //! simulation steps, graspers whose grasp window has begun close on the tissue between their
 //! jaws (and let go when it ends) and carry what they hold, and penetrating tissue is pushed
-//! out of the tools ([`crate::collide::response::resolve_contacts_excluding`], held nodes left
+//! out of the tools ([`crate::contact::response::resolve_contacts_excluding`], held nodes left
 //! to their grasp); what each tool felt is kept for the summary and the `ToolForce` and
 //! `GraspCarried` expectations.
 
@@ -12,12 +12,12 @@ use crate::error::Result;
 use crate::mesh::TetMesh;
 
 #[cfg(feature = "collide")]
-use crate::collide::{
-    broad::Surface,
+use crate::collide::{broad::Surface, Tool, ToolShape};
+#[cfg(feature = "collide")]
+use crate::contact::{
     grasp::Grasp,
     response::{resolve_contacts_excluding, ContactSettings},
     self_response::{resolve_self_contacts, SelfContactSettings},
-    Tool, ToolShape,
 };
 
 /// The tools of a running scene.

@@ -2,8 +2,8 @@
 #![allow(dead_code)] // each test file uses a different subset
 
 use lancet::collide::broad::Surface;
-use lancet::collide::response::{resolve_contacts, ContactSettings, ToolForce};
 use lancet::collide::Tool;
+use lancet::contact::response::{resolve_contacts, ContactSettings, ToolForce};
 use lancet::engine::{EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;

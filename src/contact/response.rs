@@ -5,7 +5,7 @@
 //!
 //! Per call: the tools' swept bounds (widened by the contact skin) go through the broad phase
 //! ([`Simulation::cull_tools`], on the device for the GPU engine), only the candidate
-//! triangles' nodes are read back, the narrow phase ([`super::narrow::tool_triangle`]) gives
+//! triangles' nodes are read back, the narrow phase ([`crate::collide::narrow::tool_triangle`]) gives
 //! each penetrating triangle its depth, normal and deepest point, and the triangle is moved
 //! along the normal by the depth, spread over its free corners by their barycentric weights at
 //! that point (the smallest such move). Nodes shared by several contacts take the mean of their
@@ -29,9 +29,9 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::broad::ToolBox;
-use super::narrow::tool_triangle;
-use super::tool::Tool;
+use crate::collide::broad::ToolBox;
+use crate::collide::narrow::tool_triangle;
+use crate::collide::tool::Tool;
 use crate::engine::Simulation;
 use crate::error::{Error, Result};
 
@@ -124,7 +124,7 @@ pub fn resolve_contacts(
 }
 
 /// [`resolve_contacts`], leaving the nodes `held` (model indices, any order) where they are:
-/// nodes a grasper holds ([`super::grasp::Grasp::nodes`]) are placed by the grasp, not pushed
+/// nodes a grasper holds ([`crate::contact::grasp::Grasp::nodes`]) are placed by the grasp, not pushed
 /// by contacts. Like fixed nodes they take no share of a contact's move.
 pub fn resolve_contacts_excluding(
     sim: &mut Simulation,

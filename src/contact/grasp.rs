@@ -4,8 +4,8 @@
 
 use nalgebra::Point3;
 
-use super::broad::ToolBox;
-use super::tool::{Tool, ToolShape};
+use crate::collide::broad::ToolBox;
+use crate::collide::tool::{Tool, ToolShape};
 use crate::engine::Simulation;
 use crate::error::{Error, Result};
 
@@ -76,7 +76,7 @@ impl Grasp {
 
     /// Move the held nodes with the tool at its current pose (call once per step, after the
     /// step, while the grasper stays closed). Contacts should leave them alone
-    /// ([`super::response::resolve_contacts_excluding`] with [`Grasp::nodes`]).
+    /// ([`crate::contact::response::resolve_contacts_excluding`] with [`Grasp::nodes`]).
     pub fn hold(&self, sim: &mut Simulation, tool: &Tool) -> Result<()> {
         sim.correct_positions(&self.nodes, &self.targets(tool))
     }

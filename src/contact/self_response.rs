@@ -4,7 +4,7 @@
 //!
 //! # Why not the triangle–triangle depth
 //!
-//! [`super::self_narrow::triangle_triangle`] gives parry's signed distance between two surface
+//! [`crate::collide::self_narrow::triangle_triangle`] gives parry's signed distance between two surface
 //! triangles, right to a nanometre separated or intersecting (`tests/collide_self_narrow.rs`;
 //! EPA was not degenerate on any of the measured pairs, nearly coplanar ones included). But
 //! once two triangles cross, their depth is that of the Minkowski difference of two flat
@@ -45,7 +45,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::self_narrow::{edge_edge, point_triangle};
+use crate::collide::self_narrow::{edge_edge, point_triangle};
 use crate::engine::Simulation;
 use crate::error::{Error, Result};
 
@@ -288,7 +288,8 @@ impl SelfContactProblem {
         });
         self.edge_edge.retain(|&(a, b)| {
             let (p1, q1, p2, q2) = (x[a[0]], x[a[1]], x[b[0]], x[b[1]]);
-            let (c1, c2, _, _) = super::self_narrow::closest_segment_segment(&p1, &q1, &p2, &q2);
+            let (c1, c2, _, _) =
+                crate::collide::self_narrow::closest_segment_segment(&p1, &q1, &p2, &q2);
             (c1 - c2).norm() < h.max(deep) + slack
         });
         for sweep in 0..settings.iterations.max(1) {
