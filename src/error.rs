@@ -131,6 +131,27 @@ pub enum Error {
         reason: String,
     },
 
+    /// Tets turned inside out during a run (a material far too soft for its load, or a step
+    /// too large): reported like a divergence, unless the scene allows it.
+    #[error(
+        "{count} tets inverted by step {step} (checked every {every} steps); tet {tet} first, \
+         at {ratio:.3} of its rest volume (stiffen the material, lower dt, or give the scene \
+         `allow_inverted: true` to run on)"
+    )]
+    Inverted {
+        /// The step at which the inversion was found.
+        step: u64,
+        /// How many steps apart the checks are: the tets turned over within the last `every`.
+        every: u64,
+        /// The first inverted tet (index in the mesh's tet order, the order of a written VTU's
+        /// cells).
+        tet: usize,
+        /// How many tets are inverted.
+        count: usize,
+        /// The first inverted tet's signed volume over its rest volume (negative).
+        ratio: f64,
+    },
+
     /// A scene file is inconsistent (unknown region, missing mesh, ...).
     #[error("{}: {message}", path.display())]
     Scene {
