@@ -63,5 +63,9 @@ fn allowed_inversions_run_on_and_a_stiff_cube_is_not_reported() {
     let stiff = run(&cube(50e3, ""), EngineKind::Fast);
     assert!(!stiff.diverged, "{stiff:#?}");
     assert!(stiff.expectations_passed);
-    assert!((stiff.volume_ratio - 1.0).abs() < 0.01, "{}", stiff.volume_ratio);
+    assert!(
+        (stiff.volume_ratio - 1.0).abs() < 0.01,
+        "{}",
+        stiff.volume_ratio
+    );
 }

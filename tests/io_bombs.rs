@@ -36,7 +36,12 @@ fn zlib_b64_blocks(blocks: &[Vec<u8>], block: u32, last: u32) -> String {
 
 /// A one-tet `.vtu` with compressed arrays; `points` replaces the Points array's data.
 fn one_tet(points: &str, connectivity: &str) -> Vec<u8> {
-    let ints = |v: &[i32]| zlib_b64(&v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<_>>(), 64);
+    let ints = |v: &[i32]| {
+        zlib_b64(
+            &v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<_>>(),
+            64,
+        )
+    };
     format!(
         r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt32" compressor="vtkZLibDataCompressor">
 <UnstructuredGrid><Piece NumberOfPoints="4" NumberOfCells="1">
@@ -71,8 +76,12 @@ fn tet_connectivity() -> String {
 /// The helper's file is itself valid: one tet.
 #[test]
 fn the_compressed_one_tet_file_reads() {
-    let m = read_bytes(&one_tet(&tet_points(), &tet_connectivity()), "vtu", Path::new("t.vtu"))
-        .unwrap();
+    let m = read_bytes(
+        &one_tet(&tet_points(), &tet_connectivity()),
+        "vtu",
+        Path::new("t.vtu"),
+    )
+    .unwrap();
     assert_eq!(m.mesh.tet_count(), 1);
 }
 

@@ -41,7 +41,10 @@ fn each_cut_method_writes_its_own_series() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene("incision", "Some((methods: [Separate, Remove]))");
     let mut pvds = Vec::new();
-    for method in [lancet::cut::CutMethod::Separate, lancet::cut::CutMethod::Remove] {
+    for method in [
+        lancet::cut::CutMethod::Separate,
+        lancet::cut::CutMethod::Remove,
+    ] {
         let opts = RunOptions {
             output_dir: Some(dir.path().to_path_buf()),
             cut_method: Some(method),
@@ -75,7 +78,10 @@ fn names_differing_only_in_punctuation_give_different_series() {
             assert_ne!(a, b);
         }
     }
-    assert_eq!(series_stem(&scene("hanging beam-2", "None"), None), "hanging_beam-2");
+    assert_eq!(
+        series_stem(&scene("hanging beam-2", "None"), None),
+        "hanging_beam-2"
+    );
 }
 
 /// A rerun with fewer frames once left the earlier run's later frames beside a series that did

@@ -149,9 +149,9 @@ impl BoxGrid {
 }
 
 /// Bytes a run takes per tet of a generated box: the mesh, the spring model, the packed model
-/// and the float32 engine's state together. Measured as the peak resident memory of `lancet
-/// run` of a box scene with the fast engine for one step, less that of a four-tet scene,
-/// divided by the tets (see the constant's test), and rounded up.
+/// and the engine's state together. Measured as the peak resident memory of `lancet run` of a
+/// box of 40^3 cells (384,000 tets) for one step, less that of a one-cell box: 853 bytes a tet
+/// with the fast engine (656 with the reference engine); rounded up.
 pub const RUN_BYTES_PER_TET: u64 = 1000;
 
 /// The memory the system says is available to a new allocation, bytes: `MemAvailable` of

@@ -302,15 +302,17 @@ pub fn run_scene(
     summary.cut_method = method.map(|m| m.to_string());
     let start = Instant::now();
     let mut done = 0;
-    let chunk = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
+    let every = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
     // Inverted tets are looked for between chunks: no further apart than this.
     let chunk = if scene.allow_inverted {
-        chunk
+        every
     } else {
-        chunk.min(INVERSION_CHECK_EVERY)
+        every.min(INVERSION_CHECK_EVERY)
     };
     while done < steps {
-        let n = chunk.min(steps - done);
+        // Chunks end at every frame's step, so that frames stay `every` steps apart.
+        let to_frame = every - done % every;
+        let n = chunk.min(to_frame).min(steps - done);
         let result = match stage.as_mut() {
             // Tools move and touch every step: step one at a time.
             Some(stage) => (0..n).try_for_each(|k| {
@@ -351,7 +353,8 @@ pub fn run_scene(
             }
             break;
         }
-        if let Some((w, _)) = frames.as_mut() {
+        let frame_due = done % every == 0 || done == steps;
+        if let Some((w, _)) = frames.as_mut().filter(|_| frame_due) {
             // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
             // still the simulation's.
             let current = stage

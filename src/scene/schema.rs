@@ -597,7 +597,6 @@ pub fn resolve_mesh_path(file: &str, scene_dir: &Path, scene_path: &Path) -> Res
     })
 }
 
-
 /// A RON error in words, and what to do about it. An unknown field or variant (a misspelling
 /// would otherwise be refused with only the list of valid names, or, before fields were
 /// checked, silently ignored) names the nearest valid one.

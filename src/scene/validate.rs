@@ -41,8 +41,10 @@ impl Scene {
             if self.cut.is_some() {
                 Ok(())
             } else {
-                Err("the scene does not cut; add a `cut` section or remove this expectation"
-                    .to_string())
+                Err(
+                    "the scene does not cut; add a `cut` section or remove this expectation"
+                        .to_string(),
+                )
             }
         };
         match e {

@@ -1152,7 +1152,13 @@ impl<'a> Doc<'a> {
         len: usize,
         components: usize,
     ) -> Result<Decoded> {
-        let d = self.array(desc, what, piece, components, len.saturating_mul(components))?;
+        let d = self.array(
+            desc,
+            what,
+            piece,
+            components,
+            len.saturating_mul(components),
+        )?;
         if len.checked_mul(components) != Some(d.values.len()) {
             return Err(self.err(
                 d.at.loc,
@@ -1215,7 +1221,9 @@ impl<'a> Doc<'a> {
         let (offsets, offsets_d) = self.ints(offsets, "offsets")?;
         // The connectivity length is given by the last offset (checked below), which also
         // bounds what its data may inflate to.
-        let conn_len = offsets.last().map_or(0, |&o| usize::try_from(o).unwrap_or(0));
+        let conn_len = offsets
+            .last()
+            .map_or(0, |&o| usize::try_from(o).unwrap_or(0));
         let conn = self.array(
             piece.connectivity.as_ref(),
             "connectivity",
