@@ -64,7 +64,7 @@ impl fmt::Display for ParseError {
 #[non_exhaustive]
 pub enum Error {
     /// A file could not be opened, read or written.
-    #[error("{}: {source} (check that the path exists and is readable/writable)", path.display())]
+    #[error("{}: {source} ({})", path.display(), io_hint(source))]
     Io {
         /// The file concerned.
         path: PathBuf,
@@ -207,5 +207,19 @@ impl Error {
             Error::Parse(p) => Some(p),
             _ => None,
         }
+    }
+}
+
+/// What to do about an I/O error: about the path where the path is likely the cause, about
+/// memory where memory ran out (a reader's allocation failing is not a missing file).
+fn io_hint(e: &std::io::Error) -> &'static str {
+    match e.kind() {
+        std::io::ErrorKind::OutOfMemory => {
+            "not enough memory: free memory, or use a smaller mesh or fewer frames"
+        }
+        std::io::ErrorKind::InvalidInput | std::io::ErrorKind::InvalidData => {
+            "check the value or the file's contents"
+        }
+        _ => "check that the path exists and is readable/writable",
     }
 }

@@ -246,3 +246,34 @@ fn building_a_box_far_too_large_is_an_error_not_an_abort() {
     let err = BoxGrid::cube_cells([1000; 3], 1e-3).build().unwrap_err();
     assert!(err.to_string().contains("GiB of memory"), "{err}");
 }
+
+// Item 9: messages.
+
+/// A zero time step was refused by the engine with a message naming no file.
+#[test]
+fn a_zero_or_negative_time_step_is_refused_naming_the_scene_file() {
+    for dt in ["Seconds(0.0)", "Seconds(-1e-4)", "BoundFraction(NaN)"] {
+        let text = scene_with("").replace("BoundFraction(0.5)", dt);
+        let msg = refusal(&text).to_string();
+        assert!(msg.starts_with("dir/x.ron: dt:"), "{dt}: {msg}");
+        assert!(msg.contains("finite and positive"), "{dt}: {msg}");
+    }
+}
+
+/// Running out of memory while reading once said to check that the path exists.
+#[test]
+fn an_out_of_memory_error_does_not_blame_the_path() {
+    let oom = lancet::Error::io(
+        "big.msh",
+        std::io::Error::from(std::io::ErrorKind::OutOfMemory),
+    )
+    .to_string();
+    assert!(!oom.contains("path exists"), "{oom}");
+    assert!(oom.contains("not enough memory"), "{oom}");
+    let missing = lancet::Error::io(
+        "gone.msh",
+        std::io::Error::from(std::io::ErrorKind::NotFound),
+    )
+    .to_string();
+    assert!(missing.contains("path exists"), "{missing}");
+}

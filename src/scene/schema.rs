@@ -460,6 +460,7 @@ impl Scene {
         })?;
         scene.validate_tools(path)?;
         scene.validate_cut(path)?;
+        scene.validate_time_step(path)?;
         scene.validate_fixed(path)?;
         scene.validate_expectations(path)?;
         Ok(scene)

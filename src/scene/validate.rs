@@ -9,6 +9,25 @@ use crate::collide::ToolShape;
 use crate::error::{Error, Result};
 
 impl Scene {
+    /// Check the time step: a finite positive `Seconds`, or a finite positive
+    /// `BoundFraction`; the message names the scene file (the engine, which checks it again,
+    /// knows no file).
+    pub fn validate_time_step(&self, path: &Path) -> Result<()> {
+        let (what, v) = match self.dt {
+            super::TimeStep::Seconds(s) => ("Seconds", s),
+            super::TimeStep::BoundFraction(f) => ("BoundFraction", f),
+        };
+        if v.is_finite() && v > 0.0 {
+            return Ok(());
+        }
+        Err(Error::Scene {
+            path: path.to_path_buf(),
+            message: format!(
+                "dt: {what}({v}) must be finite and positive; give e.g. dt: BoundFraction(0.9)"
+            ),
+        })
+    }
+
     /// Check every fixed-node selector's numbers ([`crate::model::FixedSelector::validate`]);
     /// the message names the selector by index. Whether it selects a node is checked when the
     /// model is built, against the mesh.
