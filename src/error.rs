@@ -64,7 +64,7 @@ impl fmt::Display for ParseError {
 #[non_exhaustive]
 pub enum Error {
     /// A file could not be opened, read or written.
-    #[error("{}: {source} (check that the path exists and is readable/writable)", path.display())]
+    #[error("{}: {source} ({})", path.display(), io_hint(source))]
     Io {
         /// The file concerned.
         path: PathBuf,
@@ -131,6 +131,27 @@ pub enum Error {
         reason: String,
     },
 
+    /// Tets turned inside out during a run (a material far too soft for its load, or a step
+    /// too large): reported like a divergence, unless the scene allows it.
+    #[error(
+        "{count} tets inverted by step {step} (checked every {every} steps); tet {tet} first, \
+         at {ratio:.3} of its rest volume (stiffen the material, lower dt, or give the scene \
+         `allow_inverted: true` to run on)"
+    )]
+    Inverted {
+        /// The step at which the inversion was found.
+        step: u64,
+        /// How many steps apart the checks are: the tets turned over within the last `every`.
+        every: u64,
+        /// The first inverted tet (index in the mesh's tet order, the order of a written VTU's
+        /// cells).
+        tet: usize,
+        /// How many tets are inverted.
+        count: usize,
+        /// The first inverted tet's signed volume over its rest volume (negative).
+        ratio: f64,
+    },
+
     /// A scene file is inconsistent (unknown region, missing mesh, ...).
     #[error("{}: {message}", path.display())]
     Scene {
@@ -186,5 +207,19 @@ impl Error {
             Error::Parse(p) => Some(p),
             _ => None,
         }
+    }
+}
+
+/// What to do about an I/O error: about the path where the path is likely the cause, about
+/// memory where memory ran out (a reader's allocation failing is not a missing file).
+fn io_hint(e: &std::io::Error) -> &'static str {
+    match e.kind() {
+        std::io::ErrorKind::OutOfMemory => {
+            "not enough memory: free memory, or use a smaller mesh or fewer frames"
+        }
+        std::io::ErrorKind::InvalidInput | std::io::ErrorKind::InvalidData => {
+            "check the value or the file's contents"
+        }
+        _ => "check that the path exists and is readable/writable",
     }
 }

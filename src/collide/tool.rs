@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 
 /// The shape of a rigid tool, in the tool frame (axis along local z, working end at the origin).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum ToolShape {
     /// A probe or needle: a capsule whose axis runs from the origin to `(0, 0, length)`. The tip
     /// is the hemisphere centred at the origin (its apex at `z = -radius`). A needle is a thin
@@ -440,6 +441,7 @@ impl Tool {
 /// A pose at a time: translation in metres, rotation as a rotation vector (axis times angle,
 /// radians) so that scene files can write it as three numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Keyframe {
     /// Time, s.
     pub time: f64,
@@ -467,6 +469,7 @@ fn pose_from(translation: [f64; 3], rotation: [f64; 3]) -> Isometry3<f64> {
 
 /// How a scene moves a tool.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Trajectory {
     /// Keyframed poses at increasing times: the translation is interpolated linearly and the
     /// rotation by slerp (the shorter way round; put keyframes less than half a turn apart).

@@ -53,6 +53,7 @@ pub enum StiffnessRule {
 
 /// Spring stiffness of a region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Stiffness {
     /// From a continuum material.
     Material {
@@ -71,6 +72,7 @@ pub enum Stiffness {
 
 /// Node mass of a region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Mass {
     /// Density, kg/m^3: each tet gives `rho V / 4` to each of its nodes.
     Density(f64),
@@ -82,6 +84,7 @@ pub enum Mass {
 
 /// Damping along the springs of a region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
 pub enum SpringDamping {
     /// No damping along springs.
     #[default]
@@ -94,6 +97,7 @@ pub enum SpringDamping {
 
 /// The mechanical parameters of one region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Material {
     /// Spring stiffness.
     pub stiffness: Stiffness,

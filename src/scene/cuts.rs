@@ -40,6 +40,7 @@ pub enum TimeStepPolicy {
 /// cut: Some((methods: [Separate, Remove], time_step: Substep, check: true)),
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneCut {
     /// The methods the scene runs with; the first unless the command line picks one. `lancet
     /// run` runs a scene once per method.

@@ -16,6 +16,9 @@ pub struct ExpectationResult {
     pub measured: Option<f64>,
     /// Whether it held.
     pub passed: bool,
+    /// Whether it was skipped (an expectation for another cut method): it then counts neither
+    /// as a pass nor as a failure.
+    pub skipped: bool,
 }
 
 /// The state at the end of a run, as expectations see it.
@@ -81,6 +84,28 @@ pub fn deformed_volume(mesh: &TetMesh, x: &[[f64; 3]]) -> f64 {
         .sum()
 }
 
+/// The tets turned inside out at positions `x` (node order of `mesh.dense_nodes()`): how many,
+/// and the first (index in the mesh's tet order) with its signed volume over its rest volume.
+pub fn inverted_tets(mesh: &TetMesh, x: &[[f64; 3]]) -> Option<(usize, usize, f64)> {
+    let dense = mesh.dense_nodes();
+    let mut first = None;
+    let mut count = 0;
+    for (i, (_, t)) in mesh.tets().enumerate() {
+        let p = t
+            .nodes
+            .map(|k| nalgebra::Point3::from(x[dense.index[k] as usize]));
+        let v = signed_volume6(&p[0], &p[1], &p[2], &p[3]);
+        if v < 0.0 {
+            count += 1;
+            if first.is_none() {
+                let r = mesh.tet_points(t);
+                first = Some((i, v / signed_volume6(&r[0], &r[1], &r[2], &r[3])));
+            }
+        }
+    }
+    first.map(|(tet, ratio)| (count, tet, ratio))
+}
+
 fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
@@ -105,6 +130,7 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
         expectation: format!("{what} {}", range_text(min, max)),
         measured: Some(v),
         passed: ran && in_range(v, min, max),
+        skipped: false,
     };
     match e {
         Expectation::ToolForce { tool, min, max } => match s.tools.iter().find(|t| &t.name == tool)
@@ -119,6 +145,7 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
                 expectation: format!("largest force on {tool}: the scene has no such tool"),
                 measured: None,
                 passed: false,
+                skipped: false,
             },
         },
         Expectation::GraspCarried { tool, min, max } => {
@@ -138,6 +165,7 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
                     ),
                     measured: None,
                     passed: false,
+                    skipped: false,
                 },
             }
         }
@@ -199,9 +227,10 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
                 r
             } else {
                 ExpectationResult {
-                    expectation: format!("[{method}] not this method: skipped"),
+                    expectation: format!("[{method}] not this method"),
                     measured: None,
                     passed: true,
+                    skipped: true,
                 }
             }
         }
@@ -216,11 +245,13 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
             expectation: "time step refused as unstable".into(),
             measured: None,
             passed: s.refused,
+            skipped: false,
         },
         Expectation::Diverges => ExpectationResult {
             expectation: "divergence detected and reported".into(),
             measured: None,
             passed: s.diverged,
+            skipped: false,
         },
     }
 }
@@ -232,6 +263,7 @@ fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
             expectation: format!("{e:?}: the scene does not cut (add a `cut` section)"),
             measured: None,
             passed: false,
+            skipped: false,
         };
     };
     let counted = |what: &str, v: usize, min: Option<usize>, max: Option<usize>| {
@@ -240,6 +272,7 @@ fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
             expectation: format!("{what} {}", range_text(fmin, fmax)),
             measured: Some(v as f64),
             passed: ran && in_range(v as f64, fmin, fmax),
+            skipped: false,
         }
     };
     match e {
@@ -250,16 +283,19 @@ fn check_cut(e: &Expectation, s: &FinalState, ran: bool) -> ExpectationResult {
             expectation: format!("volume removed (fraction) {}", range_text(*min, *max)),
             measured: Some(c.volume_removed_fraction),
             passed: ran && in_range(c.volume_removed_fraction, *min, *max),
+            skipped: false,
         },
         Expectation::Opening { min, max } => ExpectationResult {
             expectation: format!("incision opening (m) {}", range_text(*min, *max)),
             measured: Some(c.max_opening),
             passed: ran && in_range(c.max_opening, *min, *max),
+            skipped: false,
         },
         Expectation::UploadFraction { max } => ExpectationResult {
             expectation: format!("largest layout fraction one cut uploaded <= {max}"),
             measured: Some(c.max_upload_fraction),
             passed: ran && c.max_upload_fraction <= *max,
+            skipped: false,
         },
         _ => invariants_held(c, ran),
     }
@@ -293,5 +329,6 @@ fn invariants_held(c: &super::cuts::CutReport, ran: bool) -> ExpectationResult {
         expectation,
         measured: Some(c.violations.len() as f64),
         passed: ran && unchecked.is_none() && c.checks == c.cuts && c.violations.is_empty(),
+        skipped: false,
     }
 }

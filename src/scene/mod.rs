@@ -5,6 +5,7 @@ pub mod expect;
 pub mod runner;
 pub mod schema;
 pub mod tools;
+pub mod validate;
 
 pub use expect::ExpectationResult;
 pub use runner::{run_scene, RunOptions, RunSummary};

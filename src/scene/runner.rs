@@ -109,6 +109,12 @@ pub struct RunSummary {
     pub expectations_passed: bool,
 }
 
+/// Steps between checks for inverted tets (unless the scene allows them), where frames are
+/// not written more often: a check reads the positions (on the GPU, back from the device) and
+/// computes every tet's volume, about as much work as one step, so a check this far apart costs
+/// a fraction of a per cent.
+pub const INVERSION_CHECK_EVERY: u64 = 500;
+
 /// Build the scene's mesh, with region boxes applied.
 pub fn build_mesh(scene: &Scene, scene_path: &Path) -> Result<TetMesh> {
     let dir = scene_path.parent().unwrap_or(Path::new("."));
@@ -275,7 +281,7 @@ pub fn run_scene(
         .map_or((steps / 10).max(1), |o| o.every.max(1));
     let mut frames = match out_dir {
         Some(dir) if !opts.no_output => {
-            let stem = sanitize(&scene.name);
+            let stem = series_stem(scene, opts.cut_method);
             let mut w = PvdWriter::new(&dir, &stem, Default::default())?;
             w.frame(0.0, &mesh, Some(&sim.positions()))?;
             summary.pvd = Some(dir.join(format!("{stem}.pvd")));
@@ -296,9 +302,17 @@ pub fn run_scene(
     summary.cut_method = method.map(|m| m.to_string());
     let start = Instant::now();
     let mut done = 0;
-    let chunk = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
+    let every = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
+    // Inverted tets are looked for between chunks: no further apart than this.
+    let chunk = if scene.allow_inverted {
+        every
+    } else {
+        every.min(INVERSION_CHECK_EVERY)
+    };
     while done < steps {
-        let n = chunk.min(steps - done);
+        // Chunks end at every frame's step, so that frames stay `every` steps apart.
+        let to_frame = every - done % every;
+        let n = chunk.min(to_frame).min(steps - done);
         let result = match stage.as_mut() {
             // Tools move and touch every step: step one at a time.
             Some(stage) => (0..n).try_for_each(|k| {
@@ -309,8 +323,27 @@ pub fn run_scene(
             None => sim.run_with(n, |d| progress(done + d, steps)),
         };
         done = sim.steps();
+        let result = result.and_then(|()| {
+            if scene.allow_inverted {
+                return Ok(());
+            }
+            let current = stage
+                .as_ref()
+                .and_then(|s| s.cut.as_ref())
+                .map_or(&mesh, |c| c.mesh());
+            match expect::inverted_tets(current, &sim.positions()) {
+                Some((count, tet, ratio)) => Err(Error::Inverted {
+                    step: done,
+                    every: chunk,
+                    tet,
+                    count,
+                    ratio,
+                }),
+                None => Ok(()),
+            }
+        });
         if let Err(e) = result {
-            summary.diverged = matches!(e, Error::Diverged { .. });
+            summary.diverged = matches!(e, Error::Diverged { .. } | Error::Inverted { .. });
             // A cut that lowered the stable bound below dt under the `Stop` policy ends the run
             // here; it is reported, and fails the scene, like a divergence.
             summary.stopped = matches!(e, Error::CutLoweredTimeStep { .. });
@@ -320,7 +353,8 @@ pub fn run_scene(
             }
             break;
         }
-        if let Some((w, _)) = frames.as_mut() {
+        let frame_due = done % every == 0 || done == steps;
+        if let Some((w, _)) = frames.as_mut().filter(|_| frame_due) {
             // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
             // still the simulation's.
             let current = stage
@@ -400,15 +434,35 @@ fn finish(
     summary.expectations_passed = clean && summary.expectations.iter().all(|r| r.passed);
 }
 
-/// A file-name-safe version of a scene name.
+/// The name of a run's series (its `.pvd` and frames): the scene's name made file-name-safe,
+/// and, for a scene that cuts, the method it runs with, so that the runs of a scene's methods
+/// do not write over one another.
+pub fn series_stem(scene: &Scene, cut_method: Option<crate::cut::CutMethod>) -> String {
+    let stem = sanitize(&scene.name);
+    let method = cut_method.or_else(|| scene.cut.as_ref().and_then(|c| c.methods.first().copied()));
+    match method {
+        Some(m) => format!("{stem}_{}", sanitize(&m.to_string()).to_lowercase()),
+        None => stem,
+    }
+}
+
+/// A file-name-safe version of a scene name: letters, digits, `-` and `_` kept, spaces made
+/// `_`. A name with any other character (`a.b`, `a/b`, `a:b` would all read `a_b`) gets a
+/// short hash of the whole name appended, so that names differing only in punctuation give
+/// different files.
 fn sanitize(name: &str) -> String {
+    let keep = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
     let s: String = name
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .map(|c| if keep(c) { c } else { '_' })
         .collect();
-    if s.is_empty() {
-        "scene".into()
-    } else {
-        s
+    if !s.is_empty() && name.chars().all(|c| keep(c) || c == ' ') {
+        return s;
     }
+    // FNV-1a: stable across builds and platforms (std's hasher is not).
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    });
+    let base = if s.is_empty() { "scene" } else { &s };
+    format!("{base}_{:08x}", hash as u32)
 }

@@ -30,6 +30,7 @@ use crate::model::{FixedSelector, Material};
 
 /// Where the mesh comes from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum MeshSource {
     /// A mesh file. A relative path is taken from the scene file's folder; a path starting with
     /// `$LANCET_MESH_DIR/` from that environment variable's folder.
@@ -58,6 +59,7 @@ pub enum MeshSource {
 
 /// A box of space whose tets (by centroid) get a region tag.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RegionBox {
     /// The tag to give.
     pub tag: i32,
@@ -82,6 +84,7 @@ pub enum TimeStep {
 
 /// Writing results.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Output {
     /// Folder for the frames and the `.pvd` (relative to the scene file's folder).
     pub dir: String,
@@ -91,6 +94,7 @@ pub struct Output {
 
 /// Something the run must satisfy; checked after the last step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Expectation {
     /// Bounds on the largest nodal displacement, m.
     MaxDisplacement {
@@ -237,6 +241,7 @@ pub enum EnergyPart {
 
 /// A scene: mesh, model, run settings, outputs and expectations.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Scene {
     /// Name shown in summaries.
     pub name: String,
@@ -279,6 +284,11 @@ pub struct Scene {
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,
+    /// Run on when tets turn inside out. By default the run checks for inverted tets every
+    /// [`super::runner::INVERSION_CHECK_EVERY`] steps (and at each frame) and stops, reported
+    /// like a divergence, at the first.
+    #[serde(default)]
+    pub allow_inverted: bool,
     /// VTU output.
     #[serde(default)]
     pub output: Option<Output>,
@@ -305,6 +315,7 @@ pub struct Scene {
 /// self_contact: Some((thickness: 1e-4, max_depth: 1e-3)),
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneSelfContact {
     /// Surfaces are kept this far apart, m.
     pub thickness: f64,
@@ -347,6 +358,7 @@ fn default_self_contact_iterations() -> usize {
 /// ]
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneTool {
     /// Name shown in summaries and force reports; unique within the scene.
     pub name: String,
@@ -364,6 +376,7 @@ pub struct SceneTool {
 
 /// A time window during which a grasper holds what lies between its jaws.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GraspWindow {
     /// Time the grasper closes, s.
     pub close: f64,
@@ -435,21 +448,25 @@ pub const DEFAULT_SCENE: &str = include_str!("../../fixtures/scenes/default.ron"
 
 impl Scene {
     /// Parse a scene from RON text; `path` is used in messages.
-    /// Tools are validated here (sizes, keyframe order, unique names), so a bad tool is
-    /// reported before any mesh is read.
+    /// Tools, cut settings, fixed-node selectors and expectations are validated here (see
+    /// [`Scene::validate_expectations`]), so a mistake is reported before any mesh is read.
+    /// Unknown fields are refused, naming the nearest valid one.
     pub fn from_ron(text: &str, path: &Path) -> Result<Scene> {
         let scene: Scene = ron::from_str(text).map_err(|e| {
-            let msg = e.code.to_string();
+            let (message, hint) = describe_ron_error(&e.code);
             Error::parse(
                 path,
                 crate::error::Location::Line(e.span.start.line),
                 None,
-                format!("scene is not valid: {}", msg.to_lowercase()),
-                "see the scene format in the README",
+                format!("scene is not valid: {message}"),
+                hint,
             )
         })?;
         scene.validate_tools(path)?;
         scene.validate_cut(path)?;
+        scene.validate_time_step(path)?;
+        scene.validate_fixed(path)?;
+        scene.validate_expectations(path)?;
         Ok(scene)
     }
 
@@ -583,4 +600,55 @@ pub fn resolve_mesh_path(file: &str, scene_dir: &Path, scene_path: &Path) -> Res
     } else {
         scene_dir.join(p)
     })
+}
+
+/// A RON error in words, and what to do about it. An unknown field or variant (a misspelling
+/// would otherwise be refused with only the list of valid names, or, before fields were
+/// checked, silently ignored) names the nearest valid one.
+fn describe_ron_error(code: &ron::Error) -> (String, String) {
+    let (kind, expected, found, outer) = match code {
+        ron::Error::NoSuchStructField {
+            expected,
+            found,
+            outer,
+        } => ("field", *expected, found, outer),
+        ron::Error::NoSuchEnumVariant {
+            expected,
+            found,
+            outer,
+        } => ("variant", *expected, found, outer),
+        other => {
+            return (
+                other.to_string().to_lowercase(),
+                "see the scene format in the README".into(),
+            )
+        }
+    };
+    let within = outer
+        .as_ref()
+        .map_or(String::new(), |o| format!(" in `{o}`"));
+    let message = format!("unknown {kind} `{found}`{within}");
+    let valid = expected
+        .iter()
+        .map(|n| format!("`{n}`"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let hint = match nearest_name(found, expected) {
+        Some(near) => format!("did you mean `{near}`? (valid: {valid})"),
+        None if expected.is_empty() => format!("remove `{found}`"),
+        None => format!("use one of {valid}"),
+    };
+    (message, hint)
+}
+
+/// The name in `valid` nearest to `name` (by edit distance, case ignored), if it is near
+/// enough to be a misspelling: at most a third of the longer name's letters differ.
+pub(crate) fn nearest_name<'n>(name: &str, valid: &[&'n str]) -> Option<&'n str> {
+    let lower = name.to_lowercase();
+    valid
+        .iter()
+        .map(|v| (strsim::levenshtein(&lower, &v.to_lowercase()), *v))
+        .min_by_key(|&(d, _)| d)
+        .filter(|&(d, v)| d * 3 <= name.chars().count().max(v.chars().count()))
+        .map(|(_, v)| v)
 }

@@ -233,7 +233,22 @@ impl RawMesh {
             }
         }
         let mut reoriented = 0;
+        // A tet listed twice (Gmsh 2.2 repeats an element for each physical group it is in)
+        // would double its mass and stiffness: it is kept once, with its first region.
+        let mut first_listing: HashMap<[u32; 4], &RawTet> = HashMap::new();
+        let mut duplicates: Vec<(&RawTet, &RawTet)> = Vec::new();
         for t in &self.tets {
+            let mut sorted = t.nodes;
+            sorted.sort_unstable();
+            match first_listing.entry(sorted) {
+                std::collections::hash_map::Entry::Occupied(first) => {
+                    duplicates.push((first.get(), t));
+                    continue;
+                }
+                std::collections::hash_map::Entry::Vacant(slot) => {
+                    slot.insert(t);
+                }
+            }
             let mut k = [NodeKey::default(); 4];
             for (slot, &n) in k.iter_mut().zip(&t.nodes) {
                 // Every node of a tet is used, so its key exists.
@@ -267,6 +282,21 @@ impl RawMesh {
             }
         }
         let mut notes = self.notes;
+        if let Some((first, again)) = duplicates.first() {
+            let other_regions = duplicates
+                .iter()
+                .filter(|(f, d)| f.region != d.region)
+                .count();
+            notes.push(format!(
+                "merged {} duplicated tet(s) (the same four nodes listed again; element {} \
+                 repeats element {}): each is kept once, with the region of its first listing \
+                 ({} of them were listed again under another region)",
+                duplicates.len(),
+                again.id,
+                first.id,
+                other_regions
+            ));
+        }
         if reoriented > 0 {
             notes.push(format!(
                 "warning: reoriented {reoriented} inverted tet(s) (negative signed volume)"

@@ -22,7 +22,9 @@ pub struct PvdWriter {
 
 impl PvdWriter {
     /// Start a series in `dir` (created if missing), writing an empty collection right away.
-    /// An existing `<stem>.pvd` is replaced; old frame files are overwritten as frames come.
+    /// An existing `<stem>.pvd` is replaced, and the frame files of an earlier series of the
+    /// same name (`<stem>_<NNNNNN>.vtu`) are removed first, so that a rerun with fewer frames
+    /// leaves none that its collection does not list.
     pub fn new(dir: &Path, stem: &str, opts: VtuOptions) -> Result<Self> {
         if stem.is_empty() || stem.contains(['/', '\\']) || stem == "." || stem == ".." {
             return Err(Error::io(
@@ -33,6 +35,7 @@ impl PvdWriter {
             ));
         }
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        remove_frames(dir, stem)?;
         let w = PvdWriter {
             dir: dir.to_path_buf(),
             stem: stem.to_string(),
@@ -100,6 +103,25 @@ impl PvdWriter {
             writeln!(w, "</VTKFile>")
         })
     }
+}
+
+/// Remove the files `<stem>_<six digits>.vtu` in `dir`: the frames of an earlier series.
+fn remove_frames(dir: &Path, stem: &str) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let frame_number = name
+            .strip_prefix(stem)
+            .and_then(|r| r.strip_prefix('_'))
+            .and_then(|r| r.strip_suffix(".vtu"));
+        if frame_number.is_some_and(|n| n.len() == 6 && n.bytes().all(|b| b.is_ascii_digit())) {
+            let path = entry.path();
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    Ok(())
 }
 
 fn invalid(msg: String) -> io::Error {

@@ -739,14 +739,16 @@ impl<'a> Doc<'a> {
         Error::parse(self.path, loc, element, msg, hint)
     }
 
-    /// Decode an array's values.
-    fn decode(&self, desc: &ArrayDesc) -> Result<Decoded> {
+    /// Decode an array's values; the piece's counts say it needs at most `max_values`, and
+    /// compressed data declaring more is refused before it is inflated.
+    fn decode(&self, desc: &ArrayDesc, max_values: usize) -> Result<Decoded> {
         let tag_loc = Location::Line(desc.line);
+        let cap = (max_values as u64).saturating_mul(desc.scalar.size() as u64);
         match desc.source {
             Source::Ascii { text, line } => self.decode_ascii(desc, text, line),
             Source::Inline(text) => {
                 let bytes = self.base64(text, tag_loc, &desc.name)?;
-                let payload = self.block(&bytes, &|_| tag_loc)?;
+                let payload = self.block(&bytes, &|_| tag_loc, cap)?;
                 self.values(desc, &payload, tag_loc)
             }
             Source::Appended(off) => {
@@ -787,11 +789,14 @@ impl<'a> Doc<'a> {
                         .min(app.end);
                     let loc = Location::Byte(at as u64);
                     let bytes = self.base64(&app.data[off_usize..end], loc, &desc.name)?;
-                    let payload = self.block(&bytes, &|_| loc)?;
+                    let payload = self.block(&bytes, &|_| loc, cap)?;
                     self.values(desc, &payload, loc)
                 } else {
-                    let payload =
-                        self.block(&app.data[off_usize..], &|p| Location::Byte((at + p) as u64))?;
+                    let payload = self.block(
+                        &app.data[off_usize..],
+                        &|p| Location::Byte((at + p) as u64),
+                        cap,
+                    )?;
                     self.values(desc, &payload, Location::Byte(at as u64))
                 }
             }
@@ -840,8 +845,16 @@ impl<'a> Doc<'a> {
 
     /// The payload of a binary block: `[byte count] data`, or, compressed,
     /// `[blocks, block size, last block size, compressed sizes...] zlib blocks`.
-    /// `at(p)` locates byte `p` of `data` for messages.
-    fn block<'b>(&self, data: &'b [u8], at: &dyn Fn(usize) -> Location) -> Result<Cow<'b, [u8]>> {
+    /// `at(p)` locates byte `p` of `data` for messages. Compressed data is inflated only if
+    /// the sizes its header declares add up to no more than `cap` bytes (what the piece's
+    /// counts need): blocks of zeros within zlib's ratio could otherwise inflate a small file
+    /// into gigabytes before the counts are compared.
+    fn block<'b>(
+        &self,
+        data: &'b [u8],
+        at: &dyn Fn(usize) -> Location,
+        cap: u64,
+    ) -> Result<Cow<'b, [u8]>> {
         let hs = self.bin.header_size();
         let truncated = |p: usize, what: &str| {
             self.err(
@@ -885,7 +898,8 @@ impl<'a> Doc<'a> {
             .and_then(|w| w.checked_mul(hs))
             .filter(|&l| l <= data.len())
             .ok_or_else(|| truncated(3 * hs, "the compression header"))?;
-        let mut out = Vec::new();
+        // Every block's place and size is checked before anything is inflated.
+        let mut chunks = Vec::new();
         let mut pos = header_len;
         for i in 0..blocks as usize {
             let csize = word(3 + i)?;
@@ -910,6 +924,35 @@ impl<'a> Doc<'a> {
                     "the compression header is corrupted; export the file again",
                 ));
             }
+            chunks.push((pos, chunk, expected));
+            pos += chunk.len();
+        }
+        let declared = chunks
+            .iter()
+            .fold(0u64, |sum, &(_, _, e)| sum.saturating_add(e));
+        if declared > cap {
+            return Err(self.err(
+                at(0),
+                None,
+                format!(
+                    "the compressed data declares {declared} bytes, more than the {cap} bytes \
+                     the piece's point and cell counts need"
+                ),
+                "the compression header or the counts in <Piece> are wrong; export the file \
+                 again",
+            ));
+        }
+        let mut out = Vec::new();
+        // Bounded by `cap` above; an allocation that still fails is an error, not an abort.
+        out.try_reserve_exact(declared as usize).map_err(|_| {
+            self.err(
+                at(0),
+                None,
+                format!("not enough memory to inflate {declared} bytes of compressed data"),
+                "free memory, or split the mesh",
+            )
+        })?;
+        for (i, (pos, chunk, expected)) in chunks.into_iter().enumerate() {
             let before = out.len();
             flate2::read::ZlibDecoder::new(chunk)
                 .take(expected + 1)
@@ -937,7 +980,6 @@ impl<'a> Doc<'a> {
                     "the file is corrupted; export it again",
                 ));
             }
-            pos += chunk.len();
         }
         Ok(Cow::Owned(out))
     }
@@ -1077,6 +1119,7 @@ impl<'a> Doc<'a> {
         what: &str,
         piece: &Piece,
         components: usize,
+        max_values: usize,
     ) -> Result<Decoded> {
         let desc = desc.ok_or_else(|| {
             self.err(
@@ -1097,7 +1140,7 @@ impl<'a> Doc<'a> {
                 "fix NumberOfComponents",
             ));
         }
-        self.decode(desc)
+        self.decode(desc, max_values)
     }
 
     /// Decode an array a piece needs and check that it holds `len` tuples.
@@ -1109,7 +1152,13 @@ impl<'a> Doc<'a> {
         len: usize,
         components: usize,
     ) -> Result<Decoded> {
-        let d = self.array(desc, what, piece, components)?;
+        let d = self.array(
+            desc,
+            what,
+            piece,
+            components,
+            len.saturating_mul(components),
+        )?;
         if len.checked_mul(components) != Some(d.values.len()) {
             return Err(self.err(
                 d.at.loc,
@@ -1168,11 +1217,21 @@ impl<'a> Doc<'a> {
             return Ok(None);
         }
         let n = piece.cells;
-        // The connectivity length is given by the offsets, checked below.
-        let conn = self.array(piece.connectivity.as_ref(), "connectivity", piece, 1)?;
-        let (conn, conn_d) = self.ints(conn, "connectivity")?;
         let offsets = self.required(piece.offsets.as_ref(), "offsets", piece, n, 1)?;
         let (offsets, offsets_d) = self.ints(offsets, "offsets")?;
+        // The connectivity length is given by the last offset (checked below), which also
+        // bounds what its data may inflate to.
+        let conn_len = offsets
+            .last()
+            .map_or(0, |&o| usize::try_from(o).unwrap_or(0));
+        let conn = self.array(
+            piece.connectivity.as_ref(),
+            "connectivity",
+            piece,
+            1,
+            conn_len,
+        )?;
+        let (conn, conn_d) = self.ints(conn, "connectivity")?;
         let types = self.required(piece.types.as_ref(), "types", piece, n, 1)?;
         let (types, _) = self.ints(types, "types")?;
         let region = self.regions(piece)?;
