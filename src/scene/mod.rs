@@ -1,5 +1,6 @@
 //! Scene files: what to simulate, how, what to write and what to check.
 
+pub mod cut_settings;
 pub mod cuts;
 pub mod expect;
 pub mod runner;

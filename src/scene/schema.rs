@@ -302,7 +302,7 @@ pub struct Scene {
     pub tools: Vec<SceneTool>,
     /// Cutting: the blades among `tools` cut the mesh as they sweep through it.
     #[serde(default)]
-    pub cut: Option<super::cuts::SceneCut>,
+    pub cut: Option<super::cut_settings::SceneCut>,
     /// Tissue against itself: each step its surfaces that come closer than `thickness` are
     /// pushed apart symmetrically (`contact::self_response`).
     #[serde(default)]
