@@ -12,7 +12,7 @@
 //! 3. its answer is mapped back in float64: distances divided by the scale, points and normals
 //!    through the tool's pose.
 //!
-//! `tests/collide_narrow.rs` checks the answers against an exact float64 computation on
+//! `tests/contact/collide_narrow.rs` checks the answers against an exact float64 computation on
 //! thousands of random near-contact configurations and measures the direct float32 query for
 //! comparison.
 //!

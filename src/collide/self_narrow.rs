@@ -4,7 +4,7 @@
 //! normal, both points) in a local frame, as [`super::narrow`] does for tools: in float64 the
 //! six corners are moved so that the centre of their bounding box is the origin and scaled so
 //! that the farthest corner is at distance 1, then parry runs in float32 and its answer is
-//! mapped back in float64. `tests/collide_self_narrow.rs` checks it against an exact float64
+//! mapped back in float64. `tests/contact/collide_self_narrow.rs` checks it against an exact float64
 //! computation at millimetre scale half a metre from the origin.
 //!
 //! The float64 proximity primitives ([`closest_on_triangle`], [`closest_segment_segment`],
@@ -40,7 +40,7 @@ pub struct TriangleContact {
 /// `margin` (m), from parry3d's GJK (separated) or EPA (penetrating) in a local unit frame.
 ///
 /// Measured against float64 on millimetre triangles half a metre from the origin
-/// (`tests/collide_self_narrow.rs`): within 0.3 nm on generic near-contact pairs, separated or
+/// (`tests/contact/collide_self_narrow.rs`): within 0.3 nm on generic near-contact pairs, separated or
 /// intersecting (EPA), and within 1 µm on nearly coplanar overlapping pairs; parry's float32
 /// query in scene coordinates is off by up to 2.7 mm and misses two thirds of the separated
 /// contacts within a 1 mm margin. For

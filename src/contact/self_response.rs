@@ -5,7 +5,7 @@
 //! # Why not the triangle–triangle depth
 //!
 //! [`crate::collide::self_narrow::triangle_triangle`] gives parry's signed distance between two surface
-//! triangles, right to a nanometre separated or intersecting (`tests/collide_self_narrow.rs`;
+//! triangles, right to a nanometre separated or intersecting (`tests/contact/collide_self_narrow.rs`;
 //! EPA was not degenerate on any of the measured pairs, nearly coplanar ones included). But
 //! once two triangles cross, their depth is that of the Minkowski difference of two flat
 //! triangles, which is the wrong quantity for two solids: it has no inside or outside (a

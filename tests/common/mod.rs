@@ -126,8 +126,8 @@ pub fn relative_difference(got: &[[f32; 4]], want: &[[f32; 4]], start: &[[f32; 4
 
 /// Assert that `got`, from the device after `steps` steps from `start`, is what the CPU twin
 /// computed (`want`): bit for bit where the device rounds like the CPU (lavapipe, CI), else
-/// within 1e-5 of the twin's motion per step, the bound `tests/gpu_edges.rs` holds on an H100.
-/// A spring left out still shows: `tests/twin_tolerance.rs` (1 of 504 dropped springs within
+/// within 1e-5 of the twin's motion per step, the bound `tests/gpu/gpu_edges.rs` holds on an H100.
+/// A spring left out still shows: `tests/gpu/twin_tolerance.rs` (1 of 504 dropped springs within
 /// the bound; scaled by the largest magnitude instead, 94 under Verlet).
 #[track_caller]
 pub fn assert_twin(

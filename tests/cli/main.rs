@@ -1,0 +1,16 @@
+//! The command line, scene files (reading, validation, runs, output series) and reports.
+//!
+//! One test binary per area (linking each binary costs more than its tests on a 2-core
+//! machine); each module is one behaviour, named as the file it was.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod cli;
+mod cli_report_accuracy;
+mod cli_summary;
+mod inverted_tets;
+mod output_series;
+mod report_accuracy;
+mod scene_validation;
+mod scenes;

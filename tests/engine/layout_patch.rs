@@ -1,0 +1,876 @@
+//! Incremental patches of the three layouts after cut-like random edits: the patched layout
+//! equals a from-scratch packing of the changed model in the same arrangement, every byte that
+//! changed lies in a reported dirty range, node state follows its node, and stepping the patched
+//! layout equals stepping a rebuilt one bit for bit.
+
+use crate::models;
+use lancet::engine::gpu::step_params;
+use lancet::engine::{Integrator, SimConfig};
+use lancet::layout::connectivity::ConnectivityLayout;
+use lancet::layout::edges::{Accumulation, EdgeLayout};
+use lancet::layout::patch::{LayoutArray, LayoutPatch};
+use lancet::layout::{LayoutKind, NodeOrder, PackedLayout};
+use lancet::model::{ModelDiff, PackedModel};
+use models::{fresh, moved_state, random_diff, random_model, widen_node_0, Rng};
+use rstest::rstest;
+
+const ARRAYS: [LayoutArray; 6] = LayoutArray::ALL;
+
+/// The model after `diff`.
+fn applied(model: &PackedModel, diff: &ModelDiff) -> PackedModel {
+    let mut m = model.clone();
+    m.apply(diff).expect("a consistent random diff");
+    m
+}
+
+/// Every byte that differs between `before` and `after` (or is new) lies in a dirty range.
+fn assert_dirty_covers(before: &PackedLayout, after: &PackedLayout, patch: &LayoutPatch) {
+    for a in ARRAYS {
+        let (old, new) = (before.array(a), after.array(a));
+        let dirty: Vec<_> = patch.dirty.iter().filter(|d| d.array == a).collect();
+        for (i, &byte) in new.iter().enumerate() {
+            let changed = old.get(i) != Some(&byte);
+            let covered = dirty.iter().any(|d| d.bytes.contains(&(i as u64)));
+            assert!(
+                !changed || covered,
+                "{a:?} byte {i} changed but is not in a dirty range {dirty:?}"
+            );
+        }
+    }
+}
+
+/// Patch `layout` with `diff` (`next`: the model after it) and check the result: it equals a
+/// fresh packing of `next` in the patched arrangement, and every changed byte lies in a dirty
+/// range.
+fn patch_checked(
+    layout: &mut PackedLayout,
+    next: &PackedModel,
+    diff: &ModelDiff,
+    round: u64,
+) -> LayoutPatch {
+    let before = layout.clone();
+    let patch = layout.patch(next, diff).unwrap();
+    // Not assert_eq: the Debug output of a layout is thousands of lines.
+    assert!(
+        *layout == fresh(next, layout),
+        "round {round}: differs from a fresh packing"
+    );
+    assert_dirty_covers(&before, layout, &patch);
+    patch
+}
+
+#[rstest]
+fn patched_layout_equals_a_fresh_packing_after_successive_cuts(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
+    #[values(1, 2, 3, 4, 5, 6, 7, 8)] seed: u64,
+) {
+    let mut model = random_model(seed, true);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    for round in 0..4 {
+        let diff = random_diff(&model, seed * 31 + round);
+        let next = applied(&model, &diff);
+        patch_checked(&mut layout, &next, &diff, round);
+        model = next;
+    }
+}
+
+/// A model that is not the one the diff gives (a spring the diff changes left as it was, a
+/// spring it removes still there) is refused with an error naming the spring, and the layout
+/// is left as it was.
+#[rstest]
+fn a_model_that_does_not_match_the_diff_is_refused_and_the_layout_kept(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence)] kind: LayoutKind,
+) {
+    let model = random_model(5, true);
+    let diff = random_diff(&model, 77);
+    assert!(!diff.changed_springs.is_empty() && !diff.removed_springs.is_empty());
+    let next = applied(&model, &diff);
+    let layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    // The changed spring as it was before the diff.
+    let mut stale = next.clone();
+    let c = diff.changed_springs[0];
+    let i = stale.spring_index(c.nodes[0], c.nodes[1]).unwrap();
+    stale.springs_mut()[i].stiffness =
+        model.springs()[model.spring_index(c.nodes[0], c.nodes[1]).unwrap()].stiffness;
+    assert_ne!(
+        stale.springs()[i].stiffness,
+        c.stiffness,
+        "the diff changes the stiffness"
+    );
+    // A removed spring put back.
+    let mut kept = next.clone();
+    let [a, b] = diff.removed_springs[0];
+    let gone = model.springs()[model.spring_index(a, b).unwrap()];
+    kept.springs_mut().push(gone);
+    for (wrong, what) in [(&stale, "adds or changes"), (&kept, "removes")] {
+        let mut patched = layout.clone();
+        let err = patched.patch(wrong, &diff).unwrap_err().to_string();
+        assert!(err.contains(what) && err.contains("the model"), "{err}");
+        assert!(patched == layout, "{what}: the layout changed");
+    }
+}
+
+/// What `lancet run --check` asks of a layout after cuts: nothing differs from a rebuild; and
+/// one wrong entry (a slot, a mass, a spring at a node) is found.
+#[rstest]
+fn a_patched_layout_agrees_with_a_rebuild_and_a_wrong_entry_is_found(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let mut model = random_model(21, true);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    for round in 0..4 {
+        let diff = random_diff(&model, 900 + round);
+        model = applied(&model, &diff);
+        layout.patch(&model, &diff).unwrap();
+        let found = layout.differences_from_rebuild(&model).unwrap();
+        assert!(found.is_empty(), "round {round}: {found:?}");
+    }
+    // A free node's mass, and a slot or spring of its row.
+    let node = (0..model.node_count())
+        .find(|&i| !model.fixed[i])
+        .expect("a free node");
+    let idx = layout.order().rank[node] as usize;
+    let mut wrong_mass = layout.clone();
+    let mut wrong_spring = layout.clone();
+    match (&mut wrong_mass, &mut wrong_spring) {
+        (PackedLayout::Connectivity(m), PackedLayout::Connectivity(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            let at = idx * s.capacity as usize;
+            s.slots[at].rest *= 1.5;
+        }
+        (PackedLayout::Valence(m), PackedLayout::Valence(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            s.slots.iter_mut().find(|x| x.rest > 0.0).unwrap().rest *= 1.5;
+        }
+        (PackedLayout::Edges(m), PackedLayout::Edges(s)) => {
+            m.nodes.inv_mass[idx] *= 2.0;
+            let [start, _] = s.incidence_rows[idx];
+            let spring = s.incidence[start as usize] & !lancet::layout::edges::B_END;
+            s.springs[spring as usize].k *= 1.5;
+        }
+        _ => unreachable!(),
+    }
+    for (what, wrong) in [("mass", wrong_mass), ("spring", wrong_spring)] {
+        let found = wrong.differences_from_rebuild(&model).unwrap();
+        assert_eq!(found.len(), 1, "{kind:?} wrong {what}: {found:?}");
+    }
+}
+
+#[rstest]
+fn state_moves_keep_every_node_its_own_state(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+    #[values(11, 12, 13, 14)] seed: u64,
+) {
+    let model = random_model(seed, false);
+    let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    let mut rng = Rng(seed);
+    let state: Vec<[f32; 4]> = (0..layout.node_slots())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 0.0])
+        .collect();
+    let old = layout.order().clone();
+    let diff = random_diff(&model, seed);
+    let next = applied(&model, &diff);
+    let patch = layout.patch(&next, &diff).unwrap();
+    let moved = moved_state(&state, &patch.moves, layout.node_slots());
+    let new = layout.order();
+    let touched = diff.touched_nodes(model.node_count());
+    for t in 0..next.node_count() {
+        let want = if next.fixed[t] && touched.contains(&(t as u32)) {
+            // Fixed by the change: at rest from now on.
+            [0.0; 4]
+        } else if t < model.node_count() {
+            state[old.rank[t] as usize]
+        } else {
+            let a = &diff.added_nodes[t - model.node_count()];
+            let from = state[old.rank[a.state_from.unwrap() as usize] as usize];
+            match a.blend {
+                None => from,
+                // A node put on an edge starts between its ends.
+                Some(bl) => {
+                    let with = state[old.rank[bl.with as usize] as usize];
+                    let t = bl.t as f32;
+                    [0, 1, 2, 3].map(|c| from[c] * (1.0 - t) + with[c] * t)
+                }
+            }
+        };
+        assert_eq!(moved[new.rank[t] as usize], want, "node {t}");
+    }
+}
+
+/// `steps` Verlet steps of a layout's CPU twin in `accumulation` from raw state.
+fn twin_steps(
+    layout: &EdgeLayout,
+    model: &PackedModel,
+    accumulation: Accumulation,
+    fp: &lancet::layout::edges::FixedPoint,
+    cur: Vec<[f32; 4]>,
+    prev: Vec<[f32; 4]>,
+    steps: usize,
+) -> Vec<[f32; 4]> {
+    let config = SimConfig::new(2e-5);
+    let p = step_params(model, config);
+    assert_eq!(p.integrator, Integrator::Verlet);
+    PackedLayout::Edges(layout.clone())
+        .steps_cpu(&p, accumulation, fp, (cur, prev), steps)
+        .0
+}
+
+#[rstest]
+fn patched_edges_step_bitwise_like_a_rebuild(
+    #[values(Accumulation::Gather, Accumulation::AtomicFixed)] accumulation: Accumulation,
+    #[values(21, 22, 23, 24, 25, 26)] seed: u64,
+) {
+    let mut model = random_model(seed, true);
+    let order = NodeOrder::locality(&model);
+    let mut layout = EdgeLayout::new(&model, order);
+    let fp = layout.fixed_point(&model);
+    let mut rng = Rng(seed);
+    let mut cur: Vec<[f32; 4]> = Vec::new();
+    let mut prev: Vec<[f32; 4]> = Vec::new();
+    for t in 0..model.node_count() {
+        let free = !model.fixed[layout.order.order[t] as usize];
+        let mut u = [0.0f32; 4];
+        for x in u.iter_mut().take(3) {
+            *x = if free {
+                ((rng.next() - 0.5) * 1e-4) as f32
+            } else {
+                0.0
+            };
+        }
+        cur.push(u);
+        prev.push([u[0] * 0.99, u[1] * 0.99, u[2] * 0.99, 0.0]);
+    }
+    for round in 0..3 {
+        let diff = random_diff(&model, seed * 7 + round);
+        let next = applied(&model, &diff);
+        let before = PackedLayout::Edges(layout.clone());
+        let patch = layout.patch(&next, &diff).unwrap();
+        assert_dirty_covers(&before, &PackedLayout::Edges(layout.clone()), &patch);
+        cur = moved_state(&cur, &patch.moves, layout.node_count());
+        prev = moved_state(&prev, &patch.moves, layout.node_count());
+        model = next;
+        let rebuilt = EdgeLayout::new(&model, layout.order.clone());
+        let a = twin_steps(
+            &layout,
+            &model,
+            accumulation,
+            &fp,
+            cur.clone(),
+            prev.clone(),
+            25,
+        );
+        let b = twin_steps(
+            &rebuilt,
+            &model,
+            accumulation,
+            &fp,
+            cur.clone(),
+            prev.clone(),
+            25,
+        );
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)),
+            "round {round}: patched and rebuilt edge layouts step differently"
+        );
+        assert!(a.iter().flatten().any(|&x| x != 0.0), "the state moved");
+    }
+}
+
+#[test]
+fn a_small_cut_dirties_a_small_part_of_each_layout() {
+    // A 12^3-cell box (2,197 nodes): big enough that the room a valence bucket is appended
+    // with (64 nodes) is small beside it, as on real meshes.
+    let mesh = lancet::mesh::generate::BoxGrid::cube_cells([12; 3], 0.01)
+        .build()
+        .unwrap();
+    let model = lancet::model::SpringModel::build(
+        &mesh,
+        &lancet::model::ModelConfig::new(lancet::model::Material::elastic(5e3, 0.25, 1000.0)),
+    )
+    .unwrap()
+    .pack(&mesh)
+    .unwrap();
+    // Remove three springs of one node: a few rows change.
+    let node = model.springs()[40].nodes[0];
+    let diff = ModelDiff {
+        removed_springs: model
+            .springs()
+            .iter()
+            .filter(|s| s.nodes.contains(&node))
+            .take(3)
+            .map(|s| s.nodes)
+            .collect(),
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &diff);
+    for kind in [
+        LayoutKind::Connectivity,
+        LayoutKind::Valence,
+        LayoutKind::Edges,
+    ] {
+        let mut layout = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+        let total: u64 = ARRAYS.iter().map(|&a| layout.array(a).len() as u64).sum();
+        let patch = layout.patch(&next, &diff).unwrap();
+        assert!(!patch.repacked, "{kind:?}");
+        // Four nodes' rows out of 2,197; for valence also the rows pointing at the moved
+        // nodes and the buckets appended for them, room included.
+        assert!(
+            patch.dirty_bytes() * 12 < total,
+            "{kind:?}: {} of {total} bytes dirty",
+            patch.dirty_bytes()
+        );
+    }
+}
+
+/// Steps of the connectivity twin equal bit for bit: the same slots summed in the same order.
+fn assert_steps_alike(a: &ConnectivityLayout, b: &ConnectivityLayout, model: &PackedModel) {
+    let p = step_params(model, SimConfig::new(2e-5));
+    let mut rng = Rng(5);
+    let mut state = || -> Vec<[f32; 4]> {
+        (0..a.node_count())
+            .map(|_| [1e-4 * rng.next() as f32, 1e-4 * rng.next() as f32, 0.0, 0.0])
+            .collect()
+    };
+    let (cur, prev) = (state(), state());
+    let bits =
+        |v: Vec<[f32; 4]>| -> Vec<[u32; 4]> { v.iter().map(|x| x.map(f32::to_bits)).collect() };
+    assert_eq!(
+        bits(a.step_cpu(&p, &cur, &prev).0),
+        bits(b.step_cpu(&p, &cur, &prev).0)
+    );
+}
+
+#[test]
+fn a_row_that_outgrows_its_capacity_continues_in_an_overflow_row() {
+    let mut model = random_model(3, false);
+    let mut c = ConnectivityLayout::new(&model, NodeOrder::locality(&model), None).unwrap();
+    let k = c.capacity;
+    // 2k springs: k - 1 and a continuation, k - 1 and a continuation, 2: a chain of three rows.
+    let diff = widen_node_0(&model, k, k);
+    let next = applied(&model, &diff);
+    let before = PackedLayout::Connectivity(c.clone());
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(!patch.repacked);
+    assert_eq!(c.capacity, k);
+    assert_eq!(c.overflow_rows(), 2);
+    let total = c.slots.len() as u64 * 32;
+    assert!(
+        patch.dirty_bytes() * 4 < total,
+        "{} of {total} bytes dirty",
+        patch.dirty_bytes()
+    );
+    assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap());
+    // Summed in the same order as a table wide enough for node 0.
+    let wide = ConnectivityLayout::new(&next, c.order.clone(), None).unwrap();
+    assert!(wide.capacity > k && wide.overflow_rows() == 0);
+    assert_steps_alike(&c, &wide, &next);
+    model = next;
+    // Cuts that add nodes move the overflow rows up past the new node rows; one that narrows
+    // node 0 again frees its overflow rows for reuse.
+    for round in 0..3 {
+        let diff = random_diff(&model, 70 + round);
+        let next = applied(&model, &diff);
+        let before = PackedLayout::Connectivity(c.clone());
+        let patch = c.patch(&next, &diff).unwrap();
+        assert!(!patch.repacked, "round {round}");
+        assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+        assert!(
+            c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap(),
+            "round {round}"
+        );
+        assert_steps_alike(
+            &c,
+            &ConnectivityLayout::new(&next, c.order.clone(), None).unwrap(),
+            &next,
+        );
+        model = next;
+    }
+    let narrow = ModelDiff {
+        removed_springs: diff
+            .added_springs
+            .iter()
+            .map(|s| s.nodes)
+            .filter(|&[a, b]| model.spring_index(a, b).is_some())
+            .collect(),
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &narrow);
+    let rows = c.overflow_rows();
+    c.patch(&next, &narrow).unwrap();
+    assert_eq!(c.overflow_rows(), rows, "freed rows stay, for reuse");
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(k)).unwrap());
+    let again = widen_node_0(&next, k, k - 4);
+    let wider = applied(&next, &again);
+    c.patch(&wider, &again).unwrap();
+    assert_eq!(c.overflow_rows(), rows, "a freed row is reused");
+    assert!(c == ConnectivityLayout::new(&wider, c.order.clone(), Some(k)).unwrap());
+}
+
+/// A cut that adds a node moves only the overflow row in the way of its node row, however
+/// many overflow rows earlier cuts left: the upload follows what the cut touched.
+#[test]
+fn adding_a_node_moves_only_the_overflow_row_in_its_way() {
+    let model = random_model(3, false);
+    let order = NodeOrder::locality(&model);
+    let widest = (0..model.node_count())
+        .map(|i| {
+            model
+                .springs()
+                .iter()
+                .filter(|s| s.nodes.contains(&(i as u32)))
+                .count()
+        })
+        .max()
+        .unwrap() as u32;
+    // The narrowest table that stays under the repack threshold, with many overflow rows.
+    let mut c = (2..widest)
+        .rev()
+        .map(|k| ConnectivityLayout::new(&model, order.clone(), Some(k)).unwrap())
+        .take_while(|c| c.overflow_rows() <= 64.max(c.node_count() / 8))
+        .last()
+        .unwrap();
+    let k = c.capacity as u64;
+    assert!(
+        c.overflow_rows() >= 8,
+        "{} overflow rows",
+        c.overflow_rows()
+    );
+    // A copy of a node with one spring to it.
+    let src = model.springs()[0].nodes[0];
+    let n = model.node_count() as u32;
+    let diff = ModelDiff {
+        added_nodes: vec![lancet::model::AddedNode {
+            key: model.node_keys[src as usize],
+            rest: model.rest[src as usize],
+            mass: model.mass[src as usize],
+            fixed: false,
+            state_from: Some(src),
+            blend: None,
+        }],
+        added_springs: vec![lancet::model::PackedSpring {
+            nodes: [src, n],
+            rest_length: 0.01,
+            stiffness: 10.0,
+            damping: 0.0,
+        }],
+        ..ModelDiff::default()
+    };
+    let next = applied(&model, &diff);
+    let before = PackedLayout::Connectivity(c.clone());
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(!patch.repacked);
+    assert_dirty_covers(&before, &PackedLayout::Connectivity(c.clone()), &patch);
+    // The new node's row, the overflow row moved out of it, the source's chain (rewritten),
+    // and the slot that pointed at the moved row: rows, not the overflow region.
+    let chain = c.row(c.order.rank[src as usize] as usize).len() as u64 / (k - 1) + 1;
+    let slot_bytes: u64 = patch
+        .dirty
+        .iter()
+        .filter(|d| d.array == LayoutArray::Slots)
+        .map(|d| d.bytes.end - d.bytes.start)
+        .sum();
+    assert!(
+        slot_bytes <= (2 + chain) * k * 32 + 32,
+        "{slot_bytes} slot bytes dirty for one node ({} overflow rows of {k} slots)",
+        c.overflow_rows()
+    );
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), Some(c.capacity)).unwrap());
+    assert_steps_alike(
+        &c,
+        &ConnectivityLayout::new(&next, c.order.clone(), None).unwrap(),
+        &next,
+    );
+}
+
+#[test]
+fn a_table_with_many_overflow_rows_repacks_by_size_class() {
+    let model = random_model(3, false);
+    // Four slots per row: most rows continue, far past an eighth of the nodes.
+    let mut c = ConnectivityLayout::new(&model, NodeOrder::locality(&model), Some(4)).unwrap();
+    assert!(c.overflow_rows() > 64.max(c.node_count() / 8));
+    let widest = (0..c.node_count()).map(|i| c.row(i).len()).max().unwrap() as u32;
+    let diff = random_diff(&model, 9);
+    let next = applied(&model, &diff);
+    let patch = c.patch(&next, &diff).unwrap();
+    assert!(patch.repacked);
+    assert_eq!(c.overflow_rows(), 0);
+    assert!(
+        c.capacity > widest.max(4) && c.capacity % 4 == 0,
+        "{}",
+        c.capacity
+    );
+    assert!(c == ConnectivityLayout::new(&next, c.order.clone(), None).unwrap());
+}
+
+#[test]
+fn a_diff_that_does_not_fit_the_model_is_refused_and_leaves_it_unchanged() {
+    let model = random_model(2, false);
+    let mut m = model.clone();
+    let bad = ModelDiff {
+        removed_springs: vec![[0, 1], [0, 1]],
+        ..ModelDiff::default()
+    };
+    let err = m.apply(&bad).unwrap_err().to_string();
+    assert!(err.contains("0-1"), "{err}");
+    assert_eq!(m, model);
+    let dup = ModelDiff {
+        added_springs: vec![model.springs()[0]],
+        ..ModelDiff::default()
+    };
+    assert!(m.apply(&dup).is_err());
+    assert_eq!(m, model);
+    // A layout given a model the diff was not applied to says so.
+    let mut layout =
+        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let grow = random_diff(&model, 9);
+    if !grow.added_nodes.is_empty() {
+        assert!(layout.patch(&model, &grow).is_err());
+    }
+}
+
+#[test]
+fn applying_a_diff_keeps_every_spring_findable_once() {
+    let mut model = random_model(4, true);
+    for round in 0..5 {
+        let diff = random_diff(&model, round);
+        model.apply(&diff).unwrap();
+        let mut pairs: Vec<[u32; 2]> = model.springs().iter().map(|s| s.nodes).collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        assert_eq!(
+            pairs.len(),
+            model.springs().len(),
+            "a spring is there twice"
+        );
+        for (i, s) in model.springs().iter().enumerate() {
+            assert!(s.nodes[0] < s.nodes[1]);
+            assert_eq!(model.spring_index(s.nodes[1], s.nodes[0]), Some(i));
+        }
+        for s in &diff.added_springs {
+            let i = model.spring_index(s.nodes[1], s.nodes[0]).unwrap();
+            assert_eq!(model.springs()[i].stiffness, s.stiffness);
+        }
+        for s in &diff.removed_springs {
+            let re_added = diff.added_springs.iter().any(|a| a.nodes == s.map(|x| x));
+            assert!(re_added || model.spring_index(s[0], s[1]).is_none());
+        }
+    }
+}
+
+/// A packing with room ([`PackedLayout::reserve_room`], as the GPU engine keeps its host copy)
+/// takes the patches of a few local cuts, nodes added included, without moving any array:
+/// the first cut used to reallocate the arrays that grew (a 12 MB connectivity table on the
+/// 100k-tet box), a pause of milliseconds. And the room changes nothing a patch gives.
+#[rstest]
+fn a_layout_with_room_takes_local_cuts_without_moving_its_arrays(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let mesh = lancet::mesh::generate::BoxGrid::cube_cells([12; 3], 0.01)
+        .build()
+        .unwrap();
+    let mut model = lancet::model::SpringModel::build(
+        &mesh,
+        &lancet::model::ModelConfig::new(lancet::model::Material::elastic(5e3, 0.25, 1000.0)),
+    )
+    .unwrap()
+    .pack(&mesh)
+    .unwrap();
+    let mut roomy = PackedLayout::pack(&model, kind, NodeOrder::locality(&model)).unwrap();
+    let mut tight = roomy.clone();
+    roomy.reserve_room();
+    let at = |l: &PackedLayout| ARRAYS.map(|a| (l.array(a).as_ptr(), l.node_slots()));
+    // A quarter of room, not a doubling.
+    let bytes = |l: &PackedLayout| ARRAYS.map(|a| l.array(a).len()).iter().sum::<usize>();
+    assert!(
+        roomy.host_capacity_bytes() <= bytes(&roomy) * 5 / 4 + 64 * 32 * ARRAYS.len(),
+        "{kind:?}: {} bytes held for {} bytes of arrays",
+        roomy.host_capacity_bytes(),
+        bytes(&roomy)
+    );
+    let before = at(&roomy);
+    for round in 0..3 {
+        let diff = random_diff(&model, 70 + round);
+        assert!(!diff.added_nodes.is_empty(), "the cuts add nodes");
+        let next = applied(&model, &diff);
+        let (a, b) = (
+            roomy.patch(&next, &diff).unwrap(),
+            tight.patch(&next, &diff).unwrap(),
+        );
+        assert!(!a.repacked, "{kind:?} round {round}: a local cut repacked");
+        assert_eq!(a, b, "{kind:?} round {round}: the room changed the patch");
+        assert!(
+            roomy == tight,
+            "{kind:?} round {round}: the room changed the layout"
+        );
+        model = next;
+    }
+    for (a, (before, after)) in ARRAYS.iter().zip(before.iter().zip(at(&roomy))) {
+        assert_eq!(before.0, after.0, "{kind:?}: {a:?} was reallocated");
+    }
+}
+
+/// The buckets of a valence layout that its packing laid out, which a regroup keeps.
+fn rising_prefix(layout: &PackedLayout) -> Vec<lancet::layout::valence::Bucket> {
+    let PackedLayout::Valence(v) = layout else {
+        unreachable!("packed as valence")
+    };
+    v.buckets[..v.packing].to_vec()
+}
+
+/// A valence arrangement whose first bucket's slot table lies past the others' (as no patch
+/// lays it out, but [`ValenceLayout::arranged`] accepts), cut into up to sixteen buckets per
+/// valence: the regroup cannot keep the packing's buckets apart from the appended ones, so it
+/// packs the whole layout anew by valence, from layout index 0. The result equals a packing
+/// from scratch of its arrangement, has one bucket per valence, and every node keeps its state.
+#[test]
+fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
+    use lancet::layout::valence::{Bucket, ValenceLayout};
+    let model = random_model(31, false);
+    let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    // Each bucket in up to sixteen pieces (more buckets than the bound), then the first
+    // piece's table moved past every other.
+    let mut buckets: Vec<Bucket> = Vec::new();
+    for b in &packed.buckets {
+        let pieces = b.count.min(16);
+        let cut: Vec<u32> = (0..=pieces).map(|k| k * b.count / pieces).collect();
+        for w in cut.windows(2) {
+            buckets.push(Bucket {
+                valence: b.valence,
+                first: b.first + w[0],
+                count: w[1] - w[0],
+                offset: b.offset + w[0] * b.valence,
+            });
+        }
+    }
+    let first_table = buckets[0].count * buckets[0].valence;
+    for b in &mut buckets[1..] {
+        b.offset -= first_table;
+    }
+    buckets[0].offset = packed.slots.len() as u32 - first_table;
+    let valences: std::collections::BTreeSet<u32> = buckets.iter().map(|b| b.valence).collect();
+    let room: Vec<u32> = buckets.iter().map(|b| b.count).collect();
+    let arranged = ValenceLayout::arranged(&model, packed.order.clone(), buckets, room).unwrap();
+    assert!(arranged.dispatched_buckets() > arranged.bucket_limit());
+    let mut layout = PackedLayout::Valence(arranged);
+    let mut rng = Rng(31);
+    let want: Vec<[f32; 4]> = (0..model.node_count())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 1.0])
+        .collect();
+    let mut state = vec![[0.0f32; 4]; layout.node_slots()];
+    for (new, old) in layout.order().pairs() {
+        state[new] = want[old];
+    }
+    let patch = patch_checked(&mut layout, &model, &ModelDiff::default(), 0);
+    assert_eq!(
+        dispatched_buckets(&layout),
+        valences.len(),
+        "one bucket per valence"
+    );
+    let state = moved_state(&state, &patch.moves, layout.node_slots());
+    for (t, w) in want.iter().enumerate() {
+        assert_eq!(state[layout.order().rank[t] as usize], *w, "node {t}");
+    }
+}
+
+/// An arrangement whose buckets do not follow each other in layout order (one starting inside
+/// the room of the one before it) is refused: the device finds a node's bucket by searching
+/// the buckets by their first node.
+#[test]
+fn an_arrangement_with_overlapping_buckets_is_refused() {
+    use lancet::layout::valence::ValenceLayout;
+    let model = random_model(32, false);
+    let packed = ValenceLayout::new(&model, &NodeOrder::locality(&model));
+    let mut buckets = packed.buckets.clone();
+    let mut room = packed.room.clone();
+    buckets.swap(0, 1);
+    room.swap(0, 1);
+    let err = ValenceLayout::arranged(&model, packed.order.clone(), buckets, room).unwrap_err();
+    assert!(err.to_string().contains("inside the room"), "{err}");
+    let short = packed.room[1..].to_vec();
+    let err = ValenceLayout::arranged(&model, packed.order, packed.buckets, short).unwrap_err();
+    assert!(err.to_string().contains("room given for"), "{err}");
+}
+
+/// Buckets of a valence layout that are dispatched (hold nodes or holes).
+fn dispatched_buckets(layout: &PackedLayout) -> usize {
+    let PackedLayout::Valence(v) = layout else {
+        unreachable!("packed as valence")
+    };
+    v.buckets.iter().filter(|b| b.count > 0).count()
+}
+
+/// A long run of cut-like patches on a valence layout that starts fragmented (as a long run of
+/// cuts that changed many valences would leave it: half of each valence's nodes in small
+/// buckets after the packing's, more buckets than its bound): the first patch regroups the
+/// buckets after the packing's (packs them anew by valence), and the patches after it append a
+/// bucket only where a node's new valence has no hole or room left, each with as much room as
+/// that valence's appended buckets had, so the buckets stay within
+/// [`ValenceLayout::bucket_limit`] for the rest of the run. A regroup leaves the packing's
+/// buckets in place and at most two buckets per valence (the packing's and the regrouped
+/// tail's), every patch still equals a packing from scratch of its arrangement with every
+/// changed byte in a dirty range, no move writes past the slots before and after the patch,
+/// and the state moves keep every node its own state through the regroups.
+#[rstest]
+fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
+    #[values(21, 22, 23)] seed: u64,
+) {
+    let mut model = random_model(seed, false);
+    let mut layout = PackedLayout::Valence(models::fragmented_valence(
+        &model,
+        &NodeOrder::locality(&model),
+    ));
+    let mut rng = Rng(seed);
+    // The state each model node should have, and the device's, by layout index.
+    let mut want: Vec<[f32; 4]> = (0..model.node_count())
+        .map(|_| [rng.next() as f32, rng.next() as f32, rng.next() as f32, 1.0])
+        .collect();
+    let mut state: Vec<[f32; 4]> = vec![[0.0; 4]; layout.node_slots()];
+    for (new, old) in layout.order().pairs() {
+        state[new] = want[old];
+    }
+    let mut regrouped = 0;
+    let mut most = 0;
+    for round in 0..100 {
+        let diff = random_diff(&model, seed * 1009 + round);
+        let next = applied(&model, &diff);
+        let slots_before = layout.node_slots();
+        let dispatched_before = dispatched_buckets(&layout);
+        let head_before = rising_prefix(&layout);
+        let patch = patch_checked(&mut layout, &next, &diff, round);
+        // The device's state buffers hold the slots before the patch and those after it: no
+        // move may write past both (a regroup clears only the slots it had before).
+        let held = slots_before.max(layout.node_slots());
+        assert!(
+            patch.moves.iter().all(|m| (m.to as usize) < held),
+            "round {round}: a move past {held} slots"
+        );
+        let PackedLayout::Valence(v) = &layout else {
+            unreachable!("packed as valence")
+        };
+        let dispatched = dispatched_buckets(&layout);
+        let valences: std::collections::BTreeSet<u32> = v
+            .buckets
+            .iter()
+            .filter(|b| b.count > 0)
+            .map(|b| b.valence)
+            .collect();
+        assert!(
+            dispatched <= v.bucket_limit(),
+            "round {round}: {dispatched} buckets for {} valences",
+            valences.len()
+        );
+        most = most.max(dispatched);
+        // Each bucket appended for a valence has room for at least as many nodes as those
+        // appended for it before (after the packing's rising buckets): their number grows with
+        // the logarithm of the nodes a valence takes, not with the count.
+        let prefix = rising_prefix(&layout).len();
+        let mut appended: std::collections::BTreeMap<u32, u32> = Default::default();
+        for (b, &room) in v.buckets.iter().zip(&v.room).skip(prefix) {
+            let before = appended.entry(b.valence).or_default();
+            assert!(
+                *before == 0 || room >= (*before).min(next.node_count().max(32) as u32),
+                "round {round}: a valence-{} bucket with room {room} after {before}",
+                b.valence
+            );
+            *before += room;
+        }
+        // Nothing else lowers the buckets dispatched: a node that leaves one leaves a hole.
+        if dispatched < dispatched_before {
+            regrouped += 1;
+            // The tail's holes and room are gone: the slots dropped are cleared by moves.
+            assert!(
+                layout.node_slots() < slots_before
+                    && patch
+                        .moves
+                        .iter()
+                        .any(|m| m.from.is_none() && m.to as usize >= layout.node_slots()),
+                "round {round}: the regroup kept {} of {slots_before} slots",
+                layout.node_slots()
+            );
+            for &valence in &valences {
+                let of = v
+                    .buckets
+                    .iter()
+                    .filter(|b| b.count > 0 && b.valence == valence)
+                    .count();
+                assert!(of <= 2, "round {round}: {of} buckets of valence {valence}");
+            }
+            // Only the appended buckets were packed anew: the packing's stay where they were
+            // (the incremental part may only have filled their room).
+            let head = &v.buckets[..head_before.len()];
+            for (b, a) in head_before.iter().zip(head) {
+                assert_eq!(
+                    (b.first, b.offset, b.valence),
+                    (a.first, a.offset, a.valence),
+                    "round {round}: a bucket of the packing moved"
+                );
+            }
+        }
+        // What each node's state becomes: copies and blends of their sources, zero where the
+        // change fixed a node.
+        let n = model.node_count();
+        let touched = diff.touched_nodes(n);
+        for a in &diff.added_nodes {
+            let from = want[a.state_from.unwrap() as usize];
+            want.push(match a.blend {
+                None => from,
+                Some(b) => {
+                    let with = want[b.with as usize];
+                    let t = b.t as f32;
+                    [0, 1, 2, 3].map(|c| from[c] * (1.0 - t) + with[c] * t)
+                }
+            });
+        }
+        for &t in &touched {
+            if next.fixed[t as usize] {
+                want[t as usize] = [0.0; 4];
+            }
+        }
+        state = moved_state(&state, &patch.moves, layout.node_slots());
+        for (t, w) in want.iter().enumerate() {
+            assert_eq!(
+                state[layout.order().rank[t] as usize],
+                *w,
+                "round {round}: node {t}"
+            );
+        }
+        model = next;
+    }
+    assert!(regrouped > 0, "no patch regrouped (at most {most} buckets)");
+    // Ever more buckets would have regrouped again and again: the run's appended buckets keep
+    // well inside the bound.
+    assert_eq!(regrouped, 1, "regrouped {regrouped} times");
+}
+
+/// A patch that appends a bucket of a valence above all of the packing's leaves the packing's
+/// count as it was: the appended bucket is not taken for one of the packing's (a regroup would
+/// keep it where it is, and the room rule would not count it among the valence's appended
+/// buckets), as a guess from rising valences would take it.
+#[test]
+fn a_bucket_appended_above_the_packings_valences_is_not_the_packings() {
+    let model = random_model(41, false);
+    let mut layout =
+        PackedLayout::pack(&model, LayoutKind::Valence, NodeOrder::locality(&model)).unwrap();
+    let PackedLayout::Valence(v) = &layout else {
+        unreachable!("packed as valence")
+    };
+    let packing = v.packing;
+    assert_eq!(
+        packing,
+        v.buckets.len(),
+        "a packing's buckets are all its own"
+    );
+    let top = v.buckets.iter().map(|b| b.valence).max().unwrap();
+    // Node 0, the first touched, takes valence top + 1: the first bucket appended.
+    let diff = widen_node_0(&model, top, 1);
+    let next = applied(&model, &diff);
+    patch_checked(&mut layout, &next, &diff, 0);
+    let PackedLayout::Valence(v) = &layout else {
+        unreachable!("packed as valence")
+    };
+    assert_eq!(v.buckets[packing].valence, top + 1);
+    assert_eq!(v.packing, packing);
+}

@@ -1,0 +1,24 @@
+//! The GPU engine on a real device (lavapipe in CI): every pass against its CPU twin.
+//!
+//! One test binary per area (linking each binary costs more than its tests on a 2-core
+//! machine); each module is one behaviour, named as the file it was.
+
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../common/models.rs"]
+mod models;
+#[path = "../common/read_ahead.rs"]
+mod read_ahead;
+
+mod gpu_broad_phase;
+mod gpu_context;
+mod gpu_edges;
+mod gpu_health;
+mod gpu_layouts;
+mod gpu_limits;
+mod gpu_nodes_near;
+mod gpu_patch;
+mod gpu_read_ahead;
+mod gpu_self_contact;
+mod gpu_valence;
+mod twin_tolerance;
