@@ -1,0 +1,112 @@
+//! How a simulation runs: the time step, the integrator, the GPU layout and its variant, the
+//! node order the engines pack in, and how often divergence is checked.
+
+use super::*;
+
+/// How a simulation runs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SimConfig {
+    /// Time step, s.
+    pub dt: f64,
+    /// Integration scheme.
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// Run even when `dt` is above the stable bound (divergence is still detected).
+    #[serde(default)]
+    pub allow_unstable: bool,
+    /// Steps between divergence checks; divergence is reported at most this many steps after
+    /// the energy crosses the limit.
+    #[serde(default = "default_check_every")]
+    pub check_every: u32,
+    /// Spring layout of the GPU engine.
+    #[serde(default)]
+    pub layout: crate::layout::LayoutKind,
+    /// How the edge layout brings spring forces to the nodes (default: the deterministic
+    /// gather, the fastest on lavapipe); ignored by the other layouts.
+    #[serde(default)]
+    pub accumulation: crate::layout::edges::Accumulation,
+    /// How the fast CPU engine and the GPU engine number the nodes when they pack the model
+    /// (default: reverse Cuthill–McKee). Internal: results are the same physics in any order,
+    /// only memory locality, hence speed, changes.
+    #[serde(default)]
+    pub node_order: NodeOrdering,
+}
+
+/// The node numbering an engine packs its arrays in.
+///
+/// Engines renumber nodes so that a node's neighbours sit close in memory; the other orders
+/// exist to measure what that buys (`lancet bench --order`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum NodeOrdering {
+    /// Reverse Cuthill–McKee order of the spring graph: neighbours get nearby indices.
+    #[default]
+    Locality,
+    /// The model's own order (as the mesh file or generator numbered the nodes).
+    Identity,
+    /// A random permutation drawn from this seed (the same seed gives the same order): the
+    /// worst case for locality.
+    Random(u64),
+}
+
+impl NodeOrdering {
+    /// The renumbering of `model`'s nodes this ordering gives.
+    pub fn order(self, model: &PackedModel) -> crate::layout::NodeOrder {
+        use crate::layout::NodeOrder;
+        match self {
+            NodeOrdering::Locality => NodeOrder::locality(model),
+            NodeOrdering::Identity => NodeOrder::identity(model.node_count()),
+            NodeOrdering::Random(seed) => {
+                NodeOrder::from_order(random_permutation(model.node_count(), seed))
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for NodeOrdering {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NodeOrdering::Locality => f.write_str("rcm"),
+            NodeOrdering::Identity => f.write_str("identity"),
+            NodeOrdering::Random(seed) => write!(f, "random({seed})"),
+        }
+    }
+}
+
+/// A Fisher–Yates shuffle of `0..n` driven by SplitMix64: deterministic for a seed and
+/// identical on every platform, with no dependency on a random-number crate.
+fn random_permutation(n: usize, seed: u64) -> Vec<u32> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    for i in (1..n).rev() {
+        // Modulo bias is below 2^-40 for any mesh that fits in memory: irrelevant here.
+        let j = (next() % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    order
+}
+
+fn default_check_every() -> u32 {
+    10
+}
+
+impl SimConfig {
+    /// Verlet at step `dt`, refusing unstable steps, checking every 10 steps.
+    pub fn new(dt: f64) -> Self {
+        SimConfig {
+            dt,
+            integrator: Integrator::Verlet,
+            allow_unstable: false,
+            check_every: default_check_every(),
+            layout: crate::layout::LayoutKind::Connectivity,
+            accumulation: crate::layout::edges::Accumulation::Gather,
+            node_order: NodeOrdering::Locality,
+        }
+    }
+}

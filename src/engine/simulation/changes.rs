@@ -1,0 +1,258 @@
+//! Changing a running simulation between steps: a model change (what a cut produces), checked
+//! against the stable bound and given to the engine as a patch; the stable bound a change would
+//! leave; a new time step, a parameter of the step.
+
+use super::*;
+
+impl Simulation {
+    /// Apply a change to the model between steps (what a cut produces): the GPU engine patches
+    /// its layout and uploads only what changed, the fast CPU engine rewrites the rows of the
+    /// touched nodes, the float64 reference engine is rebuilt with its state carried over. New nodes start with the state of the node they copy, or at rest. The
+    /// stable time step is recomputed; a change that puts `dt` above it is refused (unless
+    /// `allow_unstable`). A refused change (an invalid diff, an unstable step) leaves the model
+    /// and engine as they were; a device failure while patching leaves the engine unusable.
+    pub fn apply(&mut self, diff: &ModelDiff) -> Result<PatchCost> {
+        self.apply_with(diff, self.config.allow_unstable)
+    }
+
+    /// [`Simulation::apply`], choosing whether a change that puts `dt` above the new stable
+    /// bound is refused (`allow_unstable = false`) or applied anyway (a cut scene whose policy
+    /// is to warn).
+    pub fn apply_with(&mut self, diff: &ModelDiff, allow_unstable: bool) -> Result<PatchCost> {
+        self.apply_inner(diff, allow_unstable, None)
+    }
+
+    /// [`Simulation::apply_with`], given the current positions (as [`Simulation::positions`]
+    /// gave them, with no step since: what a cutter just read). The energy bookkeeping takes
+    /// the positions of the touched springs' nodes from them instead of reading them back from
+    /// the engine, which on the GPU is a round trip to the device per cut. Only those entries
+    /// are read, so the positions of a cut that read only the nodes near its blade
+    /// ([`crate::cut::ReadPositions::positions`]) will do. Positions of another length than
+    /// the model's node count are an error, and nothing changes.
+    pub fn apply_at(
+        &mut self,
+        diff: &ModelDiff,
+        allow_unstable: bool,
+        positions: &[[f64; 3]],
+    ) -> Result<PatchCost> {
+        let n = self.model.node_count();
+        if positions.len() != n {
+            return Err(Error::Model(format!(
+                "{} positions given for a model of {n} nodes: pass the positions read since \
+                 the last step or change",
+                positions.len()
+            )));
+        }
+        self.apply_inner(diff, allow_unstable, Some(positions))
+    }
+
+    pub(super) fn apply_inner(
+        &mut self,
+        diff: &ModelDiff,
+        allow_unstable: bool,
+        positions: Option<&[[f64; 3]]>,
+    ) -> Result<PatchCost> {
+        // Everything below touches only what the diff names, so that a local cut costs the
+        // same on a large mesh as on a small one.
+        let undo = self.bound.update(&self.model, diff);
+        if self.config.dt > self.bound.dt && !allow_unstable {
+            let err = Error::UnstableTimeStep {
+                dt: self.config.dt,
+                bound: self.bound.dt,
+                node: self.bound.node,
+            };
+            self.bound.undo(undo);
+            return Err(err);
+        }
+        let before = self.model.node_count();
+        // Validates first: on error nothing has changed (the bound is put back).
+        let energies = self
+            .diff_elastic_energy(diff, positions)
+            .and_then(|e| self.model.apply(diff).map(|()| e));
+        let (elastic_before, elastic_after) = match energies {
+            Ok(e) => e,
+            Err(e) => {
+                self.bound.undo(undo);
+                return Err(e);
+            }
+        };
+        let cost = match self.engine.patch(&self.model, diff)? {
+            Some(cost) => cost,
+            None => {
+                let (mut x, mut v) = self.engine.state();
+                let before = x.len();
+                for a in &diff.added_nodes {
+                    // The source's displacement and velocity, mixed with the blend partner's.
+                    let rest = &self.model.rest;
+                    let d = a.start_value(|i| {
+                        let i = i as usize;
+                        [0, 1, 2].map(|c| x[i][c] - rest[i][c])
+                    });
+                    let p = d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]));
+                    let u = a.start_value(|i| v[i as usize]).unwrap_or([0.0; 3]);
+                    x.push(p);
+                    v.push(u);
+                }
+                debug_assert_eq!(x.len(), before + diff.added_nodes.len());
+                let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
+                engine.set_state(&x, &v);
+                if let Some(t) = &self.surface {
+                    engine.set_surface(t)?;
+                }
+                let memory = engine.memory();
+                self.engine = engine;
+                PatchCost {
+                    uploaded_bytes: memory.stats.total,
+                    copied_bytes: 0,
+                    buffers_grown: 0,
+                    layout_bytes: memory.stats.total,
+                    state_moves: diff.added_nodes.len(),
+                    reallocated: true,
+                }
+            }
+        };
+        debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
+        self.node_springs = None;
+        // The divergence reference follows the energy the change took out of or put into the
+        // springs it touched (splitting a node shares its mass and keeps its velocity, so the
+        // kinetic and gravitational energies do not change; carving only lowers them).
+        let delta = elastic_after - elastic_before;
+        self.start_energy += delta;
+        self.base_energy += delta;
+        Ok(cost)
+    }
+
+    /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
+    /// they are) and of those it adds or changes (as they will be; a new node is displaced as
+    /// the node it copies, or as the mix of the two it blends). Reads back only the existing
+    /// nodes of those springs and sources, once, unless `positions` (all nodes, current) are
+    /// given.
+    pub(super) fn diff_elastic_energy(
+        &self,
+        diff: &ModelDiff,
+        positions: Option<&[[f64; 3]]>,
+    ) -> Result<(f64, f64)> {
+        let n = self.model.node_count() as u32;
+        let old: Vec<crate::model::PackedSpring> = diff
+            .removed_springs
+            .iter()
+            .map(|&[a, b]| (a, b))
+            .chain(
+                diff.changed_springs
+                    .iter()
+                    .map(|s| (s.nodes[0], s.nodes[1])),
+            )
+            .filter_map(|(a, b)| {
+                self.model
+                    .spring_index(a, b)
+                    .map(|i| self.model.springs()[i])
+            })
+            .collect();
+        let new: Vec<crate::model::PackedSpring> = diff
+            .added_springs
+            .iter()
+            .chain(&diff.changed_springs)
+            .copied()
+            .collect();
+        // An added node is displaced as its source is (mixed with its blend partner); one
+        // without a source starts at rest. Existing nodes are their own source.
+        let sources = |i: u32| -> [Option<u32>; 2] {
+            if i < n {
+                return [Some(i), None];
+            }
+            diff.added_nodes
+                .get((i - n) as usize)
+                .map_or([None, None], |a| [a.state_from, a.blend.map(|b| b.with)])
+        };
+        let mut nodes: Vec<u32> = old
+            .iter()
+            .chain(&new)
+            .flat_map(|s| s.nodes)
+            .flat_map(sources)
+            .flatten()
+            .collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        if nodes.is_empty() {
+            return Ok((0.0, 0.0));
+        }
+        if let Some(&i) = nodes.last().filter(|&&i| i >= n) {
+            // Validated again by `PackedModel::apply`; refused here before any position is
+            // looked up.
+            return Err(Error::Model(format!(
+                "an added node starts from the state of node {i}, which does not exist yet"
+            )));
+        }
+        let x: Vec<[f64; 3]> = match positions {
+            Some(p) => {
+                let x: Vec<[f64; 3]> = nodes.iter().map(|&i| p[i as usize]).collect();
+                // Positions read from a device that failed come back as NaN: refuse them
+                // rather than carry NaN into the energy reference.
+                if let Some((&i, _)) = nodes
+                    .iter()
+                    .zip(&x)
+                    .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+                {
+                    return Err(Error::Model(format!(
+                        "the position given for node {i} is not finite; read the positions \
+                         again, or apply without them"
+                    )));
+                }
+                x
+            }
+            None => self.engine.node_positions(&nodes)?,
+        };
+        let read = |i: u32| x[nodes.binary_search(&i).expect("collected")];
+        let at = |i: u32| -> [f64; 3] {
+            if i < n {
+                return read(i);
+            }
+            let a = &diff.added_nodes[(i - n) as usize];
+            let d = a.start_value(|j| {
+                let (p, r) = (read(j), self.model.rest[j as usize]);
+                [0, 1, 2].map(|c| p[c] - r[c])
+            });
+            d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]))
+        };
+        let energy = |springs: &[crate::model::PackedSpring]| -> f64 {
+            springs
+                .iter()
+                .map(|s| {
+                    let (a, b) = (at(s.nodes[0]), at(s.nodes[1]));
+                    let l = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2))
+                        .sqrt();
+                    0.5 * s.stiffness * (l - s.rest_length).powi(2)
+                })
+                .sum()
+        };
+        Ok((energy(&old), energy(&new)))
+    }
+
+    /// Change the time step between steps, keeping the state (positions and velocities): a
+    /// parameter of the step, so only the step parameters are written ([`Engine::set_time_step`]:
+    /// no pipeline is rebuilt and no layout uploaded; Verlet's previous positions are moved
+    /// where the state lives so that its velocity is kept). A step above the bound is refused
+    /// unless `allow_unstable`, with nothing changed. Returns what it cost: the bytes of the
+    /// engine's step parameters.
+    pub fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::Model(format!(
+                "time step {dt} must be finite and positive"
+            )));
+        }
+        if dt > self.bound.dt && !self.config.allow_unstable {
+            return Err(Error::UnstableTimeStep {
+                dt,
+                bound: self.bound.dt,
+                node: self.bound.node,
+            });
+        }
+        // The time reached so far is counted at the old step before it changes.
+        self.time_at_dt_change = self.time();
+        self.steps_at_dt_change = self.steps;
+        let cost = self.engine.set_time_step(dt)?;
+        self.config.dt = dt;
+        self.reset_energy_reference();
+        Ok(cost)
+    }
+}

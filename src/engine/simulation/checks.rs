@@ -1,0 +1,105 @@
+//! Divergence checks and energies: non-finite state and energy growth, measured where the state
+//! lives, against a reference that model changes and position corrections move.
+
+use super::*;
+
+impl Simulation {
+    /// Check the current state for divergence. Engines with a device-side probe
+    /// ([`Engine::health`]) read back a few bytes: kinetic plus gravitational energy is a lower
+    /// bound of the total (elastic energy is never negative), so when it is within the limit
+    /// nothing more is read; otherwise, or when a node is not finite, the whole state is read
+    /// and checked exactly, which names the node.
+    pub fn check(&self) -> Result<()> {
+        self.check_total().map(|_| ())
+    }
+
+    /// [`Simulation::check`], returning the total energy where it was computed exactly.
+    pub(super) fn check_total(&self) -> Result<Option<f64>> {
+        if let Some(h) = self.engine.health()? {
+            let lower = h.kinetic + h.gravity;
+            if h.non_finite.is_none()
+                && lower.is_finite()
+                && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale
+            {
+                return Ok(None);
+            }
+        }
+        self.check_exact().map(Some)
+    }
+
+    /// The exact check over the whole state; returns the total energy.
+    pub(super) fn check_exact(&self) -> Result<f64> {
+        let (x, v) = self.engine.state();
+        let bad = x
+            .iter()
+            .zip(&v)
+            .position(|(p, u)| !p.iter().chain(u).all(|c| c.is_finite()));
+        if let Some(node) = bad {
+            return Err(Error::Diverged {
+                step: self.steps,
+                node,
+                reason: "position or velocity is not finite".into(),
+            });
+        }
+        let e = self.energy_of(&x, &v);
+        let total = e.total();
+        if !total.is_finite() || total - self.start_energy > ENERGY_GROWTH_LIMIT * self.energy_scale
+        {
+            let node = v
+                .iter()
+                .zip(&self.model.mass)
+                .enumerate()
+                .max_by(|(_, (a, ma)), (_, (b, mb))| {
+                    let ka = *ma * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+                    let kb = *mb * (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+                    ka.total_cmp(&kb)
+                })
+                .map_or(0, |(i, _)| i);
+            return Err(Error::Diverged {
+                step: self.steps,
+                node,
+                reason: format!(
+                    "total energy grew from {:.3e} J to {total:.3e} J (limit: +{:.0} x the \
+                     energy scale {:.3e} J); the node shown moves fastest",
+                    self.start_energy, ENERGY_GROWTH_LIMIT, self.energy_scale
+                ),
+            });
+        }
+        Ok(total)
+    }
+
+    /// Corrections raise the reference by their work, an upper bound of the energy (damping
+    /// only takes energy out); where a check has measured the total exactly (every check on
+    /// the CPU engines; on the GPU a failed lower bound, or every [`EXACT_CHECK_EVERY`] steps
+    /// while the reference is up) and found it lower, the reference comes
+    /// down to it, never below where it was last taken from the state. The scale keeps the
+    /// growth of the reference above that level.
+    pub(super) fn tighten_reference(&mut self, total: f64) {
+        if total < self.start_energy {
+            self.start_energy = total.max(self.base_energy.min(self.start_energy));
+            self.energy_scale = self.base_scale + (self.start_energy - self.base_energy).max(0.0);
+        }
+    }
+
+    pub(super) fn energy_of(&self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Energy {
+        Energy {
+            kinetic: self.model.kinetic_energy(v),
+            elastic: self.model.elastic_energy(x),
+            gravity: self.model.gravity_energy(x),
+        }
+    }
+
+    /// What the divergence check compares against: the reference total energy, J (the energy
+    /// when the run started or its state was last set, plus the work of every position
+    /// correction since), and the energy scale, J, of which [`ENERGY_GROWTH_LIMIT`] times is
+    /// the allowed growth above the reference.
+    pub fn energy_reference(&self) -> (f64, f64) {
+        (self.start_energy, self.energy_scale)
+    }
+
+    /// Energies of the current state.
+    pub fn energy(&self) -> Energy {
+        let (x, v) = self.engine.state();
+        self.energy_of(&x, &v)
+    }
+}

@@ -1,0 +1,447 @@
+//! [`Simulation`]: an engine with the checks a user relies on. A time step above the stable
+//! bound is refused, divergence is caught within [`SimConfig::check_every`] steps and reported
+//! with the step and node, and model changes, surfaces and contact corrections reach the engine
+//! through it. One idea per file: changes to the model and the time step (`changes.rs`), the
+//! divergence checks and energies (`checks.rs`), the surface and contact calls (`contact.rs`).
+
+mod changes;
+mod checks;
+mod contact;
+
+use std::collections::{HashMap, HashSet};
+
+use super::surface_list::{self, surface_key};
+use super::*;
+
+/// Energies of a state, J.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Energy {
+    /// Kinetic.
+    pub kinetic: f64,
+    /// Elastic (springs).
+    pub elastic: f64,
+    /// Gravitational, zero at rest positions.
+    pub gravity: f64,
+}
+
+impl Energy {
+    /// Sum of all parts.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.elastic + self.gravity
+    }
+}
+
+/// The factor by which total energy may exceed its start (in units of the model's energy
+/// scale) before the run is declared diverged. Energy can only fall in a stable run (gravity is
+/// part of the total, damping removes energy), so any real growth is instability; the margin
+/// absorbs the oscillation of the discrete energy near the bound.
+pub const ENERGY_GROWTH_LIMIT: f64 = 100.0;
+
+/// Steps between exact energy checks (a readback of the whole state) on engines with a cheap
+/// divergence probe, while position corrections hold the reference above where it was taken:
+/// the probe sees only kinetic and gravitational energy, so only an exact check brings the
+/// reference back down to the energy left after damping.
+pub const EXACT_CHECK_EVERY: u64 = 500;
+
+type Made = (Box<dyn Engine>, EngineKind, Option<String>);
+
+/// Build the engine of `kind`; `Auto` resolves to the GPU or, failing that, the fast CPU engine
+/// with a note saying why.
+fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Result<Made> {
+    Ok(match kind {
+        EngineKind::Reference => (
+            Box::new(reference::ReferenceEngine::new(model, config)),
+            kind,
+            None,
+        ),
+        EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
+        EngineKind::Gpu => (gpu_engine(model, config)?, kind, None),
+        EngineKind::Auto => match gpu_engine(model, config) {
+            Ok(e) => (e, EngineKind::Gpu, None),
+            Err(e) => (
+                Box::new(fast::FastEngine::new(model, config)),
+                EngineKind::Fast,
+                Some(format!("no usable GPU ({e}); running the fast CPU engine")),
+            ),
+        },
+    })
+}
+
+#[cfg(feature = "gpu")]
+fn gpu_engine(model: &PackedModel, config: SimConfig) -> Result<Box<dyn Engine>> {
+    Ok(Box::new(gpu::GpuEngine::new(model, config, config.layout)?))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_engine(_: &PackedModel, _: SimConfig) -> Result<Box<dyn Engine>> {
+    Err(Error::Unsupported(
+        "this build has no GPU engine (enable the `gpu` cargo feature)".into(),
+    ))
+}
+
+/// Below this fraction of the stable bound, float32 Verlet rounds away a measurable part of
+/// each step's increment (see `verlet_precision_note`).
+pub const VERLET_F32_FRACTION: f64 = 0.3;
+
+/// Advice for float32 Verlet far below the stable bound. Verlet stores two positions, and the
+/// step's increment `h^2 a` becomes a few float32 ulps of the displacement as `h` falls, so the
+/// error grows as the step shrinks (measured on the default scene with `lancet report accuracy`:
+/// relative error 4.6e-5 at the bound, 1.2e-3 at a quarter of it, 0.16 at a sixteenth).
+/// Symplectic Euler follows the same trajectory in exact arithmetic (Verlet's
+/// backward-difference velocity is its stored velocity) and keeps the velocity, so it does not
+/// lose precision: 1.1e-5 at a sixteenth, as float64.
+fn verlet_precision_note(kind: EngineKind, config: &SimConfig, bound: f64) -> Option<String> {
+    let float32 = matches!(kind, EngineKind::Fast | EngineKind::Gpu);
+    (float32 && config.integrator == Integrator::Verlet && config.dt < VERLET_F32_FRACTION * bound)
+        .then(|| {
+            format!(
+                "float32 Verlet at {:.2} of the stable bound rounds away part of each step; \
+                 SymplecticEuler follows the same trajectory without that loss",
+                config.dt / bound
+            )
+        })
+}
+
+/// An engine with safety checks around it.
+pub struct Simulation {
+    engine: Box<dyn Engine>,
+    model: PackedModel,
+    config: SimConfig,
+    kind: EngineKind,
+    bound: StabilityBound,
+    steps: u64,
+    /// The boundary triangles for tool culling, once given.
+    surface: Option<Vec<[u32; 3]>>,
+    /// Where each surface triangle (by its sorted corners) sits in `surface`, built with it.
+    surface_slots: Option<HashMap<[u32; 3], u32>>,
+    /// Simulated time and step count when the time step last changed.
+    time_at_dt_change: f64,
+    steps_at_dt_change: u64,
+    /// The divergence check's reference total energy, J.
+    start_energy: f64,
+    /// The energy scale the allowed growth is a multiple of, J.
+    energy_scale: f64,
+    /// The reference and scale as last taken from the state (before any correction's work).
+    base_energy: f64,
+    base_scale: f64,
+    /// Steps since the total energy was last measured exactly.
+    steps_since_exact: u64,
+    /// The springs at each node, built at the first position correction.
+    node_springs: Option<NodeSprings>,
+    note: Option<String>,
+    /// A box whose nodes the last step of the next run reads ahead ([`Simulation::prefetch_near`]).
+    near_ahead: Option<([f64; 3], [f64; 3])>,
+    /// How reads of nodes near a blade were served, over every engine this simulation had (a
+    /// new time step rebuilds it).
+    near_reads: NearReads,
+}
+
+/// The springs at each node (indices into the model's springs), packed.
+struct NodeSprings {
+    offsets: Vec<u32>,
+    springs: Vec<u32>,
+}
+
+impl NodeSprings {
+    fn of(model: &PackedModel) -> Self {
+        let n = model.node_count();
+        let mut offsets = vec![0u32; n + 1];
+        for s in model.springs() {
+            for i in s.nodes {
+                offsets[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut springs = vec![0u32; offsets[n] as usize];
+        for (k, s) in model.springs().iter().enumerate() {
+            for i in s.nodes {
+                springs[fill[i as usize] as usize] = k as u32;
+                fill[i as usize] += 1;
+            }
+        }
+        NodeSprings { offsets, springs }
+    }
+
+    fn of_node(&self, i: u32) -> &[u32] {
+        let i = i as usize;
+        &self.springs[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+}
+
+impl Simulation {
+    /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or is above the
+    /// stable bound (unless `config.allow_unstable`).
+    pub fn new(mut model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
+        // Cuts append nodes and springs: room made now (see `model::room`).
+        use crate::model::room::reserve_room;
+        reserve_room(&mut model.node_keys);
+        reserve_room(&mut model.rest);
+        reserve_room(&mut model.mass);
+        reserve_room(&mut model.fixed);
+        model.reserve_springs(crate::model::room::spare(model.springs().len()));
+        if !(config.dt.is_finite() && config.dt > 0.0) {
+            return Err(Error::Model(format!(
+                "time step {} must be finite and positive",
+                config.dt
+            )));
+        }
+        if config.check_every == 0 {
+            return Err(Error::Model("check_every must be at least 1 step".into()));
+        }
+        let bound = stable_time_step(&model);
+        if config.dt > bound.dt && !config.allow_unstable {
+            return Err(Error::UnstableTimeStep {
+                dt: config.dt,
+                bound: bound.dt,
+                node: bound.node,
+            });
+        }
+        let (engine, kind, mut note) = make_engine(&model, kind, config)?;
+        if let Some(precision) = verlet_precision_note(kind, &config, bound.dt) {
+            note = Some(match note {
+                Some(n) => format!("{n}; {precision}"),
+                None => precision,
+            });
+        }
+        // Room for cuts' springs and nodes, so that a patch does not copy the whole model into
+        // a larger array (a pause of milliseconds at 100,000 tets): a quarter, as the fast
+        // engine keeps (350 subdividing cut events into a 104,544-tet box add 17% springs).
+        let mut model = model;
+        model.reserve_springs(model.springs().len() / 4);
+        let extra = model.node_count() / 4;
+        model.rest.reserve(extra);
+        model.mass.reserve(extra);
+        model.fixed.reserve(extra);
+        model.node_keys.reserve(extra);
+        let mut sim = Simulation {
+            engine,
+            model,
+            config,
+            kind,
+            bound,
+            steps: 0,
+            surface: None,
+            surface_slots: None,
+            time_at_dt_change: 0.0,
+            steps_at_dt_change: 0,
+            start_energy: 0.0,
+            energy_scale: 0.0,
+            base_energy: 0.0,
+            base_scale: 0.0,
+            steps_since_exact: 0,
+            node_springs: None,
+            near_ahead: None,
+            near_reads: NearReads::default(),
+            note,
+        };
+        sim.reset_energy_reference();
+        Ok(sim)
+    }
+
+    /// Energy reference for divergence checks: the current total, and a scale made of the
+    /// energies present plus what gravity could release over the body's size plus a floor of
+    /// 0.1% strain in every spring (so a body at rest without gravity still has a scale).
+    fn reset_energy_reference(&mut self) {
+        let e = self.energy();
+        let m = &self.model;
+        let (lo, hi) = m.rest.iter().fold(
+            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(lo, hi), p| {
+                (
+                    [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                    [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+                )
+            },
+        );
+        let diag = (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f64>().sqrt();
+        let g = m.gravity.iter().map(|g| g * g).sum::<f64>().sqrt();
+        let gravity_scale: f64 = m.mass.iter().sum::<f64>() * g * diag;
+        let strain_floor: f64 = m
+            .springs()
+            .iter()
+            .map(|s| 0.5 * s.stiffness * (1e-3 * s.rest_length).powi(2))
+            .sum();
+        self.start_energy = e.total();
+        self.energy_scale = e.kinetic.abs() + e.elastic.abs() + gravity_scale + strain_floor;
+        self.base_energy = self.start_energy;
+        self.base_scale = self.energy_scale;
+    }
+
+    /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.
+    /// A check that measures the total energy exactly also lowers the reference that position
+    /// corrections raised (see [`Simulation::correct_positions`]): every check on the CPU
+    /// engines; on the GPU, whose checks read a cheap probe, one every [`EXACT_CHECK_EVERY`]
+    /// steps while corrections hold the reference up.
+    pub fn run(&mut self, steps: u64) -> Result<()> {
+        self.run_with(steps, |_| {})
+    }
+
+    /// Like [`Simulation::run`], calling `progress(steps_done_in_this_call)` after each chunk.
+    pub fn run_with(&mut self, steps: u64, mut progress: impl FnMut(u64)) -> Result<()> {
+        let mut done = 0;
+        while done < steps {
+            let chunk = (steps - done).min(self.config.check_every as u64) as u32;
+            if done + chunk as u64 == steps {
+                self.hand_prefetch();
+            }
+            self.engine.step(chunk);
+            self.steps += chunk as u64;
+            done += chunk as u64;
+            let mut exact = self.check_total()?;
+            self.steps_since_exact += chunk as u64;
+            // Engines with a cheap probe measure the total only now and then, while
+            // corrections hold the reference more than a scale above where it was taken.
+            if exact.is_none()
+                && self.steps_since_exact >= EXACT_CHECK_EVERY
+                && self.start_energy > self.base_energy + self.base_scale
+            {
+                exact = Some(self.check_exact()?);
+            }
+            if let Some(total) = exact {
+                self.tighten_reference(total);
+                self.steps_since_exact = 0;
+            }
+            progress(done);
+        }
+        Ok(())
+    }
+
+    /// Wait until the steps already submitted have run (the GPU engine queues them; the CPU
+    /// engines have finished when `run` returns). For timing what follows a step apart from
+    /// the step itself.
+    pub fn wait(&mut self) {
+        self.engine.wait();
+    }
+
+    /// Advance `steps` steps with no divergence check (for timing); call
+    /// [`Simulation::check`] afterwards.
+    pub fn step_unchecked(&mut self, steps: u32) {
+        if steps > 0 {
+            self.hand_prefetch();
+        }
+        self.engine.step(steps);
+        self.engine.wait();
+        self.steps += steps as u64;
+    }
+
+    /// Device time of the last [`Simulation::step_unchecked`] call, s, where the engine can
+    /// measure it (the GPU engine on an adapter with timestamp queries).
+    pub fn last_device_seconds(&self) -> Option<f64> {
+        self.engine.last_device_seconds()
+    }
+
+    /// The engine's name as reported in summaries (with its device for the GPU).
+    pub fn engine_name(&self) -> String {
+        self.engine.name()
+    }
+
+    /// Why the engine differs from the one asked for (`Auto` without a GPU), and advice about
+    /// the configuration (float32 Verlet far below the stable bound), if any.
+    pub fn engine_note(&self) -> Option<&str> {
+        self.note.as_deref()
+    }
+
+    /// Replace the state (initial displacement or velocity); resets the divergence reference.
+    pub fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) -> Result<()> {
+        let n = self.model.node_count();
+        if positions.len() != n || velocities.len() != n {
+            return Err(Error::Model(format!(
+                "state has {} positions and {} velocities for {n} nodes",
+                positions.len(),
+                velocities.len()
+            )));
+        }
+        self.engine.set_state(positions, velocities);
+        self.reset_energy_reference();
+        Ok(())
+    }
+
+    /// Current positions, m, in packed node order.
+    pub fn positions(&self) -> Vec<[f64; 3]> {
+        self.engine.positions()
+    }
+
+    /// Current velocities, m/s.
+    pub fn velocities(&self) -> Vec<[f64; 3]> {
+        self.engine.velocities()
+    }
+
+    /// Largest nodal displacement from rest, m.
+    pub fn max_displacement(&self) -> f64 {
+        self.positions()
+            .iter()
+            .zip(&self.model.rest)
+            .map(|(p, r)| {
+                ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Steps taken so far.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Simulated time so far, s.
+    pub fn time(&self) -> f64 {
+        self.time_at_dt_change + (self.steps - self.steps_at_dt_change) as f64 * self.config.dt
+    }
+
+    /// The stable time-step bound (s) the model would have after `diff`, and the node that
+    /// sets it, without applying it: what a caller asks before a change that may lower the
+    /// bound below the time step (as [`Simulation::apply`] would refuse), to choose a new step
+    /// or to go on. Touches only what the diff names.
+    pub fn bound_after(&mut self, diff: &ModelDiff) -> (f64, usize) {
+        let undo = self.bound.update(&self.model, diff);
+        let after = (self.bound.dt, self.bound.node);
+        self.bound.undo(undo);
+        after
+    }
+
+    /// The stable time-step bound of the model.
+    pub fn bound(&self) -> &StabilityBound {
+        &self.bound
+    }
+
+    /// The model being run.
+    pub fn model(&self) -> &PackedModel {
+        &self.model
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// Memory and per-step traffic of the engine.
+    pub fn memory(&self) -> EngineMemory {
+        self.engine.memory()
+    }
+
+    /// How the engine, after the changes applied so far, differs from one built from scratch
+    /// for the current model (its layout, and on the GPU every device buffer of it): empty when
+    /// they agree. Reads the layout back from the device: for checks, not for every step.
+    pub fn differences_from_rebuild(&self) -> Result<Vec<String>> {
+        self.engine.differences_from_rebuild(&self.model)
+    }
+
+    /// Which engine runs.
+    pub fn kind(&self) -> EngineKind {
+        self.kind
+    }
+}
+
+/// A simulation is where a cut reads the positions near its blade
+/// ([`crate::cut::Cutter::cut_from`]).
+impl crate::cut::PositionSource for Simulation {
+    fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
+        self.nodes_near(lo, hi)
+    }
+
+    fn of(&mut self, nodes: &[u32]) -> Result<Vec<[f64; 3]>> {
+        self.node_positions(nodes)
+    }
+}
