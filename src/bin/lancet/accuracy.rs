@@ -1,0 +1,155 @@
+//! `lancet report accuracy`: error against run time, with plots.
+
+use super::*;
+
+/// Run the accuracy report, print it, write its plots.
+pub(crate) fn accuracy(
+    scene_path: Option<&Path>,
+    opts: &lancet::report::accuracy::AccuracyOptions,
+    json: bool,
+    plot: PlotTo,
+) -> lancet::Result<ExitCode> {
+    let (scene, path) = match scene_path {
+        None => (
+            Scene::default_scene(),
+            PathBuf::from("<embedded default scene>"),
+        ),
+        Some(p) => (Scene::read(p)?, p.to_path_buf()),
+    };
+    let report = lancet::report::accuracy::scene_accuracy(&scene, &path, opts, |line| {
+        if !json {
+            eprintln!("running {line}");
+        }
+    })?;
+    let plot_dir = match plot {
+        PlotTo::Nowhere => None,
+        PlotTo::Dir(d) => Some(d),
+        PlotTo::Default => Some(match (&scene.output, scene_path) {
+            (Some(o), Some(p)) => p.parent().unwrap_or(Path::new(".")).join(&o.dir),
+            _ => PathBuf::from("."),
+        }),
+    };
+    let plots = match plot_dir {
+        Some(dir) => Some(write_accuracy_plots(&report, &dir)?),
+        None => None,
+    };
+    if json {
+        let v = json!({ "report": report, "plots": plots });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return Ok(ExitCode::SUCCESS);
+    }
+    print_accuracy(&report);
+    if let Some(p) = plots {
+        for f in ["svg", "png"] {
+            if let Some(path) = p.get(f).and_then(|v| v.as_str()) {
+                println!("wrote {path}");
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Write the plots; their paths (and a note when the PNG has no text) as JSON.
+#[cfg(feature = "plot")]
+pub(crate) fn write_accuracy_plots(
+    report: &lancet::report::accuracy::AccuracyReport,
+    dir: &Path,
+) -> lancet::Result<serde_json::Value> {
+    use lancet::report::plot;
+    let font = plot::find_font();
+    let files = plot::write_plots(report, dir, font.as_deref())?;
+    if let Some(n) = &files.note {
+        eprintln!("note: {n}");
+    }
+    Ok(json!({
+        "svg": files.svg.display().to_string(),
+        "png": files.png.display().to_string(),
+        "font": font.map(|f| f.display().to_string()),
+        "note": files.note,
+    }))
+}
+
+#[cfg(not(feature = "plot"))]
+pub(crate) fn write_accuracy_plots(
+    _: &lancet::report::accuracy::AccuracyReport,
+    _: &Path,
+) -> lancet::Result<serde_json::Value> {
+    eprintln!("note: this build draws no plots (enable the `plot` cargo feature)");
+    Ok(json!({ "note": "this build draws no plots" }))
+}
+
+pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
+    println!(
+        "scene: {} ({} nodes, {} springs), {}, stable bound {:.4e} s",
+        r.scene, r.nodes, r.springs, r.integrator, r.dt_bound
+    );
+    let times: Vec<String> = r.sample_times.iter().map(|t| format!("{t:.4e}")).collect();
+    println!("sample times (s): {}", times.join(", "));
+    let self_err: Vec<String> = r
+        .reference
+        .self_error
+        .iter()
+        .map(|e| format!("{:.2e}", e.relative_l2))
+        .collect();
+    println!(
+        "reference: {} at dt {:.4e} s ({:.4} of the bound, {} steps, {:.3} s wall per simulated s)",
+        r.reference.engine,
+        r.reference.dt,
+        r.reference.dt_over_bound,
+        r.reference.steps,
+        r.reference.wall_s_per_sim_s
+    );
+    println!(
+        "reference self-check (dt {:.4e} s against dt {:.4e} s), rel L2 at each time: {}",
+        r.reference.check_dt,
+        r.reference.dt,
+        self_err.join(", ")
+    );
+    for s in &r.skipped {
+        println!("note: {s}");
+    }
+    let mut devices: Vec<&str> = r
+        .rows
+        .iter()
+        .filter_map(|r| r.engine.split_once(" on ").map(|(_, d)| d))
+        .collect();
+    devices.dedup();
+    for d in devices {
+        println!("gpu device: {d}");
+    }
+    print!(
+        "{:<18} {:>8} {:>10} {:>8} {:>11}",
+        "series", "dt/bound", "dt (s)", "steps", "wall s/sim s"
+    );
+    for k in 1..=r.sample_times.len() {
+        print!(" {:>9} {:>9}", format!("relL2@t{k}"), format!("maxm@t{k}"));
+    }
+    println!();
+    for row in &r.rows {
+        print!(
+            "{:<18} {:>8.4} {:>10.3e} {:>8} {:>11.3e}",
+            row.series, row.dt_over_bound, row.dt, row.steps, row.wall_s_per_sim_s
+        );
+        for e in &row.errors {
+            print!(" {:>9.2e} {:>9.2e}", e.relative_l2, e.max_error_m);
+        }
+        if let Some(m) = &row.diverged {
+            print!("  {m}");
+        }
+        println!();
+    }
+    println!(
+        "relL2: |x - x_ref| / |x_ref - x_rest| over all nodes; maxm: largest nodal error, m; \
+         wall s/sim s: stepping time per simulated second"
+    );
+}
+
+/// Where `lancet report accuracy` writes its plots.
+pub(crate) enum PlotTo {
+    /// The scene's output folder, else the current folder.
+    Default,
+    /// This folder.
+    Dir(PathBuf),
+    /// No plots.
+    Nowhere,
+}

@@ -1,0 +1,476 @@
+//! The `lancet` command-line tool: run scenes, benchmark engines, report accuracy, inspect
+//! meshes.
+//!
+//! Exit codes: 0 success, 1 an expectation failed or the run diverged, 2 bad input or another
+//! error.
+
+mod accuracy;
+mod bench;
+mod info;
+mod run;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+
+use lancet::engine::{EngineKind, NodeOrdering};
+use lancet::layout::edges::Accumulation;
+use lancet::scene::{run_scene, RunOptions, RunSummary, Scene};
+
+use accuracy::*;
+use bench::*;
+use info::*;
+use run::*;
+
+#[derive(Parser)]
+#[command(
+    name = "lancet",
+    version,
+    about = "Soft-tissue simulation with cutting"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum BenchWhat {
+    /// The collision broad phases (tool against tissue, tissue against itself) on the GPU and
+    /// their CPU twins, against surface size and tool count: median latency including the
+    /// readback, and the culling ratio.
+    Collide {
+        /// Boundary triangles of the test surfaces (thin slabs), comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["10000", "50000", "200000"])]
+        triangles: Vec<usize>,
+        /// Tool counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["1", "3"])]
+        tools: Vec<usize>,
+        /// Timed runs per row (the median is reported).
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Local incisions (four parallel ones, two cells apart) into boxes of growing size and
+    /// with growing length: latency per cut event (positions read, cut, engine patched, surface refreshed), bytes uploaded against
+    /// the whole layout, mesh growth per cut area, stable time step before and after.
+    Cut {
+        /// Boxes of N x N x N/2 cells of 1 cm (6 tets each), comma-separated.
+        #[arg(long = "cube", value_delimiter = ',', default_values = ["10", "20", "30"])]
+        cubes: Vec<usize>,
+        /// Cut lengths, m, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values = ["0.03"])]
+        length: Vec<f64>,
+        /// Cut methods, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["separate", "remove", "subdivide"])]
+        method: Vec<MethodArg>,
+        /// Engines, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["fast", "gpu"])]
+        engine: Vec<EngineArg>,
+        /// GPU layouts, comma-separated (one GPU row each).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
+        layout: Vec<LayoutArg>,
+        /// Quality floors for subdividing, comma-separated (one row each; 0: none).
+        #[arg(long = "quality-floor", value_delimiter = ',', default_values = ["0.2"])]
+        floors: Vec<f64>,
+        /// Incisions per row, two cells apart, each two cells deep in 11 cut events: more give
+        /// the percentiles more events and grow the mesh further.
+        #[arg(long, default_value_t = lancet::report::cut_bench::INCISIONS)]
+        incisions: usize,
+        /// Do not read ahead: each cut reads the nodes near the blade with a round trip of its
+        /// own (on the GPU; a scan of every node on the fast CPU engine), instead of with the
+        /// step before it.
+        #[arg(long)]
+        no_read_ahead: bool,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene file, every scene in a folder, or (with no argument) the embedded default
+    /// scene; check its expectations.
+    Run {
+        /// A `.ron` scene file or a folder of them.
+        scene: Option<PathBuf>,
+        /// Print a machine-readable JSON summary on stdout.
+        #[arg(long)]
+        json: bool,
+        /// Engine to use instead of the scene's.
+        #[arg(long, value_enum)]
+        engine: Option<EngineArg>,
+        /// GPU memory layout instead of the scene's.
+        #[arg(long, value_enum)]
+        layout: Option<LayoutArg>,
+        /// How the GPU edge layout accumulates spring forces, instead of the scene's
+        /// (`atomic-float` needs an adapter with float32 atomics).
+        #[arg(long, value_enum)]
+        accumulation: Option<AccumulationArg>,
+        /// Number of steps instead of the scene's.
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Folder for VTU frames instead of the scene's.
+        #[arg(long)]
+        output: Option<PathBuf>,
+        /// Write no VTU frames.
+        #[arg(long)]
+        no_output: bool,
+        /// Cut with this method only (scenes that cut run once per method they name
+        /// otherwise).
+        #[arg(long, value_enum)]
+        method: Option<MethodArg>,
+        /// Check the cut invariants after every cut (volume, mass, closed fragment surfaces,
+        /// quality, agreement with a rebuild); a violation fails the scene.
+        #[arg(long)]
+        check: bool,
+    },
+    /// Benchmark engines side by side: memory, time per step, spring evaluations per second,
+    /// achieved bandwidth against this machine's measured floor, error against the reference.
+    Bench {
+        /// `collide`: the collision broad phases instead of the engines.
+        #[command(subcommand)]
+        what: Option<BenchWhat>,
+        /// Cube meshes of N^3 cells, six tets each (repeatable; cubes 10 and 26 when neither
+        /// --cube nor --mesh is given).
+        #[arg(long = "cube")]
+        cubes: Vec<usize>,
+        /// Mesh files (repeatable).
+        #[arg(long)]
+        mesh: Vec<PathBuf>,
+        /// Engines to compare, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast"])]
+        engine: Vec<EngineArg>,
+        /// GPU layouts to compare, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
+        layout: Vec<LayoutArg>,
+        /// Accumulation variants of the GPU edge layout, comma-separated (each gives its own
+        /// edges row; `atomic-float` is skipped with a note on adapters without float atomics).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["gather"])]
+        accumulation: Vec<AccumulationArg>,
+        /// Node orders for the fast CPU and GPU engines, comma-separated (`rcm` is what they
+        /// use by default; `identity` keeps the mesh's numbering; `random` is a seeded shuffle).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["rcm"])]
+        order: Vec<OrderArg>,
+        /// Steps timed per engine.
+        #[arg(long, default_value_t = 200)]
+        steps: u64,
+        /// Integration scheme of every run.
+        #[arg(long, value_enum, default_value = "verlet")]
+        integrator: IntegratorArg,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Reports on a scene (`lancet report accuracy SCENE`).
+    Report {
+        #[command(subcommand)]
+        report: ReportCommand,
+    },
+    /// Describe a mesh file: counts, volume, quality, components, regions.
+    Info {
+        /// The mesh (for TetGen, either file of the `.node`/`.ele` pair).
+        mesh: PathBuf,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// Error against run time: the scene on each engine and layout at a ladder of time steps up
+    /// to the stable bound, compared with a converged float64 run at fixed simulated times;
+    /// prints a table and writes accuracy.svg and accuracy.png.
+    Accuracy {
+        /// A `.ron` scene file (default: the embedded default scene).
+        scene: Option<PathBuf>,
+        /// Engines to measure, comma-separated (gpu rows are skipped, with the reason, when
+        /// there is no adapter).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast", "gpu"])]
+        engine: Vec<EngineArg>,
+        /// GPU layouts, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
+        layout: Vec<LayoutArg>,
+        /// Time steps as fractions of the stable bound, comma-separated, each in (0, 1].
+        #[arg(long, value_delimiter = ',', default_values = ["1", "0.5", "0.25", "0.125", "0.0625"])]
+        ladder: Vec<f64>,
+        /// Simulated times to measure the error at, s, comma-separated (default: a quarter, a
+        /// half and all of the scene's duration).
+        #[arg(long, value_delimiter = ',')]
+        time: Vec<f64>,
+        /// Step of the converged float64 reference as a fraction of the bound (it is also run
+        /// at twice this step as a self-check).
+        #[arg(long, default_value_t = 1.0 / 64.0)]
+        reference: f64,
+        /// Print JSON only on stdout.
+        #[arg(long)]
+        json: bool,
+        /// Folder for accuracy.svg and accuracy.png (default: the scene's output folder, else
+        /// the current folder).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Write no plots.
+        #[arg(long, conflicts_with = "plot")]
+        no_plot: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum EngineArg {
+    /// Float64 serial reference engine.
+    Reference,
+    /// Float32 multi-threaded CPU engine.
+    Fast,
+    /// The default CPU engine (same as `fast`).
+    Cpu,
+    /// The wgpu engine on the preferred adapter.
+    Gpu,
+    /// The GPU when there is one, else the CPU engine (and say so).
+    Auto,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LayoutArg {
+    /// Fixed slots per node.
+    Connectivity,
+    /// Nodes grouped by valence.
+    Valence,
+    /// One record per spring.
+    Edges,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum IntegratorArg {
+    /// Position Verlet over the two most recent positions.
+    Verlet,
+    /// Symplectic Euler (the same trajectory in exact arithmetic; keeps float32 precision
+    /// far below the stable bound).
+    SymplecticEuler,
+}
+
+impl From<IntegratorArg> for lancet::Integrator {
+    fn from(i: IntegratorArg) -> Self {
+        match i {
+            IntegratorArg::Verlet => lancet::Integrator::Verlet,
+            IntegratorArg::SymplecticEuler => lancet::Integrator::SymplecticEuler,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum AccumulationArg {
+    /// A node pass gathers each node's spring forces (deterministic, no atomics).
+    Gather,
+    /// Atomic adds in 32-bit fixed point (deterministic).
+    AtomicFixed,
+    /// Atomic float adds (needs SHADER_FLOAT32_ATOMIC; summation order varies).
+    AtomicFloat,
+}
+
+impl From<AccumulationArg> for Accumulation {
+    fn from(a: AccumulationArg) -> Self {
+        match a {
+            AccumulationArg::Gather => Accumulation::Gather,
+            AccumulationArg::AtomicFixed => Accumulation::AtomicFixed,
+            AccumulationArg::AtomicFloat => Accumulation::AtomicFloat,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum OrderArg {
+    /// Reverse Cuthill–McKee (the engines' default).
+    Rcm,
+    /// The mesh's own numbering.
+    Identity,
+    /// A random permutation (fixed seed, so runs compare).
+    Random,
+}
+
+/// Seed of `--order random`: fixed, so that two bench runs time the same permutation.
+const RANDOM_ORDER_SEED: u64 = 1;
+
+impl From<OrderArg> for NodeOrdering {
+    fn from(o: OrderArg) -> Self {
+        match o {
+            OrderArg::Rcm => NodeOrdering::Locality,
+            OrderArg::Identity => NodeOrdering::Identity,
+            OrderArg::Random => NodeOrdering::Random(RANDOM_ORDER_SEED),
+        }
+    }
+}
+
+impl From<LayoutArg> for lancet::layout::LayoutKind {
+    fn from(l: LayoutArg) -> Self {
+        match l {
+            LayoutArg::Connectivity => Self::Connectivity,
+            LayoutArg::Valence => Self::Valence,
+            LayoutArg::Edges => Self::Edges,
+        }
+    }
+}
+
+impl From<EngineArg> for EngineKind {
+    fn from(e: EngineArg) -> Self {
+        match e {
+            EngineArg::Reference => EngineKind::Reference,
+            EngineArg::Fast | EngineArg::Cpu => EngineKind::Fast,
+            EngineArg::Gpu => EngineKind::Gpu,
+            EngineArg::Auto => EngineKind::Auto,
+        }
+    }
+}
+
+/// Cut methods on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MethodArg {
+    /// Delete the tets the blade passes.
+    Remove,
+    /// Open the faces the blade passes, duplicating nodes.
+    Separate,
+    /// Split the tets the blade crosses along its sweep, then open the cut.
+    Subdivide,
+}
+
+impl From<MethodArg> for lancet::cut::CutMethod {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Remove => lancet::cut::CutMethod::Remove,
+            MethodArg::Separate => lancet::cut::CutMethod::Separate,
+            MethodArg::Subdivide => lancet::cut::CutMethod::Subdivide,
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run {
+            scene,
+            json,
+            engine,
+            layout,
+            accumulation,
+            steps,
+            output,
+            no_output,
+            method,
+            check,
+        } => {
+            let opts = RunOptions {
+                engine: engine.map(Into::into),
+                layout: layout.map(Into::into),
+                accumulation: accumulation.map(Into::into),
+                steps,
+                output_dir: output,
+                no_output,
+                cut_method: method.map(Into::into),
+                check,
+            };
+            run(scene.as_deref(), json, &opts)
+        }
+        Command::Info { mesh, json } => info(&mesh, json),
+        Command::Report {
+            report:
+                ReportCommand::Accuracy {
+                    scene,
+                    engine,
+                    layout,
+                    ladder,
+                    time,
+                    reference,
+                    json,
+                    plot,
+                    no_plot,
+                },
+        } => {
+            let opts = lancet::report::accuracy::AccuracyOptions {
+                engines: engine.iter().map(|&e| e.into()).collect(),
+                layouts: layout.iter().map(|&l| l.into()).collect(),
+                ladder,
+                times: time,
+                reference_fraction: reference,
+                ..Default::default()
+            };
+            let plot = if no_plot {
+                PlotTo::Nowhere
+            } else {
+                plot.map_or(PlotTo::Default, PlotTo::Dir)
+            };
+            accuracy(scene.as_deref(), &opts, json, plot)
+        }
+        Command::Bench {
+            what:
+                Some(BenchWhat::Collide {
+                    triangles,
+                    tools,
+                    repeats,
+                    json,
+                }),
+            ..
+        } => bench_collide(&triangles, &tools, repeats, json),
+        Command::Bench {
+            what:
+                Some(BenchWhat::Cut {
+                    cubes,
+                    length,
+                    method,
+                    engine,
+                    layout,
+                    floors,
+                    incisions,
+                    no_read_ahead,
+                    json,
+                }),
+            ..
+        } => bench_cut(
+            &lancet::report::cut_bench::CutBench {
+                cubes,
+                lengths: length,
+                methods: method.iter().map(|&m| m.into()).collect(),
+                engines: engine.iter().map(|&e| e.into()).collect(),
+                layouts: layout.iter().map(|&l| l.into()).collect(),
+                floors,
+                incisions,
+                read_ahead: !no_read_ahead,
+            },
+            json,
+        ),
+        Command::Bench {
+            what: None,
+            cubes,
+            mesh,
+            engine,
+            layout,
+            accumulation,
+            order,
+            steps,
+            integrator,
+            json,
+        } => {
+            let opts = lancet::report::bench::BenchOptions {
+                integrator: integrator.into(),
+                engines: engine.iter().map(|&e| e.into()).collect(),
+                layouts: layout.iter().map(|&l| l.into()).collect(),
+                accumulations: accumulation.iter().map(|&a| a.into()).collect(),
+                orders: order.iter().map(|&o| o.into()).collect(),
+                steps,
+                ..Default::default()
+            };
+            bench(&cubes, &mesh, &opts, json)
+        }
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
