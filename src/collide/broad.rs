@@ -70,8 +70,12 @@ impl ToolBox {
     /// position, half for the addition, with room to spare) and rounded outwards.
     pub fn containing(lo: [f64; 3], hi: [f64; 3]) -> Self {
         let pad = |x: f64| 2.0 * f32::EPSILON as f64 * x.abs();
-        let lo = lo.map(|x| x - pad(x));
-        let hi = hi.map(|x| x + pad(x));
+        Self::rounded_outwards(lo.map(|x| x - pad(x)), hi.map(|x| x + pad(x)))
+    }
+
+    /// The smallest float32 box holding `lo..=hi` (each bound rounded outwards), without the
+    /// pad [`ToolBox::containing`] adds for how the passes form node positions.
+    pub fn rounded_outwards(lo: [f64; 3], hi: [f64; 3]) -> Self {
         let down = |x: f64| {
             let f = x as f32;
             if f as f64 > x {

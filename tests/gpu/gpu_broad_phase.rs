@@ -190,31 +190,6 @@ fn a_patched_engine_culls_its_surface_like_the_twin(
     }
 }
 
-/// A float32 box rounded outwards from `lo..hi`, without the pad for how the passes form node
-/// positions: what `ToolBox::containing` would be without it.
-fn rounded_outwards(lo: [f64; 3], hi: [f64; 3]) -> ToolBox {
-    let down = |x: f64| {
-        let f = x as f32;
-        if f as f64 > x {
-            f.next_down()
-        } else {
-            f
-        }
-    };
-    let up = |x: f64| {
-        let f = x as f32;
-        if (f as f64) < x {
-            f.next_up()
-        } else {
-            f
-        }
-    };
-    ToolBox {
-        lo: [down(lo[0]), down(lo[1]), down(lo[2]), 0.0],
-        hi: [up(hi[0]), up(hi[1]), up(hi[2]), 0.0],
-    }
-}
-
 /// Boxes with a face exactly through a deformed surface node, one on each side of it along each
 /// axis: the node's position in float64 (its rest position plus its float32 displacement, as
 /// the exact test and the engine's positions take it) is on the face, so the triangles whose
@@ -280,7 +255,7 @@ fn boxes_through_deformed_nodes_miss_no_pair(
         );
         let unpadded: Vec<ToolBox> = exact_boxes
             .iter()
-            .map(|&(lo, hi)| rounded_outwards(lo, hi))
+            .map(|&(lo, hi)| ToolBox::rounded_outwards(lo, hi))
             .collect();
         let mut bare = cull_cpu(&rest, &disp, &tris, &unpadded);
         bare.sort_unstable();
