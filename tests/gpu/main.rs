@@ -11,7 +11,6 @@ mod models;
 mod read_ahead;
 
 mod gpu_broad_phase;
-mod gpu_context;
 mod gpu_edges;
 mod gpu_health;
 mod gpu_layouts;

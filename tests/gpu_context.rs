@@ -1,8 +1,10 @@
 //! The process-wide device: engines made with `GpuContext::new` share one device, a context
 //! with lowered limits has its own, and a lost shared device is replaced at the next call.
-//! One test in its own binary, since it destroys the shared device.
+//! One test in its own binary (the only test outside the area binaries), since it destroys
+//! the shared device that every other GPU test of a binary uses.
 
-use crate::common;
+mod common;
+
 use lancet::engine::gpu::{GpuContext, GpuEngine};
 use lancet::engine::{Engine, SimConfig};
 use lancet::layout::LayoutKind;
