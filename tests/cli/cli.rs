@@ -1093,3 +1093,56 @@ fn a_failing_cut_expectation_exits_with_code_1() {
     assert_eq!(out.status.code(), Some(1), "{stdout}");
     assert!(stdout.contains("FAIL  fragments"), "{stdout}");
 }
+
+/// `lancet run --json | head`: a reader that closes the pipe before the summary is printed ends
+/// the process as it ends other Unix tools (by SIGPIPE), not with a panic and exit code 101.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_ends_the_run_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lancet"))
+        .args(["run", "--json", "--engine", "fast", "--no-output"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the lancet binary runs");
+    // Closed before the run ends, so the summary is written to a pipe nobody reads.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), None, "{:?}: {stderr}", out.status);
+    assert_eq!(
+        out.status.signal(),
+        Some(libc_sigpipe()),
+        "{:?}",
+        out.status
+    );
+}
+
+/// SIGPIPE's number on Linux and the BSDs (and macOS).
+#[cfg(unix)]
+fn libc_sigpipe() -> i32 {
+    13
+}
+
+/// Under `--json` an error is a JSON object on stdout that a program can parse (exit code 2),
+/// for every command; without it, a line on stderr.
+#[test]
+fn errors_under_json_are_a_json_object() {
+    for args in [
+        &["run", "no/such/scene.ron", "--json"][..],
+        &["info", "no/such/mesh.msh", "--json"][..],
+    ] {
+        let out = lancet(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let v = json_of(&out);
+        let message = v["error"].as_str().expect("an error message");
+        assert!(message.contains("no/such/"), "{args:?}: {message}");
+    }
+    let out = lancet(&["info", "no/such/mesh.msh"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).starts_with("error: "));
+}

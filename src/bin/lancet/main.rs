@@ -348,8 +348,41 @@ impl From<MethodArg> for lancet::cut::CutMethod {
     }
 }
 
+/// Let a closed pipe end the process as it ends other Unix tools (`lancet run --json | head`),
+/// instead of a panic at the next print: Rust ignores SIGPIPE, so a write to a closed pipe
+/// fails, and `println!` panics on the failure.
+fn quiet_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in `main`, before any thread exists; SIG_DFL is a valid
+    // action for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+/// Whether the command asked for JSON output: its errors are then a JSON object on stdout.
+fn wants_json(command: &Command) -> bool {
+    match command {
+        Command::Run { json, .. } | Command::Info { json, .. } => *json,
+        Command::Report {
+            report: ReportCommand::Accuracy { json, .. },
+        } => *json,
+        Command::Bench {
+            what: Some(BenchWhat::Collide { json, .. }),
+            ..
+        }
+        | Command::Bench {
+            what: Some(BenchWhat::Cut { json, .. }),
+            ..
+        }
+        | Command::Bench { json, .. } => *json,
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_on_closed_pipe();
     let cli = Cli::parse();
+    let json = wants_json(&cli.command);
     let result = match cli.command {
         Command::Run {
             scene,
@@ -468,6 +501,11 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        Err(e) if json => {
+            // A program reading the output gets an object it can parse, not a line of text.
+            println!("{}", json!({ "error": e.to_string() }));
+            ExitCode::from(2)
+        }
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(2)
