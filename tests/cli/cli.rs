@@ -215,6 +215,16 @@ fn info_reports_counts_volume_and_regions_as_json() {
     assert_eq!(v["regions"]["1"], 1);
     assert_eq!(v["regions"]["7"], 1);
     assert!(v["min_quality"].as_f64().unwrap() > 0.0);
+    // The box of the five nodes: x and y in [0, 1], z in [-1, 1].
+    assert_eq!(v["bounds"]["min"], serde_json::json!([0.0, 0.0, -1.0]));
+    assert_eq!(v["bounds"]["max"], serde_json::json!([1.0, 1.0, 1.0]));
+    assert_eq!(v["bounds"]["size"], serde_json::json!([1.0, 1.0, 2.0]));
+    let text =
+        String::from_utf8_lossy(&lancet(&["info", mesh.to_str().unwrap()]).stdout).into_owned();
+    assert!(
+        text.contains("size (1.000000e0, 1.000000e0, 2.000000e0)"),
+        "{text}"
+    );
 }
 
 #[test]

@@ -15,6 +15,11 @@ pub(crate) fn info(path: &Path, json: bool) -> lancet::Result<ExitCode> {
         .map(|(r, n)| (r.to_string(), json!(n)))
         .collect();
     let edges = mesh.edges().len();
+    // The bounding box says at a glance what unit the file is in (a liver 6.5 units across is
+    // in millimetres, or has no unit, rather than metres).
+    let bounds = mesh
+        .bounds()
+        .map(|(lo, hi)| ([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]));
     if json {
         let v = json!({
             "path": path.display().to_string(),
@@ -25,6 +30,10 @@ pub(crate) fn info(path: &Path, json: bool) -> lancet::Result<ExitCode> {
             "boundary_faces": topo.boundary.len(),
             "surface_triangles": loaded.surface.len(),
             "volume": mesh.volume(),
+            "bounds": bounds.map(|(lo, hi)| {
+                let size = [0, 1, 2].map(|c| hi[c] - lo[c]);
+                json!({ "min": lo, "max": hi, "size": size })
+            }),
             "inverted": loaded.report.reoriented,
             "dropped_nodes": loaded.report.dropped_nodes,
             "min_quality": quality.map(|q| q.min_volume_length_ratio),
@@ -52,6 +61,21 @@ pub(crate) fn info(path: &Path, json: bool) -> lancet::Result<ExitCode> {
         components,
         loaded.report.reoriented
     );
+    if let Some((lo, hi)) = bounds {
+        println!(
+            "bounds: min ({:.6e}, {:.6e}, {:.6e}), max ({:.6e}, {:.6e}, {:.6e}), size ({:.6e}, \
+             {:.6e}, {:.6e})",
+            lo[0],
+            lo[1],
+            lo[2],
+            hi[0],
+            hi[1],
+            hi[2],
+            hi[0] - lo[0],
+            hi[1] - lo[1],
+            hi[2] - lo[2]
+        );
+    }
     if let Some(q) = quality {
         println!(
             "quality: volume-length ratio min {:.4} mean {:.4}; dihedral angles {:.2}..{:.2} deg",
