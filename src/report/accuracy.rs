@@ -340,7 +340,8 @@ fn errors_of(
 }
 
 /// Whether a GPU engine can be built here, and if not, why.
-fn gpu_usable() -> std::result::Result<(), String> {
+/// Whether a GPU engine can start here: `Err` with the reason (no adapter, no `gpu` feature).
+pub(crate) fn gpu_usable() -> std::result::Result<(), String> {
     #[cfg(feature = "gpu")]
     {
         crate::engine::gpu::GpuContext::new()

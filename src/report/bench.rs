@@ -234,6 +234,7 @@ pub fn run_bench(
         rows: Vec::new(),
         skipped: Vec::new(),
     };
+    let mut gpu_state: Option<std::result::Result<(), String>> = None;
     for m in meshes {
         let (name, mesh) = m.build()?;
         let model = bench_model(&mesh)?;
@@ -248,6 +249,17 @@ pub fn run_bench(
         reference.run(total)?;
         let x_ref = reference.positions();
         for v in variants(opts) {
+            // Without a usable adapter the GPU rows are skipped with the reason, once, and the
+            // CPU rows still run, as `lancet report accuracy` does.
+            if v.engine == EngineKind::Gpu {
+                if let Err(why) = gpu_state.get_or_insert_with(super::accuracy::gpu_usable) {
+                    let msg = format!("gpu rows skipped: {why}");
+                    if !report.skipped.contains(&msg) {
+                        report.skipped.push(msg);
+                    }
+                    continue;
+                }
+            }
             let config = SimConfig {
                 layout: v.layout.unwrap_or(base.layout),
                 accumulation: v.accumulation.unwrap_or(base.accumulation),

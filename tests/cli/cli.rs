@@ -563,6 +563,32 @@ fn lancet_without_gpu(args: &[&str]) -> Output {
         .expect("the lancet binary runs")
 }
 
+/// `lancet bench --engine fast,gpu` without an adapter measures the CPU rows and lists the GPU
+/// rows as skipped with the reason, as `lancet report accuracy` does (it exited 2 and dropped
+/// the CPU rows).
+#[test]
+fn without_a_gpu_bench_runs_the_cpu_rows_and_skips_the_gpu_ones() {
+    let out = lancet_without_gpu(&[
+        "bench", "--cube", "4", "--engine", "fast,gpu", "--steps", "20", "--json",
+    ]);
+    let v = ok_json(&out);
+    let rows = v["rows"].as_array().unwrap();
+    assert!(!rows.is_empty());
+    assert!(
+        rows.iter()
+            .all(|r| r["engine"].as_str().unwrap().contains("fast")),
+        "{rows:?}"
+    );
+    let skipped: Vec<&str> = v["skipped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap())
+        .collect();
+    assert_eq!(skipped.len(), 1, "{skipped:?}");
+    assert!(skipped[0].starts_with("gpu rows skipped: "), "{skipped:?}");
+}
+
 #[test]
 fn without_a_gpu_auto_runs_on_the_cpu_and_says_why() {
     let out = lancet_without_gpu(&["run", "--engine", "auto", "--no-output"]);
