@@ -382,19 +382,20 @@ impl CutStage {
     fn apply(&mut self, sim: &mut Simulation, diff: &ModelDiff) -> Result<Applied> {
         let positions = self.cutter.positions_read().positions();
         let dt = sim.config().dt;
-        let (bound, node) = sim.bound_after(diff);
+        // Under every policy the simulation takes the cut (the bound is updated from the diff
+        // once, with it): under `Stop` the run ends after it (no step is taken with it), but the
+        // cutter already holds it, and the report must count it and measure a mesh and
+        // positions that agree. Then the simulation's bound says whether the step must change.
+        let cost = sim.apply_at(diff, true, positions)?;
+        let (bound, node) = (sim.bound().dt, sim.bound().node);
         if dt <= bound {
             return Ok(Applied {
-                cost: sim.apply_at(diff, false, positions)?,
+                cost,
                 time_step_bytes: 0,
                 time_step: None,
                 stop: None,
             });
         }
-        // Under every policy the simulation takes the cut: under `Stop` the run ends after it
-        // (no step is taken with it), but the cutter already holds it, and the report must
-        // count it and measure a mesh and positions that agree.
-        let cost = sim.apply_at(diff, true, positions)?;
         let step = sim.steps();
         let mut applied = Applied {
             cost,

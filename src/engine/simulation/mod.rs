@@ -390,17 +390,6 @@ impl Simulation {
         self.time_at_dt_change + (self.steps - self.steps_at_dt_change) as f64 * self.config.dt
     }
 
-    /// The stable time-step bound (s) the model would have after `diff`, and the node that
-    /// sets it, without applying it: what a caller asks before a change that may lower the
-    /// bound below the time step (as [`Simulation::apply`] would refuse), to choose a new step
-    /// or to go on. Touches only what the diff names.
-    pub fn bound_after(&mut self, diff: &ModelDiff) -> (f64, usize) {
-        let undo = self.bound.update(&self.model, diff);
-        let after = (self.bound.dt, self.bound.node);
-        self.bound.undo(undo);
-        after
-    }
-
     /// The stable time-step bound of the model.
     pub fn bound(&self) -> &StabilityBound {
         &self.bound
