@@ -1,121 +1,72 @@
 //! The float64 reference engine: serial, one spring at a time, no tricks. Everything faster is
 //! checked against it.
 
-use super::{Engine, Integrator, SimConfig};
+use super::{Engine, SimConfig};
 use crate::model::PackedModel;
+use crate::physics::{Explicit, NodeState, Nodes, SpringForces, TimeIntegrator};
 
 type V3 = [f64; 3];
 
-/// Float64 serial engine.
+/// Float64 serial engine: the model's [`SpringForces`] stepped by a [`TimeIntegrator`], the
+/// two seams of [`crate::physics`] with nothing in between.
 pub struct ReferenceEngine {
     model: PackedModel,
     dt: f64,
-    integrator: Integrator,
-    x: Vec<V3>,
-    /// Verlet: the previous positions. Symplectic Euler: the velocities.
-    second: Vec<V3>,
-    force: Vec<V3>,
+    integrator: Box<dyn TimeIntegrator>,
+    state: NodeState,
 }
 
 impl ReferenceEngine {
     /// Start at rest at the rest positions.
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
-        let x = model.rest.clone();
-        let second = match config.integrator {
-            Integrator::Verlet => x.clone(),
-            Integrator::SymplecticEuler => vec![[0.0; 3]; x.len()],
-        };
+        Self::with_integrator(model, config.dt, Box::new(Explicit::new(config.integrator)))
+    }
+
+    /// Start at rest at the rest positions, stepping with `integrator` at `dt` (s): how an
+    /// integrator that [`crate::physics::Integrator`] does not name yet is run and tested.
+    pub fn with_integrator(
+        model: &PackedModel,
+        dt: f64,
+        integrator: Box<dyn TimeIntegrator>,
+    ) -> Self {
         ReferenceEngine {
             model: model.clone(),
-            dt: config.dt,
-            integrator: config.integrator,
-            force: vec![[0.0; 3]; x.len()],
-            x,
-            second,
+            dt,
+            integrator,
+            state: NodeState {
+                x: model.rest.clone(),
+                v: vec![[0.0; 3]; model.node_count()],
+            },
         }
     }
 
-    fn velocity(&self, i: usize) -> V3 {
-        match self.integrator {
-            Integrator::Verlet => {
-                let (x, p) = (self.x[i], self.second[i]);
-                [
-                    (x[0] - p[0]) / self.dt,
-                    (x[1] - p[1]) / self.dt,
-                    (x[2] - p[2]) / self.dt,
-                ]
-            }
-            Integrator::SymplecticEuler => self.second[i],
-        }
-    }
-
-    /// Spring forces (elastic and damping along each spring) at the current state.
-    fn spring_forces(&mut self) {
-        for f in &mut self.force {
-            *f = [0.0; 3];
-        }
-        for s in self.model.springs() {
-            let (a, b) = (s.nodes[0] as usize, s.nodes[1] as usize);
-            let d = sub(self.x[b], self.x[a]);
-            let l = norm(d);
-            if l == 0.0 {
-                // Coincident nodes: no direction to push along.
-                continue;
-            }
-            let u = scale(d, 1.0 / l);
-            let dv = sub(self.velocity(b), self.velocity(a));
-            let magnitude = s.stiffness * (l - s.rest_length) + s.damping * dot(dv, u);
-            let f = scale(u, magnitude);
-            self.force[a] = add(self.force[a], f);
-            self.force[b] = sub(self.force[b], f);
-        }
+    /// The integrator's name.
+    pub fn integrator_name(&self) -> &'static str {
+        self.integrator.name()
     }
 }
 
 impl Engine for ReferenceEngine {
     fn step(&mut self, steps: u32) {
-        let (h, g, alpha) = (self.dt, self.model.gravity, self.model.mass_damping);
+        let nodes = Nodes {
+            mass: &self.model.mass,
+            fixed: &self.model.fixed,
+            gravity: self.model.gravity,
+            mass_damping: self.model.mass_damping,
+        };
+        let forces = SpringForces::new(self.model.springs());
         for _ in 0..steps {
-            self.spring_forces();
-            for i in 0..self.x.len() {
-                if self.model.fixed[i] {
-                    continue;
-                }
-                let v = self.velocity(i);
-                let m = self.model.mass[i];
-                let f = self.force[i];
-                let a = [
-                    f[0] / m + g[0] - alpha * v[0],
-                    f[1] / m + g[1] - alpha * v[1],
-                    f[2] / m + g[2] - alpha * v[2],
-                ];
-                match self.integrator {
-                    Integrator::Verlet => {
-                        let x = self.x[i];
-                        let next = [
-                            x[0] + (x[0] - self.second[i][0]) + h * h * a[0],
-                            x[1] + (x[1] - self.second[i][1]) + h * h * a[1],
-                            x[2] + (x[2] - self.second[i][2]) + h * h * a[2],
-                        ];
-                        self.second[i] = x;
-                        self.x[i] = next;
-                    }
-                    Integrator::SymplecticEuler => {
-                        let v = add(v, scale(a, h));
-                        self.second[i] = v;
-                        self.x[i] = add(self.x[i], scale(v, h));
-                    }
-                }
-            }
+            self.integrator
+                .step(&forces, &nodes, self.dt, &mut self.state);
         }
     }
 
     fn positions(&self) -> Vec<V3> {
-        self.x.clone()
+        self.state.x.clone()
     }
 
     fn velocities(&self) -> Vec<V3> {
-        (0..self.x.len()).map(|i| self.velocity(i)).collect()
+        self.state.v.clone()
     }
 
     fn name(&self) -> String {
@@ -123,13 +74,13 @@ impl Engine for ReferenceEngine {
     }
 
     fn memory(&self) -> super::EngineMemory {
-        let (n, m) = (self.x.len() as u64, self.model.springs().len() as u64);
+        let (n, m) = (self.state.x.len() as u64, self.model.springs().len() as u64);
         let spring = std::mem::size_of::<crate::model::PackedSpring>() as u64;
         let v3 = std::mem::size_of::<V3>() as u64;
         let buffers = vec![
             ("springs".to_string(), m * spring),
             ("positions".to_string(), n * v3),
-            ("previous (verlet) or velocities".to_string(), n * v3),
+            ("velocities".to_string(), n * v3),
             ("forces".to_string(), n * v3),
             ("masses".to_string(), n * 8),
             ("fixed flags".to_string(), n),
@@ -144,26 +95,25 @@ impl Engine for ReferenceEngine {
     }
 
     fn correct_positions(&mut self, nodes: &[u32], positions: &[V3]) -> crate::Result<()> {
-        super::check_correction(nodes, positions, self.x.len())?;
+        super::check_correction(nodes, positions, self.state.x.len())?;
         for (&i, &p) in nodes.iter().zip(positions) {
             let i = i as usize;
             if self.model.fixed[i] {
                 continue;
             }
-            if self.integrator == Integrator::SymplecticEuler {
-                let moved = sub(p, self.x[i]);
-                self.second[i] = add(self.second[i], scale(moved, 1.0 / self.dt));
-            }
-            self.x[i] = p;
+            // Both schemes turn the move into velocity: Verlet keeps its previous position
+            // (`v = (x - x-) / h`), symplectic Euler adds `move / h`.
+            let (x, v) = (self.state.x[i], self.state.v[i]);
+            self.state.v[i] = [0, 1, 2].map(|c| v[c] + (p[c] - x[c]) / self.dt);
+            self.state.x[i] = p;
         }
         Ok(())
     }
 
     fn set_time_step(&mut self, dt: f64) -> crate::Result<super::PatchCost> {
-        // Exactly what an engine built at `dt` and given this state would hold.
-        let (x, v) = self.state();
+        // The state is positions and velocities for every scheme: exactly what an engine built
+        // at `dt` and given this state holds.
         self.dt = dt;
-        self.set_state(&x, &v);
         Ok(super::PatchCost::parameters_only(
             std::mem::size_of::<f64>() as u64,
             self.memory().stats.total,
@@ -171,33 +121,12 @@ impl Engine for ReferenceEngine {
     }
 
     fn set_state(&mut self, positions: &[V3], velocities: &[V3]) {
-        for i in 0..self.x.len() {
-            let (x, v) = if self.model.fixed[i] {
+        for i in 0..self.state.x.len() {
+            (self.state.x[i], self.state.v[i]) = if self.model.fixed[i] {
                 (self.model.rest[i], [0.0; 3])
             } else {
                 (positions[i], velocities[i])
             };
-            self.x[i] = x;
-            self.second[i] = match self.integrator {
-                Integrator::Verlet => sub(x, scale(v, self.dt)),
-                Integrator::SymplecticEuler => v,
-            };
         }
     }
-}
-
-fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn scale(a: V3, s: f64) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: V3) -> f64 {
-    dot(a, a).sqrt()
 }

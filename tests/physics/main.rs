@@ -6,6 +6,7 @@
 #[path = "../common/models.rs"]
 mod models;
 
+mod implicit;
 mod model_springs;
 mod physics_beam;
 mod physics_energy;

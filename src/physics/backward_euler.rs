@@ -1,0 +1,291 @@
+//! Linearised backward Euler with matrix-free preconditioned conjugate gradients, in float64:
+//! the implicit integrator of the seed's §3.1 on the [`TimeIntegrator`] seam.
+//!
+//! One step solves (Baraff and Witkin)
+//!
+//! ```text
+//! ((1 + h alpha) M - h D - h^2 K) dv = h (F(x, v) + h K v),   v+ = v + dv,   x+ = x + h v+
+//! ```
+//!
+//! where `F` is the force model's force plus gravity and the mass damping `-alpha M v`, `K` and
+//! `D` the force model's stiffness and damping derivatives at `x` (only as products: nothing is
+//! assembled), and fixed nodes are held by projecting their rows and columns out of the system.
+//! More Newton iterations ([`SolverSettings::newton_iterations`]) solve the nonlinear backward
+//! Euler equations `M (v+ - v) = h F(x + h v+, v+)` further, each with the same solver
+//! linearised at the latest iterate.
+//!
+//! The solver is conjugate gradients preconditioned by the inverse 3x3 diagonal blocks of the
+//! system (block Jacobi), stopping at a relative residual or an iteration cap. With
+//! [`Linearization::Definite`] (the default) the system is symmetric positive definite for any
+//! `h`, which conjugate gradients need.
+
+use super::force_model::{dot, ForceModel, Linearization, Mat3, Vec3};
+use super::time_integrator::{NodeState, Nodes, TimeIntegrator};
+use nalgebra::Matrix3;
+
+/// How the implicit step solves its system.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverSettings {
+    /// Stop when the residual's norm is below this fraction of the right-hand side's.
+    pub tolerance: f64,
+    /// Stop after this many conjugate-gradient iterations whatever the residual (counted in
+    /// [`SolverStats::capped`]).
+    pub max_iterations: u32,
+    /// Newton iterations per step: 1 is Baraff and Witkin's linearised step.
+    pub newton_iterations: u32,
+    /// The stiffness matrix the system is built on.
+    pub linearization: Linearization,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            tolerance: 1e-5,
+            max_iterations: 100,
+            newton_iterations: 1,
+            linearization: Linearization::Definite,
+        }
+    }
+}
+
+/// What the solver did over the steps taken so far.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SolverStats {
+    /// Linear solves (steps times Newton iterations).
+    pub solves: u64,
+    /// Conjugate-gradient iterations over all solves.
+    pub iterations: u64,
+    /// The most iterations one solve took.
+    pub max_iterations: u32,
+    /// Solves stopped by the iteration cap before reaching the tolerance.
+    pub capped: u64,
+    /// Relative residual at the end of the last solve.
+    pub last_residual: f64,
+}
+
+/// The backward Euler integrator with its scratch vectors and statistics.
+#[derive(Debug, Clone, Default)]
+pub struct BackwardEuler {
+    settings: SolverSettings,
+    stats: SolverStats,
+}
+
+impl BackwardEuler {
+    /// An integrator solving with `settings`.
+    pub fn new(settings: SolverSettings) -> Self {
+        BackwardEuler {
+            settings,
+            stats: SolverStats::default(),
+        }
+    }
+
+    /// What the solver did so far.
+    pub fn stats(&self) -> SolverStats {
+        self.stats
+    }
+}
+
+/// The system `A w = (1 + h alpha) M w - h D w - h^2 K w` at positions `x`, with fixed nodes
+/// projected out, and its block-Jacobi preconditioner.
+struct System<'a> {
+    forces: &'a dyn ForceModel,
+    nodes: &'a Nodes<'a>,
+    x: &'a [Vec3],
+    h: f64,
+    lin: Linearization,
+    /// Inverse diagonal blocks (identity on fixed nodes).
+    inverse_diagonal: Vec<Mat3>,
+}
+
+impl<'a> System<'a> {
+    fn new(
+        forces: &'a dyn ForceModel,
+        nodes: &'a Nodes<'a>,
+        x: &'a [Vec3],
+        h: f64,
+        lin: Linearization,
+    ) -> Self {
+        let n = x.len();
+        let (mut k, mut d) = (vec![[[0.0; 3]; 3]; n], vec![[[0.0; 3]; 3]; n]);
+        forces.add_diagonal_blocks(x, lin, &mut k, &mut d);
+        let inverse_diagonal = (0..n)
+            .map(|i| {
+                let mut a = Matrix3::zeros();
+                for r in 0..3 {
+                    for c in 0..3 {
+                        a[(r, c)] = -h * d[i][r][c] - h * h * k[i][r][c];
+                    }
+                    a[(r, r)] += (1.0 + h * nodes.mass_damping) * nodes.mass[i];
+                }
+                match (nodes.fixed[i], a.try_inverse()) {
+                    (false, Some(inv)) => [0, 1, 2].map(|r| [0, 1, 2].map(|c| inv[(r, c)])),
+                    // A singular block (a massless node) gets no preconditioning.
+                    _ => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                }
+            })
+            .collect();
+        System {
+            forces,
+            nodes,
+            x,
+            h,
+            lin,
+            inverse_diagonal,
+        }
+    }
+
+    /// `out = A w` on the free nodes, zero on the fixed ones (`w` is zero there).
+    fn apply(&self, w: &[Vec3], out: &mut [Vec3]) {
+        out.iter_mut().for_each(|o| *o = [0.0; 3]);
+        let (mut k, mut d) = (vec![[0.0; 3]; w.len()], vec![[0.0; 3]; w.len()]);
+        self.forces
+            .add_stiffness_product(self.x, self.lin, w, &mut k);
+        self.forces.add_damping_product(self.x, w, &mut d);
+        let (h, alpha) = (self.h, self.nodes.mass_damping);
+        for i in 0..w.len() {
+            if self.nodes.fixed[i] {
+                continue;
+            }
+            let m = (1.0 + h * alpha) * self.nodes.mass[i];
+            out[i] = [0, 1, 2].map(|c| m * w[i][c] - h * d[i][c] - h * h * k[i][c]);
+        }
+    }
+
+    fn precondition(&self, r: &[Vec3], z: &mut [Vec3]) {
+        for ((z, r), m) in z.iter_mut().zip(r).zip(&self.inverse_diagonal) {
+            *z = super::force_model::mat_vec(m, *r);
+        }
+    }
+
+    /// Solve `A y = b` from `y = 0` by preconditioned conjugate gradients; returns the
+    /// iterations and the final relative residual.
+    fn solve(&self, b: &[Vec3], y: &mut [Vec3], settings: &SolverSettings) -> (u32, f64) {
+        let n = b.len();
+        y.iter_mut().for_each(|v| *v = [0.0; 3]);
+        let norm = |v: &[Vec3]| v.iter().map(|a| dot(*a, *a)).sum::<f64>().sqrt();
+        let b_norm = norm(b);
+        if b_norm == 0.0 {
+            return (0, 0.0);
+        }
+        let mut r = b.to_vec();
+        let (mut z, mut ap) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        self.precondition(&r, &mut z);
+        let mut p = z.clone();
+        let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| dot(*a, *b)).sum();
+        let mut residual = 1.0;
+        for iteration in 1..=settings.max_iterations {
+            self.apply(&p, &mut ap);
+            let pap: f64 = p.iter().zip(&ap).map(|(a, b)| dot(*a, *b)).sum();
+            if pap <= 0.0 {
+                // Not positive definite along `p` (an exact linearisation under compression):
+                // stop with what has been reached rather than step along a bad direction.
+                return (iteration, residual);
+            }
+            let step = rz / pap;
+            for i in 0..n {
+                for c in 0..3 {
+                    y[i][c] += step * p[i][c];
+                    r[i][c] -= step * ap[i][c];
+                }
+            }
+            residual = norm(&r) / b_norm;
+            if residual <= settings.tolerance {
+                return (iteration, residual);
+            }
+            self.precondition(&r, &mut z);
+            let rz_next: f64 = r.iter().zip(&z).map(|(a, b)| dot(*a, *b)).sum();
+            let beta = rz_next / rz;
+            rz = rz_next;
+            for i in 0..n {
+                for c in 0..3 {
+                    p[i][c] = z[i][c] + beta * p[i][c];
+                }
+            }
+        }
+        (settings.max_iterations, residual)
+    }
+}
+
+/// The force model's force plus gravity and mass damping at `(x, v)`, zero on fixed nodes.
+fn total_force(forces: &dyn ForceModel, nodes: &Nodes, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
+    let mut f = vec![[0.0; 3]; x.len()];
+    forces.add_forces(x, v, &mut f);
+    for i in 0..x.len() {
+        f[i] = if nodes.fixed[i] {
+            [0.0; 3]
+        } else {
+            let m = nodes.mass[i];
+            [0, 1, 2].map(|c| f[i][c] + m * nodes.gravity[c] - nodes.mass_damping * m * v[i][c])
+        };
+    }
+    f
+}
+
+impl TimeIntegrator for BackwardEuler {
+    fn name(&self) -> &'static str {
+        "backward-euler"
+    }
+
+    fn step(&mut self, forces: &dyn ForceModel, nodes: &Nodes, h: f64, state: &mut NodeState) {
+        let n = state.x.len();
+        let settings = self.settings;
+        let mut dv = vec![[0.0; 3]; n];
+        // The first iterate is Baraff and Witkin's: linearised at the start of the step.
+        let mut rhs = total_force(forces, nodes, &state.x, &state.v);
+        let mut kv = vec![[0.0; 3]; n];
+        forces.add_stiffness_product(&state.x, settings.linearization, &state.v, &mut kv);
+        for i in (0..n).filter(|&i| !nodes.fixed[i]) {
+            rhs[i] = [0, 1, 2].map(|c| h * (rhs[i][c] + h * kv[i][c]));
+        }
+        let system = System::new(forces, nodes, &state.x, h, settings.linearization);
+        self.record(system.solve(&rhs, &mut dv, &settings));
+        // Further Newton iterations on `g(y) = M (y - v) - h F(x + h y, y)`, `y = v + dv`.
+        let mut delta = vec![[0.0; 3]; n];
+        for _ in 1..settings.newton_iterations.max(1) {
+            let y: Vec<Vec3> = (0..n)
+                .map(|i| [0, 1, 2].map(|c| state.v[i][c] + dv[i][c]))
+                .collect();
+            let xk: Vec<Vec3> = (0..n)
+                .map(|i| [0, 1, 2].map(|c| state.x[i][c] + h * y[i][c]))
+                .collect();
+            let f = total_force(forces, nodes, &xk, &y);
+            let minus_g: Vec<Vec3> = (0..n)
+                .map(|i| {
+                    if nodes.fixed[i] {
+                        return [0.0; 3];
+                    }
+                    [0, 1, 2].map(|c| h * f[i][c] - nodes.mass[i] * dv[i][c])
+                })
+                .collect();
+            let system = System::new(forces, nodes, &xk, h, settings.linearization);
+            self.record(system.solve(&minus_g, &mut delta, &settings));
+            for i in 0..n {
+                for c in 0..3 {
+                    dv[i][c] += delta[i][c];
+                }
+            }
+        }
+        for i in (0..n).filter(|&i| !nodes.fixed[i]) {
+            let v = [0, 1, 2].map(|c| state.v[i][c] + dv[i][c]);
+            state.x[i] = [0, 1, 2].map(|c| state.x[i][c] + h * v[c]);
+            state.v[i] = v;
+        }
+    }
+}
+
+impl BackwardEuler {
+    fn record(&mut self, (iterations, residual): (u32, f64)) {
+        let s = &mut self.stats;
+        s.solves += 1;
+        s.iterations += iterations as u64;
+        s.max_iterations = s.max_iterations.max(iterations);
+        s.last_residual = residual;
+        if residual > self.settings.tolerance {
+            s.capped += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "backward_euler_tests.rs"]
+mod tests;
