@@ -230,7 +230,13 @@ pub fn step_for_times(times: &[f64], target: f64) -> Result<(f64, Vec<u64>)> {
             .iter()
             .all(|c| (c - c.round()).abs() <= 1e-9 * c.max(1.0))
         {
-            return Ok((dt, counts.iter().map(|c| c.round() as u64).collect()));
+            // `t0 / n` may round a few ulps above a target it equals in exact arithmetic (the
+            // slack in `n0` lets it): never return a step above the target, which the
+            // simulation would refuse when the target is the stable bound itself.
+            return Ok((
+                dt.min(target),
+                counts.iter().map(|c| c.round() as u64).collect(),
+            ));
         }
     }
     Err(Error::Options(format!(

@@ -239,6 +239,14 @@ fn steps_divide_every_sample_time() {
     for (c, t) in counts.iter().zip([0.01, 0.025]) {
         assert!((*c as f64 * dt - t).abs() < 1e-15);
     }
+    // A target a hair below `t0 / 3` (inside the rounding slack): the step must not come out
+    // above it (a rung at the bound would then be refused as unstable).
+    for t0 in [0.01, 3.4111658238659263e-6 * 3.0, 0.7] {
+        let target = (t0 / 3.0) * (1.0 - 1e-13);
+        let (dt, counts) = step_for_times(&[t0], target).unwrap();
+        assert!(dt <= target, "step {dt:e} above the target {target:e}");
+        assert_eq!(counts, vec![3]);
+    }
     assert!(step_for_times(&[1.0, std::f64::consts::SQRT_2], 1e-3).is_err());
     assert!(step_for_times(&[0.0], 1e-3).is_err());
 }
