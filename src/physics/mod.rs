@@ -27,6 +27,7 @@
 pub mod backward_euler;
 pub mod force_model;
 pub mod integrator;
+pub mod runge_kutta;
 pub mod springs;
 pub mod time_integrator;
 
@@ -38,5 +39,6 @@ pub use force_model::{ForceModel, Linearization, Mat3, Vec3};
 pub use integrator::{
     integrate, rescale_previous, state_buffers, state_traffic, velocity, Integrator, StepParams,
 };
+pub use runge_kutta::RungeKutta4;
 pub use springs::{spring_force, spring_stiffness_block, SpringForces};
 pub use time_integrator::{Explicit, NodeState, Nodes, TimeIntegrator};

@@ -204,9 +204,9 @@ enum ReportCommand {
         /// half and all of the scene's duration).
         #[arg(long, value_delimiter = ',')]
         time: Vec<f64>,
-        /// Step of the converged float64 reference as a fraction of the bound (it is also run
-        /// at twice this step as a self-check).
-        #[arg(long, default_value_t = 1.0 / 64.0)]
+        /// Step of the converged float64 reference (fourth-order Runge–Kutta) as a fraction of
+        /// the bound (it is also run at twice this step as a self-check).
+        #[arg(long, default_value_t = lancet::report::accuracy::DEFAULT_REFERENCE_FRACTION)]
         reference: f64,
         /// Print JSON only on stdout.
         #[arg(long)]
