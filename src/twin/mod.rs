@@ -27,9 +27,11 @@
 //! | `nodes_near` | `nodes_near.wgsl` | [`nodes_near`]: [`nodes_near::nodes_near_cpu`] | `tests/gpu/gpu_nodes_near.rs` (`device_finds_the_nodes_its_twin_finds`) |
 //! | `move_state` | `move_state.wgsl` | [`move_state`]: [`move_state::move_state_cpu`], `StateMove::apply_to` | `tests/gpu/gpu_patch.rs` (`state_moves_on_the_device_follow_the_nodes`), `gpu_limits.rs` |
 //! | `time_step` | `time_step.wgsl` | [`time_step`]: [`time_step::rescale_previous`] (in `physics`) | `tests/gpu/gpu_patch.rs` (`a_time_step_change_rescales_like_its_twin_and_steps_like_a_rebuild`) |
+//! | `report::device_copy` | `device_copy.wgsl` | [`device_copy`]: [`device_copy::device_copy_cpu`] | `tests/gpu/gpu_limits.rs` (`the_device_copy_copies_every_entry_once_folded_or_not`) |
 //!
-//! Not twinned: `report::device_copy` (`device_copy.wgsl`, a bandwidth measurement whose
-//! output nothing reads) and `engine::gpu::surface_nodes` (host code, no shader).
+//! `engine::gpu::surface_nodes` has no shader (an index kept on the host) and so no twin; the
+//! scan passes (`scan_*.wgsl`) are checked through the whole self-contact chain, whose output
+//! is the only one read back.
 //!
 //! [`steps`] is the one twin stepper: every test that steps a twin more than once goes
 //! through it (or [`PackedLayout::steps_cpu`], which calls it), so that the state rotates as
@@ -39,6 +41,7 @@ pub mod accumulate_fixed;
 pub mod accumulate_float;
 pub mod broad_self;
 pub mod broad_tool;
+pub mod device_copy;
 pub mod edge_spring;
 pub mod gather_edges;
 pub mod health;
