@@ -9,7 +9,7 @@
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use lancet::collide::broad::{cull_cpu, ToolBox};
+use lancet::collide::broad::ToolBox;
 use lancet::collide::narrow::tool_triangle;
 use lancet::collide::self_narrow::triangle_triangle;
 use lancet::contact::response::{resolve_contacts, ContactSettings};
@@ -17,6 +17,7 @@ use lancet::engine::gpu::{GpuContext, GpuEngine};
 use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::report::collide_bench::Slab;
+use lancet::twin::broad_tool::cull_cpu;
 use nalgebra::Point3;
 
 /// A triangle's corners, m.

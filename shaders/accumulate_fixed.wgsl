@@ -2,7 +2,7 @@
 // and adds it, quantized, to its ends' integer accumulators (+ at `a`, - at `b`). Integer
 // addition is associative, so the sums do not depend on the order of the adds. Prepended with
 // common.wgsl and edge_spring.wgsl; the twin is
-// `layout::edges::EdgeLayout::accumulate_fixed_cpu`.
+// `twin::accumulate_fixed` (`EdgeLayout::accumulate_fixed_cpu`).
 
 // Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).
 struct FixedPoint {

@@ -2,7 +2,7 @@
 // adds it to its ends' float accumulators (+ at `a`, - at `b`). Needs SHADER_FLOAT32_ATOMIC;
 // the order of the adds, hence the rounding of the sums, varies between runs. Prepended with
 // common.wgsl and edge_spring.wgsl; the twin is
-// `layout::edges::EdgeLayout::accumulate_float_cpu` (one of the possible orders).
+// `twin::accumulate_float` (`EdgeLayout::accumulate_float_cpu`, one of the possible orders).
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> springs: array<EdgeSpring>;

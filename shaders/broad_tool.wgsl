@@ -3,7 +3,7 @@
 // box it overlaps to `candidates` through an atomic counter. Past `capacity` nothing is
 // written but the counter keeps counting, so the host sees the true number, grows the buffer by
 // size class and runs again: nothing is dropped silently. Stand-alone (no common.wgsl); the twin
-// is `collide::broad::cull_cpu`.
+// is `twin::broad_tool::cull_cpu`.
 
 // Mirrors `engine::gpu::broad_tool::CullParams` (16 bytes).
 struct CullParams {

@@ -1,6 +1,6 @@
 // The spring record of the edge layout and the force of one spring on its `a` end, shared by
 // the edge spring passes. Prepended (after common.wgsl) by the Rust side of each pass; the pass
-// declares the bindings `p`, `second_in` and `cur` this reads.
+// declares the bindings `p`, `second_in` and `cur` this reads. The twin is `twin::edge_spring`.
 
 // Mirrors `lancet::layout::edges::EdgeSpring` (32 bytes).
 struct EdgeSpring {

@@ -1,6 +1,6 @@
 // Edge layout, pass 2: one invocation per node sums the forces of its incident springs (in the
 // incidence table's fixed order, so the result is deterministic) and integrates the node.
-// Prepended with common.wgsl.
+// Prepended with common.wgsl; the twin is `twin::gather_edges`.
 
 const B_END: u32 = 0x80000000u;
 // Room a patch left at the end of a row (`lancet::layout::edges::NO_SPRING`).

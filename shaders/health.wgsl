@@ -1,7 +1,7 @@
 // Divergence check on the device: one invocation per node finds non-finite state (the lowest
 // such node wins an atomicMin) and each workgroup sums its nodes' kinetic energy and change of
 // gravitational energy, so the host reads back a few bytes per 64 nodes instead of the state.
-// Prepended with common.wgsl; the twin is `engine::gpu::health::health_cpu`.
+// Prepended with common.wgsl; the twin is `twin::health::health_cpu`.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> inv_mass: array<f32>;

@@ -1,6 +1,6 @@
 // Edge layout with fixed-point atomics, pass 2: one invocation per node reads its accumulators
 // (force = f32(sum) * inv_scale), clears them for the next step and integrates. Prepended with
-// common.wgsl; the twin is `layout::edges::EdgeLayout::fixed_forces` + `integrate_cpu`.
+// common.wgsl; the twin is `twin::integrate_fixed`.
 
 // Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).
 struct FixedPoint {

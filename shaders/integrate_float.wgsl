@@ -1,6 +1,6 @@
 // Edge layout with float atomics, pass 2: one invocation per node reads its accumulators,
 // clears them for the next step and integrates. Prepended with common.wgsl; the twin is
-// `layout::edges::EdgeLayout::integrate_cpu`.
+// `twin::integrate_float`.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read_write> acc: array<atomic<f32>>;

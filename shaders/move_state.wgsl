@@ -1,7 +1,7 @@
 // State moves of a patch, on every state buffer at once: state[to] = old[first], zero without
 // a source, or the mix (1 - t) * old[first] + t * old[second] for a node a cut puts on an edge
 // (it starts with the state interpolated along it). The twin is
-// `layout::patch::StateMove::apply_to`.
+// `twin::move_state` (`StateMove::apply_to`).
 //
 // Where no move's destination is another's source (a patch that only appends nodes), `direct`
 // does it in one dispatch. Otherwise moves may permute nodes: `gather` copies every source

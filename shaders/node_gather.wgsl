@@ -1,6 +1,6 @@
 // The node-centric update shared by the connectivity and valence passes: bindings of group 0
 // and the gather-and-integrate of one node over a run of slots. Prepended (after common.wgsl)
-// by the Rust side of each pass; each pass file adds only its entry point.
+// by the Rust side of each pass; each pass file adds only its entry point. The twin is `twin::node_gather`.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;

@@ -3,7 +3,8 @@
 // `found` through an atomic counter. Past `capacity` nothing is written but the counter keeps
 // counting, so the host sees the true number, grows the buffer and runs again: nothing is
 // dropped silently. A cut then reads back these few entries instead of every node. The twin
-// is `cut::reading::AllPositions::near` (the same box test in float64, on the host).
+// is `twin::nodes_near` (the float64 scan of a full readback, `cut::AllPositions::near`, is what
+// it must not miss).
 
 // Mirrors `engine::gpu::nodes_near::NearParams` (48 bytes).
 struct NearParams {

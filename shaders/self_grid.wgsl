@@ -1,7 +1,7 @@
 // Self-contact broad phase, shared part: parameters, the bounding box of a surface triangle at
 // the current positions, and the spatial hash of a grid cell. Prepended to each pass of the
 // self-contact broad phase (self_count, scan_blocks, scan_top, scan_apply, self_scatter,
-// self_pairs); the twin is `collide::self_broad`.
+// self_pairs); the twin is `twin::broad_self`.
 
 // Mirrors `collide::self_broad::GridParams` (32 bytes).
 struct GridParams {

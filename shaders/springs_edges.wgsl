@@ -1,6 +1,6 @@
 // Edge layout, pass 1: one invocation per spring computes its force once and stores the force
 // on its `a` end (the `b` end gets the opposite). Prepended with common.wgsl and
-// edge_spring.wgsl.
+// edge_spring.wgsl; the twin is `twin::springs_edges`.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> springs: array<EdgeSpring>;

@@ -2,7 +2,7 @@
 // `valence` slots wide (no padding). One dispatch covers every bucket: each invocation finds
 // the bucket holding its node by a binary search of the bucket table (a few reads of a small
 // table every invocation shares), so patches that append buckets add no dispatches.
-// Prepended with common.wgsl and node_gather.wgsl.
+// Prepended with common.wgsl and node_gather.wgsl; the twin is `twin::springs_valence`.
 
 // Mirrors `lancet::layout::valence::Bucket` (16 bytes).
 struct Bucket {

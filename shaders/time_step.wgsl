@@ -2,7 +2,7 @@
 // cur - (cur - prev) * rescale (rescale = h_new / h_old), so that the backward-difference
 // velocity (cur - prev) / h, which Verlet and its damping read, is the same at the new step.
 // Symplectic Euler stores the velocity and needs no pass. Prepended with common.wgsl; the twin
-// is `physics::rescale_previous`.
+// is `twin::time_step` (`physics::rescale_previous`).
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> cur: array<vec4<f32>>;

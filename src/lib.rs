@@ -28,6 +28,7 @@ pub mod layout;
 pub mod model;
 pub mod physics;
 pub mod report;
+pub mod twin;
 
 pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};

@@ -13,8 +13,7 @@ use super::patch::{row_size_class, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
-use crate::physics::{integrate, spring_force, state_buffers, state_traffic, velocity};
-use crate::physics::{Integrator, StepParams};
+use crate::physics::{state_buffers, state_traffic, Integrator};
 
 /// Per-node data shared by the node-centric layouts, in the layout's node order.
 #[derive(Debug, Clone, PartialEq)]
@@ -527,26 +526,6 @@ impl ConnectivityLayout {
         let per_step = read + n * 4 + state_traffic(n, integrator);
         (stats, per_step)
     }
-
-    /// One step on the CPU, exactly as `shaders/springs_connectivity.wgsl` does it: the twin the
-    /// GPU pass is tested against. `second` is the previous displacement (Verlet) or the
-    /// velocity (symplectic Euler); returns the next displacement and the next second state.
-    pub fn step_cpu(
-        &self,
-        p: &StepParams,
-        cur: &[[f32; 4]],
-        second: &[[f32; 4]],
-    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
-        let mut next = vec![[0.0f32; 4]; cur.len()];
-        let mut second_next = vec![[0.0f32; 4]; cur.len()];
-        for i in 0..cur.len() {
-            let row = self.row(i);
-            let (u, s) = node_update(p, &row, self.nodes.inv_mass[i], cur, second, i);
-            next[i] = u;
-            second_next[i] = s;
-        }
-        (next, second_next)
-    }
 }
 
 impl ConnectivityLayout {
@@ -665,44 +644,4 @@ impl ConnectivityLayout {
         patch.normalize();
         Ok(patch)
     }
-}
-
-/// The update of node `i` from its slots: the arithmetic shared by every node-centric twin,
-/// written in the order the WGSL kernels use.
-pub(crate) fn node_update(
-    p: &StepParams,
-    slots: &[Slot],
-    inv_mass: f32,
-    cur: &[[f32; 4]],
-    second: &[[f32; 4]],
-    i: usize,
-) -> ([f32; 4], [f32; 4]) {
-    if inv_mass == 0.0 {
-        return ([0.0; 4], [0.0; 4]);
-    }
-    let ui = cur[i];
-    let vi = velocity(p, ui, second[i]);
-    let mut f = [0.0f32; 3];
-    for s in slots {
-        if s.other == Slot::EMPTY {
-            break;
-        }
-        let j = s.other as usize;
-        let d = [
-            s.edge[0] + (cur[j][0] - ui[0]),
-            s.edge[1] + (cur[j][1] - ui[1]),
-            s.edge[2] + (cur[j][2] - ui[2]),
-        ];
-        let dv = if p.damped {
-            let vj = velocity(p, cur[j], second[j]);
-            [vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]]
-        } else {
-            [0.0; 3]
-        };
-        let fs = spring_force(p, s.k, s.rest, s.c, d, dv);
-        for a in 0..3 {
-            f[a] += fs[a];
-        }
-    }
-    integrate(p, ui, second[i], vi, f, inv_mass)
 }

@@ -23,7 +23,6 @@ use serde::{Deserialize, Serialize};
 
 use super::connectivity::NodeArrays;
 
-mod twin;
 use std::collections::BTreeSet;
 
 use super::connectivity::inv_mass_of;
@@ -31,9 +30,7 @@ use super::patch::{incidence_room, LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder};
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel};
-use crate::physics::{
-    integrate, spring_force, state_buffers, state_traffic, velocity, Integrator, StepParams,
-};
+use crate::physics::{state_buffers, state_traffic, Integrator};
 
 /// One spring. Mirrors `struct EdgeSpring` in `shaders/springs_edges.wgsl` (32 bytes).
 #[repr(C)]

@@ -83,25 +83,6 @@ impl StateMove {
             }),
         }
     }
-
-    /// The state this move writes, given the state before the patch (one `[f32; 4]` per
-    /// layout index): what the device computes, up to fused multiply-adds.
-    pub fn apply_to(&self, old: &[[f32; 4]]) -> [f32; 4] {
-        let Some(f) = self.from else {
-            return [0.0; 4];
-        };
-        let a = old[f as usize];
-        match self.blend {
-            None => a,
-            Some(b) => mix_state(a, old[b.with as usize], b.t),
-        }
-    }
-}
-
-/// `a * (1 - t) + b * t` per component, in the order `shaders/move_state.wgsl` computes it:
-/// the state a blended move writes, wherever it is computed.
-pub(crate) fn mix_state(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
-    std::array::from_fn(|c| a[c] * (1.0 - t) + b[c] * t)
 }
 
 /// The result of patching a layout.

@@ -11,13 +11,13 @@ use std::collections::{BTreeMap, BTreeSet};
 use rustc_hash::FxHashMap;
 
 use super::connectivity::{
-    inv_mass_of, node_update, patched_row_slots, row_slots, touched_rows, DiffSprings, NodeArrays,
+    inv_mass_of, patched_row_slots, row_slots, touched_rows, DiffSprings, NodeArrays,
 };
 use super::patch::{LayoutArray, LayoutPatch, StateMove};
 use super::{MemoryStats, NodeOrder, Slot};
 use crate::error::{Error, Result};
 use crate::model::{ModelDiff, PackedModel};
-use crate::physics::{state_buffers, state_traffic, Integrator, StepParams};
+use crate::physics::{state_buffers, state_traffic, Integrator};
 
 /// Springs at each node of `model`.
 fn valences(model: &PackedModel) -> Vec<u32> {
@@ -728,28 +728,5 @@ impl ValenceLayout {
         let stats = MemoryStats::new(buffers, 0, n as usize, self.slots.len() / 2);
         let per_step = slots + n * 4 + table + state_traffic(n, integrator);
         (stats, per_step)
-    }
-
-    /// One step on the CPU exactly as `shaders/springs_valence.wgsl` does it (the GPU pass's
-    /// twin); see [`super::connectivity::ConnectivityLayout::step_cpu`] for the arguments.
-    pub fn step_cpu(
-        &self,
-        p: &StepParams,
-        cur: &[[f32; 4]],
-        second: &[[f32; 4]],
-    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
-        let mut next = vec![[0.0f32; 4]; cur.len()];
-        let mut second_next = vec![[0.0f32; 4]; cur.len()];
-        for b in &self.buckets {
-            for local in 0..b.count {
-                let i = (b.first + local) as usize;
-                let base = (b.offset + local * b.valence) as usize;
-                let row = &self.slots[base..base + b.valence as usize];
-                let (u, s) = node_update(p, row, self.nodes.inv_mass[i], cur, second, i);
-                next[i] = u;
-                second_next[i] = s;
-            }
-        }
-        (next, second_next)
     }
 }

@@ -19,7 +19,7 @@
 //! The traits are stated in float64: they are the reference engine's step and the reference
 //! of every kernel. The free functions ([`spring_force`], [`velocity`], [`integrate`],
 //! [`rescale_previous`]) are the float32 arithmetic of the GPU kernels, in the order
-//! `shaders/common.wgsl` computes it: the CPU twins of the layouts (`layout::*::step_cpu`) are
+//! `shaders/common.wgsl` computes it: the CPU twins of the passes (`crate::twin`) are
 //! built from them, so a twin and its pass agree bit for bit on a device that rounds like the
 //! CPU. This module imports only the model's data (`model::PackedSpring`): the layouts,
 //! engines and shaders depend on it, never the other way.

@@ -10,9 +10,9 @@ use serde::Serialize;
 
 use nalgebra::{Isometry3, Point3};
 
-use crate::collide::broad::{cull_cpu, Surface, ToolBox};
+use crate::collide::broad::{Surface, ToolBox};
 use crate::collide::narrow::tool_triangle;
-use crate::collide::self_broad::{self_pairs_cpu, GridParams};
+use crate::collide::self_broad::GridParams;
 use crate::collide::{Tool, ToolShape};
 use crate::contact::response::{resolve_contacts, ContactSettings};
 use crate::engine::gpu::{GpuContext, GpuEngine};
@@ -21,6 +21,8 @@ use crate::error::Result;
 use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;
 use crate::model::{Material, ModelConfig, PackedModel, SpringModel};
+use crate::twin::broad_self::self_pairs_cpu;
+use crate::twin::broad_tool::cull_cpu;
 
 /// One row: a surface size and a tool count.
 #[derive(Debug, Clone, Serialize)]

@@ -71,8 +71,7 @@ pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
             contents: bytemuck::cast_slice(&[vec4s, 0, 0, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-    let layout = buffers::pass_layout(ctx, "device copy", &[true, false]);
-    let pipeline = buffers::compute_pipeline(ctx, "device copy", SOURCE, &[&layout])?;
+    let (layout, pipeline) = copy_pass(ctx)?;
     let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("device copy"),
         layout: &layout,
@@ -132,4 +131,70 @@ pub fn device_copy(ctx: &GpuContext) -> Result<DeviceBandwidth> {
             "buffer copy"
         },
     })
+}
+
+/// The copy pass: its bind-group layout and pipeline, shared by [`device_copy`] and
+/// [`copy_on_device`].
+#[cfg(feature = "gpu")]
+fn copy_pass(ctx: &GpuContext) -> Result<(wgpu::BindGroupLayout, wgpu::ComputePipeline)> {
+    use crate::engine::gpu::buffers;
+    let layout = buffers::pass_layout(ctx, "device copy", &[true, false]);
+    let pipeline = buffers::compute_pipeline(ctx, "device copy", SOURCE, &[&layout])?;
+    Ok((layout, pipeline))
+}
+
+/// `data` copied by one dispatch of the pass [`device_copy`] times, in the grid it uses, and
+/// read back: what its twin ([`crate::twin::device_copy`]) gives, every entry once. The
+/// destination starts with every bit set (NaNs), so an entry the pass skips shows; a
+/// measurement of a pass that copied only part of its array would overstate the floor.
+#[cfg(feature = "gpu")]
+pub fn copy_on_device(ctx: &GpuContext, data: &[[f32; 4]]) -> Result<Vec<[f32; 4]>> {
+    use crate::engine::gpu::buffers;
+    use wgpu::util::DeviceExt;
+    if data.is_empty() {
+        return Ok(Vec::new());
+    }
+    let n = u32::try_from(data.len())
+        .map_err(|_| Error::Gpu(format!("device copy: {} entries past u32", data.len())))?;
+    let bytes = 16 * data.len() as u64;
+    let init = |label, contents: &[u8], usage| {
+        ctx.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+    };
+    let src = init(
+        "copy source",
+        bytemuck::cast_slice(data),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let dst = init(
+        "copy destination",
+        &vec![0xff; bytes as usize],
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let count = init(
+        "copy count",
+        bytemuck::cast_slice(&[n, 0, 0, 0]),
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let (layout, pipeline) = copy_pass(ctx)?;
+    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("device copy"),
+        layout: &layout,
+        entries: &buffers::entries(&[&count, &src, &dst]),
+    });
+    let mut enc = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("copy check"),
+        });
+    let grid = crate::engine::gpu::dispatch_size(ctx, n);
+    buffers::record_dispatch(&mut enc, "device copy", &pipeline, &group, grid);
+    let staging = buffers::staging_buffer(ctx, bytes);
+    enc.copy_buffer_to_buffer(&dst, 0, &staging, 0, bytes);
+    let raw = buffers::submit_and_read(ctx, enc, &staging, bytes)?;
+    Ok(bytemuck::pod_collect_to_vec(&raw))
 }

@@ -248,24 +248,6 @@ pub fn random_diff(model: &PackedModel, seed: u64) -> lancet::model::ModelDiff {
     diff
 }
 
-/// `state` (layout order before a patch) after the patch's state moves, `slots` entries long:
-/// what the device must hold after [`lancet::layout::patch::StateMove`]s.
-pub fn moved_state(
-    state: &[[f32; 4]],
-    moves: &[lancet::layout::patch::StateMove],
-    slots: usize,
-) -> Vec<[f32; 4]> {
-    let mut out = state.to_vec();
-    let most = moves.iter().map(|m| m.to as usize + 1).max().unwrap_or(0);
-    out.resize(slots.max(most), [0.0; 4]);
-    for m in moves {
-        out[m.to as usize] = m.apply_to(state);
-    }
-    // Slots a shrinking patch dropped (and cleared) are past the layout's slots.
-    out.truncate(slots);
-    out
-}
-
 /// The patched layout packed from scratch in the same arrangement (same node order, row width,
 /// buckets and room): what a patch must equal, or step like.
 pub fn fresh(

@@ -71,22 +71,15 @@ fn to_model(model: &PackedModel, order: &NodeOrder, u: &[[f32; 4]]) -> Vec<[f64;
     x
 }
 
-/// Run a CPU twin `steps` steps from `(cur, second)`, rotating the state as the engines do.
+/// Run a CPU twin `steps` steps from `(cur, second)` through the shared twin stepper; the
+/// current displacements it ends with.
 fn run(
     p: &StepParams,
     steps: usize,
-    (mut u, mut s): (Vec<[f32; 4]>, Vec<[f32; 4]>),
+    state: (Vec<[f32; 4]>, Vec<[f32; 4]>),
     step: impl Fn(&StepParams, &[[f32; 4]], &[[f32; 4]]) -> (Vec<[f32; 4]>, Vec<[f32; 4]>),
 ) -> Vec<[f32; 4]> {
-    for _ in 0..steps {
-        let (nu, ns) = step(p, &u, &s);
-        s = match p.integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
-    u
+    lancet::twin::steps(p, state, steps, step).0
 }
 
 fn config(model: &PackedModel, integrator: Integrator) -> SimConfig {
@@ -410,11 +403,8 @@ fn gather_steps(layout: &EdgeLayout, model: &PackedModel, seed: u64) -> Vec<[u32
             }
         }
     }
-    let mut prev: Vec<[f32; 4]> = cur.iter().map(|u| u.map(|x| x * 0.99)).collect();
-    for _ in 0..25 {
-        let (next, _) = layout.step_cpu(&p, &cur, &prev);
-        prev = std::mem::replace(&mut cur, next);
-    }
+    let prev: Vec<[f32; 4]> = cur.iter().map(|u| u.map(|x| x * 0.99)).collect();
+    let (cur, _) = lancet::twin::steps(&p, (cur, prev), 25, |p, u, s| layout.step_cpu(p, u, s));
     assert!(cur.iter().flatten().any(|&x| x != 0.0), "the state moved");
     cur.iter().map(|u| u.map(f32::to_bits)).collect()
 }

@@ -11,7 +11,8 @@ use lancet::layout::edges::{Accumulation, EdgeLayout};
 use lancet::layout::patch::{LayoutArray, LayoutPatch};
 use lancet::layout::{LayoutKind, NodeOrder, PackedLayout};
 use lancet::model::{ModelDiff, PackedModel};
-use models::{fresh, moved_state, random_diff, random_model, widen_node_0, Rng};
+use lancet::twin::move_state::move_state_cpu;
+use models::{fresh, random_diff, random_model, widen_node_0, Rng};
 use rstest::rstest;
 
 const ARRAYS: [LayoutArray; 6] = LayoutArray::ALL;
@@ -171,7 +172,7 @@ fn state_moves_keep_every_node_its_own_state(
     let diff = random_diff(&model, seed);
     let next = applied(&model, &diff);
     let patch = layout.patch(&next, &diff).unwrap();
-    let moved = moved_state(&state, &patch.moves, layout.node_slots());
+    let moved = move_state_cpu(&state, &patch.moves, layout.node_slots());
     let new = layout.order();
     let touched = diff.touched_nodes(model.node_count());
     for t in 0..next.node_count() {
@@ -246,8 +247,8 @@ fn patched_edges_step_bitwise_like_a_rebuild(
         let before = PackedLayout::Edges(layout.clone());
         let patch = layout.patch(&next, &diff).unwrap();
         assert_dirty_covers(&before, &PackedLayout::Edges(layout.clone()), &patch);
-        cur = moved_state(&cur, &patch.moves, layout.node_count());
-        prev = moved_state(&prev, &patch.moves, layout.node_count());
+        cur = move_state_cpu(&cur, &patch.moves, layout.node_count());
+        prev = move_state_cpu(&prev, &patch.moves, layout.node_count());
         model = next;
         let rebuilt = EdgeLayout::new(&model, layout.order.clone());
         let a = twin_steps(
@@ -669,7 +670,7 @@ fn a_regroup_of_an_arrangement_without_a_packing_before_it_packs_everything() {
         valences.len(),
         "one bucket per valence"
     );
-    let state = moved_state(&state, &patch.moves, layout.node_slots());
+    let state = move_state_cpu(&state, &patch.moves, layout.node_slots());
     for (t, w) in want.iter().enumerate() {
         assert_eq!(state[layout.order().rank[t] as usize], *w, "node {t}");
     }
@@ -829,7 +830,7 @@ fn a_fragmented_valence_layout_regroups_and_keeps_every_node_its_state(
                 want[t as usize] = [0.0; 4];
             }
         }
-        state = moved_state(&state, &patch.moves, layout.node_slots());
+        state = move_state_cpu(&state, &patch.moves, layout.node_slots());
         for (t, w) in want.iter().enumerate() {
             assert_eq!(
                 state[layout.order().rank[t] as usize],

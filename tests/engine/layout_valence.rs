@@ -232,14 +232,9 @@ fn the_cpu_twin_over_the_valence_layout_equals_the_fast_engine_after_many_steps(
             };
         }
     }
-    for _ in 0..steps {
-        let (nu, ns) = layout.step_cpu(&p, &u, &s);
-        s = match integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, (u, s), steps as usize, |p, u, s| {
+        layout.step_cpu(p, u, s)
+    });
     let (mut num, mut den, mut worst) = (0.0f64, 0.0f64, 0.0f64);
     for (new, &old) in layout.order.order.iter().enumerate() {
         let old = old as usize;
@@ -279,13 +274,9 @@ fn a_springless_node_falls_freely_in_the_twin() {
         damped: true,
     };
     let n = model.node_count();
-    let (mut u, mut s) = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
+    let rest = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
     let steps = 20;
-    for _ in 0..steps {
-        let (nu, _) = layout.step_cpu(&p, &u, &s);
-        s = u;
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, rest, steps, |p, u, s| layout.step_cpu(p, u, s));
     // From rest, Verlet gives u_k = g h^2 k (k + 1) / 2.
     let (k, h2) = (steps as f64, (p.h as f64).powi(2));
     for old in [n - 1, n - 2] {

@@ -6,13 +6,14 @@
 //! its new surface.
 
 use crate::{common, models};
-use lancet::collide::broad::{cull_cpu, cull_exact, Surface, ToolBox};
+use lancet::collide::broad::{cull_exact, Surface, ToolBox};
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, SimConfig};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::mesh::TetMesh;
 use lancet::model::{stable_time_step, Material, ModelConfig, PackedModel, SpringModel};
+use lancet::twin::broad_tool::cull_cpu;
 use models::Rng;
 use rstest::rstest;
 

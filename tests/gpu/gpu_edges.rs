@@ -97,14 +97,9 @@ fn edge_variant_step_equals_its_cpu_twin_on_random_inputs(
         }
     }
     let start = u.clone();
-    for _ in 0..steps {
-        let (nu, ns) = layout.step_variant_cpu(accumulation, &p, &fp, &u, &s);
-        s = match integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, (u, s), steps as usize, |p, u, s| {
+        layout.step_variant_cpu(accumulation, p, &fp, u, s)
+    });
     engine.step(steps);
     let gpu = engine.positions();
     let mut worst = 0.0f64;

@@ -3,11 +3,11 @@
 //! back state, and a forced unstable GPU run is caught within a bounded number of steps.
 
 use crate::{common, models};
-use lancet::engine::gpu::health::health_cpu;
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::model::stable_time_step;
+use lancet::twin::health::health_cpu;
 use lancet::Error;
 use models::{random_model, random_state};
 use rstest::rstest;

@@ -127,14 +127,7 @@ fn layout_pass_equals_its_cpu_twin_on_random_inputs(
             }
         }
     }
-    for _ in 0..steps {
-        let (nu, ns) = step_twin(&p, &u, &s);
-        s = match integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, (u, s), steps as usize, &step_twin);
     engine.step(steps);
     let gpu = engine.positions();
     let cpu = to_model(&u);
@@ -281,15 +274,9 @@ fn rows_that_continue_step_on_the_gpu_like_full_rows(
     assert_eq!(bits(&a.1), bits(&b.1));
     // And the twin, from the same raw state.
     let p = step_params(&model, config);
-    let (mut u, mut s) = (cur.clone(), second.clone());
-    for _ in 0..20 {
-        let (nu, ns) = narrow.step_cpu(&p, &u, &s);
-        s = match integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, (cur.clone(), second.clone()), 20, |p, u, s| {
+        narrow.step_cpu(p, u, s)
+    });
     let moved = u.iter().flatten().any(|&x| x.abs() > 1e-7);
     assert!(moved, "the nodes move");
     common::assert_twin(&a.0, &u, &cur, 20, "continued rows");

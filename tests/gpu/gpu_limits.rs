@@ -182,3 +182,31 @@ fn folded_state_moves_match_unfolded_ones(
         "blended start {got} against {want}"
     );
 }
+
+/// The bandwidth floor's copy pass (`report::device_copy`) copies every entry once, as its twin
+/// says, in the grid it is timed in: on the full device and on one allowing 10 workgroups per
+/// dimension (the grid folds into rows, the last one partly idle), for counts that end inside
+/// a workgroup. A pass that skipped entries would time less work than it counts.
+#[test]
+fn the_device_copy_copies_every_entry_once_folded_or_not() {
+    use lancet::report::device_copy::copy_on_device;
+    use lancet::twin::device_copy::device_copy_cpu;
+    let Some(full) = common::gpu() else { return };
+    let narrow = narrow_device();
+    let mut rng = models::Rng(17);
+    for n in [1, 63, 65, 640, 5_001, 6_399] {
+        let data: Vec<[f32; 4]> = (0..n)
+            .map(|_| [0; 4].map(|_| (rng.next() - 0.5) as f32 * 1e3))
+            .collect();
+        let want = bits(&device_copy_cpu(&data));
+        for (name, ctx) in [("full", &full), ("narrow", &narrow)] {
+            let got = copy_on_device(ctx, &data).unwrap();
+            assert_eq!(bits(&got), want, "{name} device, {n} entries");
+        }
+        let (x, y) = lancet::engine::gpu::dispatch_size(&narrow, n as u32);
+        assert!(
+            n <= 640 || y > 1,
+            "{n} entries fold on the narrow device ({x}, {y})"
+        );
+    }
+}

@@ -6,11 +6,13 @@
 //! the pass runs again, dropping nothing.
 
 use crate::{common, models};
+use lancet::cut::reading::float32_box;
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, SimConfig};
-use lancet::layout::LayoutKind;
+use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
+use lancet::twin::nodes_near::nodes_near_cpu;
 use models::{random_diff, random_model, random_state, Rng};
 use rstest::rstest;
 
@@ -125,4 +127,59 @@ fn without_a_surface_every_position_is_scanned() {
     let (x, v) = random_state(&model, 11);
     engine.set_state(&x, &v);
     assert!(check_box(&mut engine, [-0.005; 3], [0.025; 3]) >= 27);
+}
+
+/// The device's list is exactly its twin's (`twin::nodes_near`, the pass's float32 test on the
+/// rest positions and raw displacements in layout order): the same nodes, none more or fewer,
+/// at the positions the twin's displacements give, bit for bit; in every layout, before and
+/// after a cut-like patch (appended nodes, valence holes).
+#[rstest]
+fn device_finds_the_nodes_its_twin_finds(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let mut model = random_model(5, false);
+    let mut engine = GpuEngine::with_context(ctx, &model, SimConfig::new(2e-5), kind).unwrap();
+    let (x, v) = random_state(&model, 5);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    engine.set_surface(&[[0, 1, 2]]).unwrap();
+    let mut rng = Rng(41);
+    let mut found = 0;
+    for round in 0..2 {
+        let rest = engine.rest_f32();
+        let (disp, _) = engine.raw_state().unwrap();
+        let order = engine.layout().order().order.clone();
+        for _ in 0..15 {
+            let (lo, hi) = random_box(&mut rng, &engine.positions());
+            let (lo32, hi32) = float32_box(lo, hi);
+            let mut want: Vec<(u32, [f64; 3])> = nodes_near_cpu(&rest, &disp, lo32, hi32)
+                .into_iter()
+                .filter(|&(slot, _)| order[slot as usize] != NodeOrder::HOLE)
+                .map(|(slot, u)| {
+                    let old = order[slot as usize];
+                    let r = model.rest[old as usize];
+                    (old, [0, 1, 2].map(|c| r[c] + u[c] as f64))
+                })
+                .collect();
+            want.sort_by_key(|e| e.0);
+            let got = engine.nodes_near(lo, hi).unwrap();
+            let bits = |l: &[(u32, [f64; 3])]| -> Vec<(u32, [u64; 3])> {
+                l.iter().map(|&(i, p)| (i, p.map(f64::to_bits))).collect()
+            };
+            assert_eq!(
+                bits(&got),
+                bits(&want),
+                "{kind:?} round {round}: {lo:?}..{hi:?}"
+            );
+            found += want.len();
+        }
+        let diff = random_diff(&model, 500 + round);
+        let mut next: PackedModel = model.clone();
+        next.apply(&diff).unwrap();
+        engine.patch(&next, &diff).unwrap();
+        model = next;
+        engine.step(2);
+    }
+    assert!(found > 50, "the boxes held too few nodes to test ({found})");
 }

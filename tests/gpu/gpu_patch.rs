@@ -9,9 +9,8 @@ use lancet::engine::{Engine, Integrator, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::patch::LayoutArray;
 use lancet::layout::{LayoutKind, PackedLayout};
-use models::{
-    floating_ring, fresh, moved_state, random_diff, random_model, random_state, widen_node_0,
-};
+use lancet::twin::move_state::move_state_cpu;
+use models::{floating_ring, fresh, random_diff, random_model, random_state, widen_node_0};
 use rstest::rstest;
 use std::collections::BTreeSet;
 
@@ -194,7 +193,7 @@ fn assert_moved(
     what: &str,
 ) {
     for (got, was) in [(&after.0, &before.0), (&after.1, &before.1)] {
-        let want = moved_state(was, &patch.moves, slots);
+        let want = move_state_cpu(was, &patch.moves, slots);
         assert!(
             got.len() >= slots,
             "{what}: {} entries for {slots} slots",

@@ -6,13 +6,14 @@
 
 use crate::{common, models};
 use lancet::collide::broad::Surface;
-use lancet::collide::self_broad::{self_pairs_cpu, self_pairs_exact};
+use lancet::collide::self_broad::self_pairs_exact;
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, SimConfig};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::mesh::TetMesh;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
+use lancet::twin::broad_self::self_pairs_cpu;
 use models::Rng;
 
 fn model_of(mesh: &TetMesh) -> PackedModel {

@@ -68,14 +68,9 @@ fn valence_pass_equals_its_cpu_twin_on_an_irregular_model(
             };
         }
     }
-    for _ in 0..steps {
-        let (nu, ns) = layout.step_cpu(&p, &u, &s);
-        s = match integrator {
-            Integrator::Verlet => u,
-            Integrator::SymplecticEuler => ns,
-        };
-        u = nu;
-    }
+    let (u, _) = lancet::twin::steps(&p, (u, s), steps as usize, |p, u, s| {
+        layout.step_cpu(p, u, s)
+    });
     engine.step(steps);
     let gpu = engine.positions();
     let mut cpu = model.rest.clone();

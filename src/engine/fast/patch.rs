@@ -15,8 +15,8 @@ use std::collections::BTreeMap;
 
 use super::{build_graph, entry_of, Entry, FastEngine, P};
 use crate::engine::PatchCost;
-use crate::layout::patch::mix_state;
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
+use crate::twin::move_state::mix_state;
 
 /// What happens to one spring at one of its ends.
 enum RowEdit {

@@ -1,7 +1,7 @@
 //! The self-contact broad phase on the device: six dispatches in one submission (count, three
 //! prefix-sum steps, scatter, pair tests) over the surface, reading back the overflow flag, the
 //! pair count and the pairs. Built only when a program asks for self-contact. The twin is
-//! `collide::self_broad::self_pairs_cpu`.
+//! `twin::broad_self::self_pairs_cpu`.
 //!
 //! The surface triangles and rest positions are the tool culler's ([`ToolCuller`]): one copy
 //! on the device, which a cut's surface edit writes once for both broad phases. The culler

@@ -392,7 +392,7 @@ impl GpuEngine {
     }
 
     /// The device's divergence probe as read back (per-workgroup energies, first non-finite
-    /// layout index), for comparing with its twin [`health::health_cpu`].
+    /// layout index), for comparing with its twin [`crate::twin::health::health_cpu`].
     pub fn health_partials(&self) -> Result<health::HealthPartials> {
         self.health.run(&self.ctx, self.phase, self.dispatch.nodes)
     }

@@ -317,9 +317,7 @@ impl GpuEngine {
                     .filter_map(|(slot, u)| {
                         let (old, x, r) = node(*slot, u)?;
                         let x32 = [0, 1, 2].map(|c| r[c] as f32 + u[c]);
-                        (0..3)
-                            .all(|c| lo32[c] <= x32[c] && x32[c] <= hi32[c])
-                            .then_some((old, x))
+                        crate::twin::nodes_near::in_box(x32, lo32, hi32).then_some((old, x))
                     })
                     .collect()
             }

@@ -2,7 +2,7 @@
 //! parameters (h, h², 1/h) are one uniform the passes read every step, so a new step writes it
 //! and nothing else; Verlet, which keeps the previous displacements rather than a velocity,
 //! also needs them moved so that its velocity stays what it was, which this pass does in place
-//! without a readback or an upload. Its twin is [`crate::physics::rescale_previous`].
+//! without a readback or an upload. Its twin is [`crate::twin::time_step`].
 
 use super::buffers;
 use super::{GpuContext, PhaseBindings};

@@ -124,10 +124,11 @@ impl Simulation {
     /// surface given to [`Simulation::set_surface`], t < u, sorted) that share no node and whose
     /// boxes, widened by `margin / 2` (m) on every side, overlap. On the GPU engine the spatial
     /// hash runs on the device and only the pairs come back; elsewhere its CPU twin
-    /// ([`crate::collide::self_broad::self_pairs_cpu`]) runs over the current positions. Either
+    /// ([`crate::twin::broad_self::self_pairs_cpu`]) runs over the current positions. Either
     /// way no pair the float64 brute force finds is missed.
     pub fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>> {
-        use crate::collide::self_broad::{self_pairs_cpu, GridParams};
+        use crate::collide::self_broad::GridParams;
+        use crate::twin::broad_self::self_pairs_cpu;
         if !(margin.is_finite() && margin >= 0.0) {
             return Err(Error::Options(format!(
                 "self-contact margin must be zero or positive and finite, got {margin} m"

@@ -1,0 +1,137 @@
+//! The CPU twins of the GPU passes, one file per pass, each named like its shader: the same
+//! float32 arithmetic in the same order, so that a pass and its twin agree bit for bit on a
+//! device that rounds like the CPU (lavapipe) and within a stated tolerance elsewhere. The
+//! device tests run each pass against its twin on random, non-trivial inputs.
+//!
+//! The physics of one step (the force law, the integrators) is not here: it lives in
+//! [`crate::physics`], and the twins call it as the shaders call `shaders/common.wgsl`. Where
+//! a twin is also the real code path of the engines (the CPU engines' self-contact broad
+//! phase, the fast engine's state blend at a patch, the GPU engine's narrowing of a read made
+//! ahead), this is the one implementation and the engines call it. Twins that read a layout are methods of that layout's type, so the tests
+//! call `layout.step_cpu(..)` whatever file the twin sits in; this module imports the layouts,
+//! the collision types and the physics, never the engines.
+//!
+//! | pass (`src/engine/gpu/`) | shader (`shaders/`) | twin (`src/twin/`) | tests comparing them |
+//! |---|---|---|---|
+//! | `springs_connectivity` | `springs_connectivity.wgsl` + `node_gather.wgsl` | [`springs_connectivity`]: `ConnectivityLayout::step_cpu`, over [`node_gather::node_update`] | `tests/gpu/gpu_layouts.rs`, `gpu_patch.rs`, `gpu_limits.rs`, `twin_tolerance.rs` |
+//! | `springs_valence` | `springs_valence.wgsl` + `node_gather.wgsl` | [`springs_valence`]: `ValenceLayout::step_cpu`, over [`node_gather::node_update`] | `tests/gpu/gpu_valence.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
+//! | `springs_edges` (gather) | `springs_edges.wgsl` + `edge_spring.wgsl` | [`springs_edges`]: `EdgeLayout::spring_forces_cpu`, over [`edge_spring::edge_force`] | `tests/gpu/gpu_edges.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
+//! | `springs_edges` (gather) | `gather_edges.wgsl` | [`gather_edges`]: `EdgeLayout::gather_cpu`, `integrate_cpu`, `step_cpu` | `tests/gpu/gpu_edges.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
+//! | `atomic_edges` (fixed point) | `accumulate_fixed.wgsl` + `edge_spring.wgsl` | [`accumulate_fixed`]: `EdgeLayout::accumulate_fixed_cpu` | `tests/gpu/gpu_edges.rs` (`edge_variant_step_equals_its_cpu_twin_on_random_inputs`, `fixed_point_overflow_sets_the_flag_the_host_reads`) |
+//! | `atomic_edges` (fixed point) | `integrate_fixed.wgsl` | [`integrate_fixed`]: `EdgeLayout::fixed_forces`, `step_fixed_cpu` | `tests/gpu/gpu_edges.rs` |
+//! | `atomic_edges` (float) | `accumulate_float.wgsl` + `edge_spring.wgsl` | [`accumulate_float`]: `EdgeLayout::accumulate_float_cpu` | `tests/gpu/gpu_edges.rs` (within a tolerance: the order of the adds varies) |
+//! | `atomic_edges` (float) | `integrate_float.wgsl` | [`integrate_float`]: `EdgeLayout::step_float_cpu` | `tests/gpu/gpu_edges.rs` |
+//! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
+//! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
+//! | `broad_self` | `self_count`, `scan_blocks`, `scan_top`, `scan_apply`, `self_scatter`, `self_pairs.wgsl` over `self_grid.wgsl` | [`broad_self`]: [`broad_self::self_pairs_cpu`] (the whole chain; the CPU engines' self-contact broad phase) | `tests/gpu/gpu_self_contact.rs` |
+//! | `nodes_near` | `nodes_near.wgsl` | [`nodes_near`]: [`nodes_near::nodes_near_cpu`] | `tests/gpu/gpu_nodes_near.rs` (`device_finds_the_nodes_its_twin_finds`) |
+//! | `move_state` | `move_state.wgsl` | [`move_state`]: [`move_state::move_state_cpu`], `StateMove::apply_to` | `tests/gpu/gpu_patch.rs` (`state_moves_on_the_device_follow_the_nodes`), `gpu_limits.rs` |
+//! | `time_step` | `time_step.wgsl` | [`time_step`]: [`time_step::rescale_previous`] (in `physics`) | `tests/gpu/gpu_patch.rs` (`a_time_step_change_rescales_like_its_twin_and_steps_like_a_rebuild`) |
+//! | `report::device_copy` | `device_copy.wgsl` | [`device_copy`]: [`device_copy::device_copy_cpu`] | `tests/gpu/gpu_limits.rs` (`the_device_copy_copies_every_entry_once_folded_or_not`) |
+//!
+//! `engine::gpu::surface_nodes` has no shader (an index kept on the host) and so no twin; the
+//! scan passes (`scan_*.wgsl`) are checked through the whole self-contact chain, whose output
+//! is the only one read back.
+//!
+//! [`steps`] is the one twin stepper: every test that steps a twin more than once goes
+//! through it (or [`PackedLayout::steps_cpu`], which calls it), so that the state rotates as
+//! the device's buffers do in one place.
+
+pub mod accumulate_fixed;
+pub mod accumulate_float;
+pub mod broad_self;
+pub mod broad_tool;
+pub mod device_copy;
+pub mod edge_spring;
+pub mod gather_edges;
+pub mod health;
+pub mod integrate_fixed;
+pub mod integrate_float;
+pub mod move_state;
+pub mod node_gather;
+pub mod nodes_near;
+pub mod springs_connectivity;
+pub mod springs_edges;
+pub mod springs_valence;
+pub mod time_step;
+
+use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};
+use crate::layout::PackedLayout;
+use crate::physics::{Integrator, StepParams};
+
+/// A node state in layout order: the current displacements and the second state (the
+/// previous displacements for Verlet, the velocities for symplectic Euler).
+pub type State = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
+/// `n` steps of a twin `step` from `state`, the state rotating as the device's buffers do:
+/// Verlet's current displacements become the previous ones, symplectic Euler keeps the new
+/// velocities. `step` takes the step parameters, the current displacements and the second
+/// state, and returns the next of each (Verlet's second output is ignored).
+pub fn steps<F>(p: &StepParams, state: State, n: usize, mut step: F) -> State
+where
+    F: FnMut(&StepParams, &[[f32; 4]], &[[f32; 4]]) -> State,
+{
+    let (mut cur, mut second) = state;
+    for _ in 0..n {
+        let (next, s) = step(p, &cur, &second);
+        second = match p.integrator {
+            Integrator::Verlet => std::mem::replace(&mut cur, next),
+            Integrator::SymplecticEuler => {
+                cur = next;
+                s
+            }
+        };
+    }
+    (cur, second)
+}
+
+impl EdgeLayout {
+    /// One step of `accumulation` on the CPU (fixed point with [`EdgeLayout::fixed_point`]
+    /// constants supplied as `fp`; the overflow flag is dropped).
+    pub fn step_variant_cpu(
+        &self,
+        accumulation: Accumulation,
+        p: &StepParams,
+        fp: &FixedPoint,
+        cur: &[[f32; 4]],
+        second: &[[f32; 4]],
+    ) -> State {
+        match accumulation {
+            Accumulation::Gather => self.step_cpu(p, cur, second),
+            Accumulation::AtomicFixed => {
+                let (u, s, _) = self.step_fixed_cpu(p, fp, cur, second);
+                (u, s)
+            }
+            Accumulation::AtomicFloat => self.step_float_cpu(p, cur, second),
+        }
+    }
+}
+
+impl PackedLayout {
+    /// One step on the CPU exactly as the layout's GPU passes take it (the gather variant for
+    /// edges); see [`ConnectivityLayout::step_cpu`](crate::layout::connectivity::ConnectivityLayout::step_cpu).
+    pub fn step_cpu(&self, p: &StepParams, cur: &[[f32; 4]], second: &[[f32; 4]]) -> State {
+        match self {
+            Self::Connectivity(c) => c.step_cpu(p, cur, second),
+            Self::Valence(v) => v.step_cpu(p, cur, second),
+            Self::Edges(e) => e.step_cpu(p, cur, second),
+        }
+    }
+
+    /// `n` steps of the layout's CPU twin from `state` (layout order) through [`steps`]. The
+    /// edge layout steps in `accumulation`, with the fixed-point constants `fixed` (read by
+    /// `AtomicFixed` only); the node-centric layouts have one pass and ignore both.
+    pub fn steps_cpu(
+        &self,
+        p: &StepParams,
+        accumulation: Accumulation,
+        fixed: &FixedPoint,
+        state: State,
+        n: usize,
+    ) -> State {
+        steps(p, state, n, |p, cur, second| match self {
+            Self::Edges(e) => e.step_variant_cpu(accumulation, p, fixed, cur, second),
+            other => other.step_cpu(p, cur, second),
+        })
+    }
+}
