@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use lancet::engine::gpu::{GpuContext, GpuEngine};
-use lancet::engine::{Engine, SimConfig};
+use lancet::engine::{DeviceEngine, Engine, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;

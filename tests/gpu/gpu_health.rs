@@ -5,7 +5,7 @@
 use crate::{common, models};
 use lancet::engine::gpu::health::health_cpu;
 use lancet::engine::gpu::GpuEngine;
-use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
+use lancet::engine::{DeviceEngine, Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::model::stable_time_step;
 use lancet::Error;
@@ -51,7 +51,7 @@ fn device_energies_match_the_state_read_back(
     let Some((e, model)) = engine(kind, 62) else {
         return;
     };
-    let h = e.health().unwrap().unwrap();
+    let h = e.health().unwrap();
     let (x, v) = e.state();
     let (k, g) = (model.kinetic_energy(&v), model.gravity_energy(&x));
     assert!(k > 0.0 && g.abs() > 0.0, "a moving, displaced state");
@@ -86,7 +86,7 @@ fn the_first_non_finite_node_is_found(
     cur[a][1] = bad;
     cur[b][0] = bad;
     e.set_raw_state(&cur, &second).unwrap();
-    let h = e.health().unwrap().unwrap();
+    let h = e.health().unwrap();
     let first = order.order[a.min(b)] as usize;
     assert_eq!(h.non_finite, Some(first));
 }

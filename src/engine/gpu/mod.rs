@@ -26,6 +26,7 @@ pub mod time_step;
 pub mod timing;
 pub mod upload;
 
+mod device;
 mod patching;
 mod state;
 mod stepping;
@@ -39,7 +40,9 @@ pub use context::GpuContext;
 pub use state::{NodeState, PhaseBindings};
 use surface::{SurfaceCulling, SurfaceSync};
 
-use super::{Engine, EngineMemory, Health, Integrator, NearReads, PatchCost, SimConfig};
+use super::{
+    DeviceEngine, Engine, EngineMemory, Health, Integrator, NearReads, PatchCost, SimConfig,
+};
 use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::edges::{Accumulation, FixedPoint};

@@ -96,8 +96,8 @@ impl Simulation {
                 debug_assert_eq!(x.len(), before + diff.added_nodes.len());
                 let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
                 engine.set_state(&x, &v);
-                if let Some(t) = &self.surface {
-                    engine.set_surface(t)?;
+                if let (Some(t), Some(d)) = (&self.surface, engine.device_mut()) {
+                    d.set_surface(t)?;
                 }
                 let memory = engine.memory();
                 self.engine = engine;

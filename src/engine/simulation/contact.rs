@@ -18,7 +18,9 @@ impl Simulation {
                 "surface triangle {t:?} names a node past the model's {n} nodes"
             )));
         }
-        self.engine.set_surface(&triangles)?;
+        if let Some(d) = self.engine.device_mut() {
+            d.set_surface(&triangles)?;
+        }
         // Built here, not at the first edit, so that the first cut does not pay for it.
         self.surface_slots = Some(
             triangles
@@ -76,9 +78,11 @@ impl Simulation {
         }
         // Edited in place; undone the same way if the engine refuses the edit.
         let applied = surface_list::apply(triangles, slots, edit);
-        if let Err(e) = self.engine.edit_surface(triangles, &applied.changed) {
-            surface_list::undo(triangles, slots, edit, applied);
-            return Err(e);
+        if let Some(d) = self.engine.device_mut() {
+            if let Err(e) = d.edit_surface(triangles, &applied.changed) {
+                surface_list::undo(triangles, slots, edit, applied);
+                return Err(e);
+            }
         }
         Ok(())
     }
@@ -101,8 +105,8 @@ impl Simulation {
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };
-        if let Some(c) = self.engine.cull_tools(boxes)? {
-            return Ok(c);
+        if let Some(d) = self.engine.device_mut() {
+            return d.cull_tools(boxes);
         }
         let exact: Vec<([f64; 3], [f64; 3])> = boxes
             .iter()
@@ -138,8 +142,8 @@ impl Simulation {
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };
-        if let Some(pairs) = self.engine.cull_self(margin)? {
-            return Ok(pairs);
+        if let Some(d) = self.engine.device_mut() {
+            return d.cull_self(margin);
         }
         // The twin over float32 rest positions plus float32 displacements, as on the device.
         let rest = &self.model.rest;

@@ -313,7 +313,9 @@ impl Simulation {
     /// engines have finished when `run` returns). For timing what follows a step apart from
     /// the step itself.
     pub fn wait(&mut self) {
-        self.engine.wait();
+        if let Some(d) = self.engine.device_mut() {
+            d.wait();
+        }
     }
 
     /// Advance `steps` steps with no divergence check (for timing); call
@@ -323,14 +325,14 @@ impl Simulation {
             self.hand_prefetch();
         }
         self.engine.step(steps);
-        self.engine.wait();
+        self.wait();
         self.steps += steps as u64;
     }
 
     /// Device time of the last [`Simulation::step_unchecked`] call, s, where the engine can
     /// measure it (the GPU engine on an adapter with timestamp queries).
     pub fn last_device_seconds(&self) -> Option<f64> {
-        self.engine.last_device_seconds()
+        self.engine.device()?.last_device_seconds()
     }
 
     /// The engine's name as reported in summaries (with its device for the GPU).
