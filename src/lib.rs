@@ -29,7 +29,7 @@ pub mod model;
 pub mod physics;
 pub mod report;
 
-pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
+pub use engine::{EngineKind, GpuOptions, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};
 #[cfg(feature = "scene")]
 pub mod scene;

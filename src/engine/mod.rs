@@ -17,7 +17,7 @@ mod surface_list;
 use serde::{Deserialize, Serialize};
 
 pub use crate::physics::Integrator;
-pub use config::{NodeOrdering, SimConfig};
+pub use config::{GpuOptions, NodeOrdering, SimConfig};
 pub use simulation::{
     Energy, Simulation, ENERGY_GROWTH_LIMIT, EXACT_CHECK_EVERY, VERLET_F32_FRACTION,
 };
@@ -33,7 +33,7 @@ pub enum EngineKind {
     /// Float32, node-centric gather, nodes reordered for locality, multi-threaded.
     #[default]
     Fast,
-    /// Float32 on a wgpu device, in the layout of [`SimConfig::layout`].
+    /// Float32 on a wgpu device, in the layout of [`GpuOptions::layout`].
     Gpu,
     /// The GPU engine when an adapter is found, else the fast CPU engine (and say so).
     Auto,

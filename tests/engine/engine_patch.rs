@@ -16,9 +16,8 @@ use rstest::rstest;
 /// Run 40 steps, apply two random changes with 60 steps after each, and return the positions.
 fn cut_run(kind: EngineKind, layout: LayoutKind) -> (Vec<[f64; 3]>, Vec<[f64; 3]>, Simulation) {
     let model = random_model(51, true);
-    let mut config = SimConfig::new(0.4 * stable_time_step(&model).dt);
-    config.layout = layout;
-    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let config = SimConfig::new(0.4 * stable_time_step(&model).dt);
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
     let (x, v) = random_state(&model, 51);
     sim.set_state(&x, &v).unwrap();
     sim.run(40).unwrap();
@@ -263,9 +262,8 @@ fn a_time_step_change_writes_only_the_step_parameters_and_goes_on_as_a_fresh_run
     let model = random_model(61, true);
     let bound = stable_time_step(&model).dt;
     let mut config = SimConfig::new(0.8 * bound);
-    config.layout = layout;
     config.integrator = integrator;
-    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
     let (x, v) = random_state(&model, 61);
     sim.set_state(&x, &v).unwrap();
     sim.run(20).unwrap();

@@ -103,8 +103,8 @@ fn a_forced_unstable_gpu_run_is_caught_by_the_device_probe(
     let model = random_model(64, false);
     let mut config = SimConfig::new(2.0 * stable_time_step(&model).dt);
     config.allow_unstable = true;
-    config.layout = kind;
-    let mut sim = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let mut sim =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, kind.into()).unwrap();
     let (x, v) = random_state(&model, 64);
     let tiny: Vec<[f64; 3]> = x
         .iter()

@@ -135,7 +135,7 @@ impl Engine for GpuEngine {
 
     fn memory(&self) -> EngineMemory {
         // Counted when asked (a pass over the slot table), not at every patch.
-        layout_memory(&self.layout, self.config)
+        layout_memory(&self.layout, self.config, self.accumulation)
     }
 
     fn name(&self) -> String {

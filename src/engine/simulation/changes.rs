@@ -94,7 +94,8 @@ impl Simulation {
                     v.push(u);
                 }
                 debug_assert_eq!(x.len(), before + diff.added_nodes.len());
-                let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
+                let (mut engine, _, _) =
+                    make_engine(&self.model, self.kind, self.config, self.gpu)?;
                 engine.set_state(&x, &v);
                 if let (Some(t), Some(d)) = (&self.surface, engine.device_mut()) {
                     d.set_surface(t)?;

@@ -47,7 +47,12 @@ type Made = (Box<dyn Engine>, EngineKind, Option<String>);
 
 /// Build the engine of `kind`; `Auto` resolves to the GPU or, failing that, the fast CPU engine
 /// with a note saying why.
-fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Result<Made> {
+fn make_engine(
+    model: &PackedModel,
+    kind: EngineKind,
+    config: SimConfig,
+    gpu: GpuOptions,
+) -> Result<Made> {
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(reference::ReferenceEngine::new(model, config)),
@@ -55,8 +60,8 @@ fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Resu
             None,
         ),
         EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
-        EngineKind::Gpu => (gpu_engine(model, config)?, kind, None),
-        EngineKind::Auto => match gpu_engine(model, config) {
+        EngineKind::Gpu => (gpu_engine(model, config, gpu)?, kind, None),
+        EngineKind::Auto => match gpu_engine(model, config, gpu) {
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
                 Box::new(fast::FastEngine::new(model, config)),
@@ -68,12 +73,12 @@ fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Resu
 }
 
 #[cfg(feature = "gpu")]
-fn gpu_engine(model: &PackedModel, config: SimConfig) -> Result<Box<dyn Engine>> {
-    Ok(Box::new(gpu::GpuEngine::new(model, config, config.layout)?))
+fn gpu_engine(model: &PackedModel, config: SimConfig, gpu: GpuOptions) -> Result<Box<dyn Engine>> {
+    Ok(Box::new(gpu::GpuEngine::new(model, config, gpu)?))
 }
 
 #[cfg(not(feature = "gpu"))]
-fn gpu_engine(_: &PackedModel, _: SimConfig) -> Result<Box<dyn Engine>> {
+fn gpu_engine(_: &PackedModel, _: SimConfig, _: GpuOptions) -> Result<Box<dyn Engine>> {
     Err(Error::Unsupported(
         "this build has no GPU engine (enable the `gpu` cargo feature)".into(),
     ))
@@ -107,6 +112,8 @@ pub struct Simulation {
     engine: Box<dyn Engine>,
     model: PackedModel,
     config: SimConfig,
+    /// The GPU engine's layout and accumulation (kept for rebuilds; unused by CPU engines).
+    gpu: GpuOptions,
     kind: EngineKind,
     bound: StabilityBound,
     steps: u64,
@@ -173,8 +180,20 @@ impl NodeSprings {
 
 impl Simulation {
     /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or is above the
-    /// stable bound (unless `config.allow_unstable`).
-    pub fn new(mut model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
+    /// stable bound (unless `config.allow_unstable`). A GPU engine (`Gpu`, or `Auto` finding an
+    /// adapter) takes the default [`GpuOptions`]; [`Simulation::with_gpu`] chooses them.
+    pub fn new(model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
+        Self::with_gpu(model, kind, config, GpuOptions::default())
+    }
+
+    /// [`Simulation::new`] with the GPU engine's layout and accumulation `gpu` (used where
+    /// `kind` is `Gpu`, or `Auto` and an adapter is found; the CPU engines ignore them).
+    pub fn with_gpu(
+        mut model: PackedModel,
+        kind: EngineKind,
+        config: SimConfig,
+        gpu: GpuOptions,
+    ) -> Result<Self> {
         // Cuts append nodes and springs: room made now (see `model::room`).
         use crate::model::room::reserve_room;
         reserve_room(&mut model.node_keys);
@@ -199,7 +218,7 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let (engine, kind, mut note) = make_engine(&model, kind, config)?;
+        let (engine, kind, mut note) = make_engine(&model, kind, config, gpu)?;
         if let Some(precision) = verlet_precision_note(kind, &config, bound.dt) {
             note = Some(match note {
                 Some(n) => format!("{n}; {precision}"),
@@ -220,6 +239,7 @@ impl Simulation {
             engine,
             model,
             config,
+            gpu,
             kind,
             bound,
             steps: 0,
@@ -405,6 +425,12 @@ impl Simulation {
     /// The configuration.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// The GPU engine's layout and accumulation this simulation was set up with (see
+    /// [`Simulation::with_gpu`]; the CPU engines ignore them).
+    pub fn gpu_options(&self) -> GpuOptions {
+        self.gpu
     }
 
     /// Memory and per-step traffic of the engine.
