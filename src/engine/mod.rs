@@ -219,17 +219,25 @@ pub struct Health {
 
 /// The error for a node index past the model.
 pub(crate) fn bad_node(i: u32, n: usize) -> Error {
-    Error::Model(format!("node {i} does not exist: the model has {n} nodes"))
+    Error::NodeOutOfRange {
+        node: i as u64,
+        count: n,
+        message: format!("node {i} does not exist: the model has {n} nodes"),
+    }
 }
 
 /// Check a position correction's arguments.
 pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) -> Result<()> {
     if nodes.len() != positions.len() {
-        return Err(Error::Model(format!(
-            "{} nodes but {} positions to correct them to",
-            nodes.len(),
-            positions.len()
-        )));
+        return Err(Error::LengthMismatch {
+            given: positions.len(),
+            expected: nodes.len(),
+            message: format!(
+                "{} nodes but {} positions to correct them to",
+                nodes.len(),
+                positions.len()
+            ),
+        });
     }
     match nodes.iter().find(|&&i| i as usize >= n) {
         Some(&i) => Err(bad_node(i, n)),

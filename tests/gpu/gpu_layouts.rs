@@ -242,7 +242,7 @@ fn rows_that_continue_step_on_the_gpu_like_full_rows(
     let model = random_model(1, true);
     let order = NodeOrder::locality(&model);
     match ConnectivityLayout::new(&model, order.clone(), Some(1)) {
-        Err(Error::Model(msg)) => assert!(msg.contains("at least 2 slots"), "{msg}"),
+        Err(Error::LayoutCapacity(msg)) => assert!(msg.contains("at least 2 slots"), "{msg}"),
         other => panic!("expected a capacity error, got {other:?}"),
     }
     let Some(ctx) = common::gpu() else { return };

@@ -14,9 +14,12 @@ impl Simulation {
             .iter()
             .find(|t| t.iter().any(|&i| i as usize >= n))
         {
-            return Err(Error::Model(format!(
-                "surface triangle {t:?} names a node past the model's {n} nodes"
-            )));
+            let node = t.iter().copied().find(|&i| i as usize >= n).unwrap_or(t[0]);
+            return Err(Error::NodeOutOfRange {
+                node: node as u64,
+                count: n,
+                message: format!("surface triangle {t:?} names a node past the model's {n} nodes"),
+            });
         }
         if let Some(d) = self.engine.device_mut() {
             d.set_surface(&triangles)?;
@@ -42,7 +45,7 @@ impl Simulation {
     pub fn edit_surface(&mut self, edit: &crate::collide::broad::SurfaceEdit) -> Result<()> {
         let n = self.model.node_count();
         let Some(triangles) = &mut self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to edit: call set_surface with the boundary triangles first".into(),
             ));
         };
@@ -64,10 +67,14 @@ impl Simulation {
         let mut new = HashSet::new();
         for t in &edit.added {
             if let Some(&i) = t.iter().find(|&&i| i as usize >= n) {
-                return Err(Error::Model(format!(
-                    "surface edit adds triangle {t:?}, whose node {i} is past the model's {n} \
-                     nodes"
-                )));
+                return Err(Error::NodeOutOfRange {
+                    node: i as u64,
+                    count: n,
+                    message: format!(
+                        "surface edit adds triangle {t:?}, whose node {i} is past the model's \
+                         {n} nodes"
+                    ),
+                });
             }
             let k = key(t);
             if (slots.contains_key(&k) && !gone.contains(&k)) || !new.insert(k) {
@@ -101,7 +108,7 @@ impl Simulation {
         boxes: &[crate::collide::broad::ToolBox],
     ) -> Result<Vec<crate::collide::broad::Candidate>> {
         let Some(triangles) = &self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };
@@ -138,7 +145,7 @@ impl Simulation {
             )));
         }
         let Some(triangles) = &self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };

@@ -202,13 +202,18 @@ impl Simulation {
         reserve_room(&mut model.fixed);
         model.reserve_springs(crate::model::room::spare(model.springs().len()));
         if !(config.dt.is_finite() && config.dt > 0.0) {
-            return Err(Error::Model(format!(
-                "time step {} must be finite and positive",
-                config.dt
-            )));
+            return Err(Error::InvalidParameter {
+                name: "time step".into(),
+                value: config.dt,
+                requirement: "be finite and positive".into(),
+            });
         }
         if config.check_every == 0 {
-            return Err(Error::Model("check_every must be at least 1 step".into()));
+            return Err(Error::InvalidParameter {
+                name: "check_every".into(),
+                value: 0.0,
+                requirement: "be at least 1 step".into(),
+            });
         }
         let bound = stable_time_step(&model);
         if config.dt > bound.dt && !config.allow_unstable {
@@ -370,11 +375,19 @@ impl Simulation {
     pub fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) -> Result<()> {
         let n = self.model.node_count();
         if positions.len() != n || velocities.len() != n {
-            return Err(Error::Model(format!(
-                "state has {} positions and {} velocities for {n} nodes",
-                positions.len(),
-                velocities.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: if positions.len() != n {
+                    positions.len()
+                } else {
+                    velocities.len()
+                },
+                expected: n,
+                message: format!(
+                    "state has {} positions and {} velocities for {n} nodes",
+                    positions.len(),
+                    velocities.len()
+                ),
+            });
         }
         self.engine.set_state(positions, velocities);
         self.reset_energy_reference();
