@@ -290,7 +290,9 @@ fn a_time_step_change_writes_only_the_step_parameters_and_goes_on_as_a_fresh_run
             "{what}: {cost:?}"
         );
         assert_eq!(sim.config().dt, dt);
-        let mut fresh = Simulation::new(model.clone(), kind, SimConfig { dt, ..config }).unwrap();
+        let fresh_config = SimConfig { dt, ..config };
+        let mut fresh =
+            Simulation::with_gpu(model.clone(), kind, fresh_config, layout.into()).unwrap();
         fresh.set_state(&x, &v).unwrap();
         let rest = &model.rest;
         for step in 1..=30 {

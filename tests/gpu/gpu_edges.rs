@@ -160,7 +160,11 @@ fn gpu_edge_engine_agrees_with_the_float64_reference(
     if engine(&model, config, accumulation).is_none() {
         return;
     }
-    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let options = GpuOptions {
+        layout: LayoutKind::Edges,
+        accumulation,
+    };
+    let mut gpu = Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, options).unwrap();
     let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config).unwrap();
     gpu.run(300).unwrap();
     reference.run(300).unwrap();
