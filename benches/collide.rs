@@ -14,7 +14,7 @@ use lancet::collide::narrow::tool_triangle;
 use lancet::collide::self_narrow::triangle_triangle;
 use lancet::contact::response::{resolve_contacts, ContactSettings};
 use lancet::engine::gpu::{GpuContext, GpuEngine};
-use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
+use lancet::engine::{DeviceEngine, Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::report::collide_bench::Slab;
 use lancet::twin::broad_tool::cull_cpu;

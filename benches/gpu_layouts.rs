@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use lancet::engine::gpu::{GpuContext, GpuEngine};
-use lancet::engine::{Engine, SimConfig};
+use lancet::engine::{DeviceEngine, Engine, GpuOptions, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
@@ -54,10 +54,10 @@ fn gpu_layouts(c: &mut Criterion) {
         let dt = 0.9 * stable_time_step(&model).dt;
         group.throughput(Throughput::Elements(model.springs().len() as u64));
         for (name, layout, accumulation) in variants {
-            let config = SimConfig {
+            let config = SimConfig::new(dt);
+            let options = GpuOptions {
                 layout,
                 accumulation,
-                ..SimConfig::new(dt)
             };
             let ctx = match GpuContext::new() {
                 Ok(ctx) => ctx,
@@ -66,7 +66,7 @@ fn gpu_layouts(c: &mut Criterion) {
                     continue;
                 }
             };
-            let mut engine = match GpuEngine::with_context(ctx, &model, config, layout) {
+            let mut engine = match GpuEngine::with_context(ctx, &model, config, options) {
                 Ok(engine) => engine,
                 Err(e) => {
                     eprintln!("skipped {name} on cube {n}: {e}");

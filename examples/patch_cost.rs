@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use lancet::engine::gpu::{GpuContext, GpuEngine};
-use lancet::engine::Engine;
+use lancet::engine::{DeviceEngine, Engine};
 use lancet::layout::LayoutKind;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{AddedNode, Material, ModelDiff, NodeChange, PackedModel, PackedSpring};

@@ -81,9 +81,65 @@ pub enum Error {
     #[error("invalid mesh: {0}")]
     Mesh(String),
 
-    /// Model parameters are invalid (non-positive mass, negative stiffness, ...).
+    /// The model or a call on it is invalid in a way no variant below names (a fixed selector
+    /// that selects nothing, a spring given twice, a surface edit that does not match the
+    /// surface, ...).
     #[error("invalid model: {0}")]
     Model(String),
+
+    /// A material, model or simulation parameter is out of its range: `name` is what a user
+    /// calls it (`young's modulus`, `time step`, `region 2: poisson ratio`), `value` what was
+    /// given.
+    #[error("{name} is {value}; it must {requirement}")]
+    InvalidParameter {
+        /// The parameter.
+        name: String,
+        /// The value given.
+        value: f64,
+        /// What it must be, lowercase (`be finite and positive`).
+        requirement: String,
+    },
+
+    /// A node index past the nodes there are (in the model, a change to it, a surface or the
+    /// positions given for it).
+    #[error("{message}")]
+    NodeOutOfRange {
+        /// The index given.
+        node: u64,
+        /// How many nodes there are where it was checked.
+        count: usize,
+        /// What named the node and what to do, lowercase.
+        message: String,
+    },
+
+    /// Arguments that must have one entry each for the same things do not (nodes and the
+    /// positions to move them to, masses and nodes, positions and velocities).
+    #[error("{message}")]
+    LengthMismatch {
+        /// How many entries were given.
+        given: usize,
+        /// How many were needed.
+        expected: usize,
+        /// What was given for what, lowercase.
+        message: String,
+    },
+
+    /// A model change ([`crate::model::ModelDiff`]) does not match the model or the layout it
+    /// was applied to (a spring removed that does not exist, a layout out of step with its
+    /// model). Nothing was changed: make the change against the current model, or rebuild.
+    #[error("the change does not match the model: {0}")]
+    DiffMismatch(String),
+
+    /// A GPU layout cannot hold the model as asked (too few slots per node, more entries than
+    /// 32-bit indices reach, an arrangement that leaves nodes out): choose another layout or
+    /// capacity.
+    #[error("the layout cannot hold the model: {0}")]
+    LayoutCapacity(String),
+
+    /// A call that reads the surface came before one was given: call `set_surface` with the
+    /// boundary triangles first.
+    #[error("{0}")]
+    NoSurface(String),
 
     /// The time step is above the stable bound of explicit integration.
     #[error(

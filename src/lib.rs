@@ -30,7 +30,7 @@ pub mod physics;
 pub mod report;
 pub mod twin;
 
-pub use engine::{EngineKind, Integrator, SimConfig, Simulation};
+pub use engine::{EngineKind, GpuOptions, Integrator, SimConfig, Simulation};
 pub use model::{Material, ModelConfig, PackedModel, SpringModel};
 #[cfg(feature = "scene")]
 pub mod scene;

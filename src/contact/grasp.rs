@@ -40,7 +40,7 @@ impl Grasp {
         let candidates = sim.cull_tools(&boxes)?;
         let surface = sim
             .surface()
-            .ok_or_else(|| Error::Model("no surface: call set_surface first".into()))?;
+            .ok_or_else(|| Error::NoSurface("no surface: call set_surface first".into()))?;
         let mut nodes: Vec<u32> = candidates
             .iter()
             .flat_map(|c| surface[c[0] as usize])

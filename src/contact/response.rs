@@ -160,7 +160,7 @@ pub fn resolve_contacts_excluding(
     }
     let surface = sim
         .surface()
-        .ok_or_else(|| Error::Model("no surface: call set_surface first".into()))?;
+        .ok_or_else(|| Error::NoSurface("no surface: call set_surface first".into()))?;
     let triangles: Vec<[u32; 3]> = candidates.iter().map(|c| surface[c[0] as usize]).collect();
     let mut nodes: Vec<u32> = triangles.iter().flatten().copied().collect();
     nodes.sort_unstable();

@@ -198,11 +198,15 @@ impl SelfContactProblem {
         }
         let positions: Vec<P> = read(&nodes)?.into_iter().map(P::from).collect();
         if positions.len() != nodes.len() {
-            return Err(Error::Model(format!(
-                "{} positions read for {} nodes",
-                positions.len(),
-                nodes.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: positions.len(),
+                expected: nodes.len(),
+                message: format!(
+                    "{} positions read for {} nodes",
+                    positions.len(),
+                    nodes.len()
+                ),
+            });
         }
         let slot = |n: u32| nodes.binary_search(&n).expect("every node was collected");
         let mut normals = vec![V::zeros(); nodes.len()];
@@ -418,7 +422,7 @@ pub fn resolve_self_contacts(
     }
     let surface = sim
         .surface()
-        .ok_or_else(|| Error::Model("no surface: call set_surface first".into()))?;
+        .ok_or_else(|| Error::NoSurface("no surface: call set_surface first".into()))?;
     let model = sim.model();
     let mut problem =
         SelfContactProblem::gather(surface, &pairs, &model.mass, &model.fixed, |nodes| {

@@ -333,11 +333,15 @@ impl Cutter {
     /// [`crate::Simulation::edit_surface`].
     pub fn cut(&mut self, sweep: &Sweep, positions: &[[f64; 3]]) -> Result<CutOutcome> {
         if positions.len() != self.mesh.node_count() {
-            return Err(Error::Model(format!(
-                "{} positions for {} nodes; give the current position of every node",
-                positions.len(),
-                self.mesh.node_count()
-            )));
+            return Err(Error::LengthMismatch {
+                given: positions.len(),
+                expected: self.mesh.node_count(),
+                message: format!(
+                    "{} positions for {} nodes; give the current position of every node",
+                    positions.len(),
+                    self.mesh.node_count()
+                ),
+            });
         }
         self.cut_from(sweep, &mut AllPositions(positions))
     }

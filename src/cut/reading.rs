@@ -36,12 +36,17 @@ impl PositionSource for AllPositions<'_> {
         nodes
             .iter()
             .map(|&i| {
-                self.0.get(i as usize).copied().ok_or_else(|| {
-                    Error::Model(format!(
-                        "node {i} asked of {} positions; give every node's position",
-                        self.0.len()
-                    ))
-                })
+                self.0
+                    .get(i as usize)
+                    .copied()
+                    .ok_or_else(|| Error::NodeOutOfRange {
+                        node: i as u64,
+                        count: self.0.len(),
+                        message: format!(
+                            "node {i} asked of {} positions; give every node's position",
+                            self.0.len()
+                        ),
+                    })
             })
             .collect()
     }
@@ -175,11 +180,11 @@ impl ReadPositions {
         missing.dedup();
         let got = source.of(&missing)?;
         if got.len() != missing.len() {
-            return Err(Error::Model(format!(
-                "{} positions read for {} nodes",
-                got.len(),
-                missing.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: got.len(),
+                expected: missing.len(),
+                message: format!("{} positions read for {} nodes", got.len(), missing.len()),
+            });
         }
         for (&i, p) in missing.iter().zip(got) {
             self.set(i, p)?;
@@ -191,9 +196,11 @@ impl ReadPositions {
         let n = self.at.len();
         let (Some(slot), Some(k)) = (self.at.get_mut(i as usize), self.known.get_mut(i as usize))
         else {
-            return Err(Error::Model(format!(
-                "a position was read for node {i} of a mesh of {n} nodes"
-            )));
+            return Err(Error::NodeOutOfRange {
+                node: i as u64,
+                count: n,
+                message: format!("a position was read for node {i} of a mesh of {n} nodes"),
+            });
         };
         // A node given twice (a source may) is read once: the cut counts what it read.
         if *k != self.stamp {

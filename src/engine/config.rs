@@ -1,5 +1,6 @@
-//! How a simulation runs: the time step, the integrator, the GPU layout and its variant, the
-//! node order the engines pack in, and how often divergence is checked.
+//! How a simulation runs: the time step, the integrator, the node order the engines pack in,
+//! and how often divergence is checked ([`SimConfig`]); and, apart from it, how the GPU engine
+//! lays out the springs ([`GpuOptions`]), given where the GPU engine is chosen.
 
 use super::*;
 
@@ -18,6 +19,19 @@ pub struct SimConfig {
     /// the energy crosses the limit.
     #[serde(default = "default_check_every")]
     pub check_every: u32,
+    /// How the fast CPU engine and the GPU engine number the nodes when they pack the model
+    /// (default: reverse Cuthill–McKee). Internal: results are the same physics in any order,
+    /// only memory locality, hence speed, changes.
+    #[serde(default)]
+    pub node_order: NodeOrdering,
+}
+
+/// How the GPU engine lays out and sums the springs: what only the GPU engine reads, given
+/// where it is chosen ([`Simulation::with_gpu`], [`crate::engine::gpu::GpuEngine::new`]) rather
+/// than in every simulation's [`SimConfig`]. The default is the connectivity layout; a
+/// [`crate::layout::LayoutKind`] converts into these options with the default accumulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct GpuOptions {
     /// Spring layout of the GPU engine.
     #[serde(default)]
     pub layout: crate::layout::LayoutKind,
@@ -25,11 +39,15 @@ pub struct SimConfig {
     /// gather, the fastest on lavapipe); ignored by the other layouts.
     #[serde(default)]
     pub accumulation: crate::layout::edges::Accumulation,
-    /// How the fast CPU engine and the GPU engine number the nodes when they pack the model
-    /// (default: reverse Cuthill–McKee). Internal: results are the same physics in any order,
-    /// only memory locality, hence speed, changes.
-    #[serde(default)]
-    pub node_order: NodeOrdering,
+}
+
+impl From<crate::layout::LayoutKind> for GpuOptions {
+    fn from(layout: crate::layout::LayoutKind) -> Self {
+        GpuOptions {
+            layout,
+            ..GpuOptions::default()
+        }
+    }
 }
 
 /// The node numbering an engine packs its arrays in.
@@ -104,8 +122,6 @@ impl SimConfig {
             integrator: Integrator::Verlet,
             allow_unstable: false,
             check_every: default_check_every(),
-            layout: crate::layout::LayoutKind::Connectivity,
-            accumulation: crate::layout::edges::Accumulation::Gather,
             node_order: NodeOrdering::Locality,
         }
     }

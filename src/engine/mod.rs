@@ -17,7 +17,7 @@ mod surface_list;
 use serde::{Deserialize, Serialize};
 
 pub use crate::physics::Integrator;
-pub use config::{NodeOrdering, SimConfig};
+pub use config::{GpuOptions, NodeOrdering, SimConfig};
 pub use simulation::{
     Energy, Simulation, ENERGY_GROWTH_LIMIT, EXACT_CHECK_EVERY, VERLET_F32_FRACTION,
 };
@@ -33,7 +33,7 @@ pub enum EngineKind {
     /// Float32, node-centric gather, nodes reordered for locality, multi-threaded.
     #[default]
     Fast,
-    /// Float32 on a wgpu device, in the layout of [`SimConfig::layout`].
+    /// Float32 on a wgpu device, in the layout of [`GpuOptions::layout`].
     Gpu,
     /// The GPU engine when an adapter is found, else the fast CPU engine (and say so).
     Auto,
@@ -74,14 +74,6 @@ pub trait Engine: Send {
     /// (`shaders/time_step.wgsl`). The cost counts the bytes of the step parameters written
     /// (on the GPU, the uniform uploaded).
     fn set_time_step(&mut self, dt: f64) -> Result<PatchCost>;
-    /// Block until the steps submitted have run, and with them (a queue runs in order)
-    /// whatever this engine submitted before them (GPU engines; CPU engines finish in `step`).
-    fn wait(&mut self) {}
-    /// Seconds the device itself spent on the last `step` call, measured with timestamp
-    /// queries (after [`Engine::wait`]); `None` for CPU engines and devices without them.
-    fn last_device_seconds(&self) -> Option<f64> {
-        None
-    }
     /// The engine's name, with its device where it has one.
     fn name(&self) -> String;
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
@@ -170,41 +162,48 @@ pub trait Engine: Send {
     /// the previous positions stay, so Verlet turns the move into velocity; symplectic Euler
     /// adds `move / dt` to the velocity. Fixed nodes do not move.
     fn correct_positions(&mut self, nodes: &[u32], positions: &[[f64; 3]]) -> Result<()>;
-    /// Take the tissue's boundary triangles (dense model indices) for [`Engine::cull_tools`].
-    /// Engines that cull on the CPU need nothing and ignore it.
-    fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
-        let _ = triangles;
-        Ok(())
+    /// What this engine can do because its state lives on a device (the GPU engine): waiting
+    /// for the device, its timings, the surface it culls against, its divergence probe.
+    /// `None` for the CPU engines, whose callers do the same work on the CPU.
+    fn device(&self) -> Option<&dyn DeviceEngine> {
+        None
     }
+    /// [`Engine::device`], mutably.
+    fn device_mut(&mut self) -> Option<&mut dyn DeviceEngine> {
+        None
+    }
+}
+
+/// What an engine whose state lives on a device does besides stepping: reached through
+/// [`Engine::device`] / [`Engine::device_mut`], so that a CPU engine implements none of it and
+/// a caller asks once. [`Simulation`] does the same work on the CPU where an engine has no
+/// device.
+pub trait DeviceEngine: Send {
+    /// Block until the steps submitted have run, and with them (a queue runs in order)
+    /// whatever this engine submitted before them.
+    fn wait(&mut self);
+    /// Seconds the device itself spent on the last `step` call, measured with timestamp
+    /// queries (after [`DeviceEngine::wait`]); `None` on devices without them.
+    fn last_device_seconds(&self) -> Option<f64>;
+    /// Take the tissue's boundary triangles (dense model indices) for
+    /// [`DeviceEngine::cull_tools`] and [`DeviceEngine::cull_self`].
+    fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()>;
     /// The surface after an edit: `triangles` is the whole new list, of which only the slots
-    /// `changed` (and any appended) differ from the last list given. Engines that hold the
-    /// surface write only those; the default gives the whole list to [`Engine::set_surface`].
-    fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
-        let _ = changed;
-        self.set_surface(triangles)
-    }
-    /// Broad phase of the surface given to [`Engine::set_surface`] against tool boxes where
-    /// the state lives (the GPU engine); `Ok(None)` where the caller should cull on the CPU.
+    /// `changed` (and any appended) differ from the last list given; only those are written.
+    fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()>;
+    /// Broad phase of the surface given to [`DeviceEngine::set_surface`] against tool boxes,
+    /// on the device: (triangle, tool) pairs whose bounds overlap.
     fn cull_tools(
         &mut self,
         boxes: &[crate::collide::broad::ToolBox],
-    ) -> Result<Option<Vec<crate::collide::broad::Candidate>>> {
-        let _ = boxes;
-        Ok(None)
-    }
-    /// Broad phase of the surface given to [`Engine::set_surface`] against itself where the
-    /// state lives (the GPU engine): pairs of surface triangles (t < u, sorted) sharing no node
-    /// whose boxes, widened by `margin / 2` (m), overlap; `Ok(None)` where the caller should
-    /// cull on the CPU.
-    fn cull_self(&mut self, margin: f64) -> Result<Option<Vec<[u32; 2]>>> {
-        let _ = margin;
-        Ok(None)
-    }
-    /// A cheap divergence probe computed where the state lives (the GPU engine reduces it on
-    /// the device and reads back a few bytes); `Ok(None)` where reading the state is as cheap.
-    fn health(&self) -> Result<Option<Health>> {
-        Ok(None)
-    }
+    ) -> Result<Vec<crate::collide::broad::Candidate>>;
+    /// Broad phase of the surface given to [`DeviceEngine::set_surface`] against itself, on the
+    /// device: pairs of surface triangles (t < u, sorted) sharing no node whose boxes, widened
+    /// by `margin / 2` (m), overlap.
+    fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>>;
+    /// A cheap divergence probe reduced on the device (a few bytes read back instead of the
+    /// state).
+    fn health(&self) -> Result<Health>;
 }
 
 /// A divergence probe: the first non-finite node and the energies that need no spring data.
@@ -220,17 +219,25 @@ pub struct Health {
 
 /// The error for a node index past the model.
 pub(crate) fn bad_node(i: u32, n: usize) -> Error {
-    Error::Model(format!("node {i} does not exist: the model has {n} nodes"))
+    Error::NodeOutOfRange {
+        node: i as u64,
+        count: n,
+        message: format!("node {i} does not exist: the model has {n} nodes"),
+    }
 }
 
 /// Check a position correction's arguments.
 pub(crate) fn check_correction(nodes: &[u32], positions: &[[f64; 3]], n: usize) -> Result<()> {
     if nodes.len() != positions.len() {
-        return Err(Error::Model(format!(
-            "{} nodes but {} positions to correct them to",
-            nodes.len(),
-            positions.len()
-        )));
+        return Err(Error::LengthMismatch {
+            given: positions.len(),
+            expected: nodes.len(),
+            message: format!(
+                "{} nodes but {} positions to correct them to",
+                nodes.len(),
+                positions.len()
+            ),
+        });
     }
     match nodes.iter().find(|&&i| i as usize >= n) {
         Some(&i) => Err(bad_node(i, n)),

@@ -146,7 +146,7 @@ impl DiffSprings {
             map.insert([a.min(b), a.max(b)], *s);
         }
         let mismatch = |a: u32, b: u32, what: &str, model_has: &str| {
-            Error::Model(format!(
+            Error::DiffMismatch(format!(
                 "the diff {what} the spring between nodes {a} and {b}, but the model given \
                  with it {model_has}; give the model the diff was applied to"
             ))
@@ -197,7 +197,7 @@ pub(crate) fn patched_row_slots(
                 .find(|e| e.1 == nb)
                 .map(|e| Slot { other, ..e.0 })
                 .ok_or_else(|| {
-                    Error::Model(format!(
+                    Error::DiffMismatch(format!(
                         "the layout joins nodes {node} and {nb} but neither the layout nor the \
                          diff has that spring; the diff does not match the layout"
                     ))
@@ -220,7 +220,7 @@ pub(crate) fn row_slots(
         .iter()
         .map(|&nb| {
             let s = model.spring_index(node, nb).ok_or_else(|| {
-                Error::Model(format!(
+                Error::DiffMismatch(format!(
                     "the layout joins nodes {node} and {nb} but the model has no such spring; \
                      the diff does not match the model it was applied to"
                 ))
@@ -291,7 +291,7 @@ impl ConnectivityLayout {
         let widest = valence.iter().copied().max().unwrap_or(0);
         let k = capacity.unwrap_or_else(|| row_size_class(widest));
         if k < 2 {
-            return Err(Error::Model(format!(
+            return Err(Error::LayoutCapacity(format!(
                 "the connectivity layout needs at least 2 slots per node (a spring and a \
                  continuation), not {k}"
             )));
@@ -299,7 +299,9 @@ impl ConnectivityLayout {
         let total = n
             .checked_mul(k as usize)
             .filter(|&t| t <= u32::MAX as usize)
-            .ok_or_else(|| Error::Model("connectivity table too large for u32 indices".into()))?;
+            .ok_or_else(|| {
+                Error::LayoutCapacity("connectivity table too large for u32 indices".into())
+            })?;
         let mut slots = vec![Slot::empty(); total];
         let mut fill = vec![0u32; n];
         // Rows wider than `k`, gathered whole and written as chains below.
@@ -404,7 +406,7 @@ impl ConnectivityLayout {
                 None => {
                     let r = n + self.overflow.len();
                     if (r + 1) * k > u32::MAX as usize {
-                        return Err(Error::Model(
+                        return Err(Error::LayoutCapacity(
                             "connectivity table too large for u32 indices".into(),
                         ));
                     }
@@ -557,7 +559,7 @@ impl ConnectivityLayout {
             + touched_most
             + 2 * diff.added_springs.len();
         if most_rows.saturating_mul(k) > u32::MAX as usize {
-            return Err(Error::Model(format!(
+            return Err(Error::LayoutCapacity(format!(
                 "a connectivity table of up to {most_rows} rows of {k} slots is too large for u32 \
                  indices; use the valence or edge layout"
             )));

@@ -571,7 +571,7 @@ impl EdgeLayout {
 
 /// The error for a spring the layout does not have.
 fn no_spring(a: u32, b: u32) -> Error {
-    Error::Model(format!(
+    Error::DiffMismatch(format!(
         "there is no spring {a}-{b} in the layout or the model; the diff does not match the \
          model it was applied to"
     ))

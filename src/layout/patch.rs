@@ -210,7 +210,7 @@ pub(crate) fn check_model(
     if model.node_count() == before + diff.added_nodes.len() {
         return Ok(());
     }
-    Err(crate::Error::Model(format!(
+    Err(crate::Error::DiffMismatch(format!(
         "the layout has {before} nodes and the diff adds {}, but the model has {}; apply the \
          diff to the model first, once",
         diff.added_nodes.len(),

@@ -157,16 +157,20 @@ impl ValenceLayout {
         // The device finds a node's bucket by searching the table by `first`
         // (`shaders/springs_valence.wgsl`), as `bucket_of` does here.
         if room.len() != buckets.len() {
-            return Err(Error::Model(format!(
-                "{} valence buckets but room given for {}",
-                buckets.len(),
-                room.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: room.len(),
+                expected: buckets.len(),
+                message: format!(
+                    "{} valence buckets but room given for {}",
+                    buckets.len(),
+                    room.len()
+                ),
+            });
         }
         if let Some(w) =
             (1..buckets.len()).find(|&i| buckets[i - 1].first + room[i - 1] > buckets[i].first)
         {
-            return Err(Error::Model(format!(
+            return Err(Error::LayoutCapacity(format!(
                 "valence bucket {w} starts at layout index {}, inside the room of the bucket \
                  before it (from {}, room {}): buckets must follow each other",
                 buckets[w].first,
@@ -187,7 +191,7 @@ impl ValenceLayout {
         let mut placed = 0usize;
         for (b, &r) in buckets.iter().zip(&room) {
             if b.count > r {
-                return Err(Error::Model(format!(
+                return Err(Error::LayoutCapacity(format!(
                     "a valence bucket dispatches {} nodes but has room for {r}",
                     b.count
                 )));
@@ -206,7 +210,7 @@ impl ValenceLayout {
                     continue;
                 }
                 if valence[node as usize] != b.valence || local >= b.count {
-                    return Err(Error::Model(format!(
+                    return Err(Error::LayoutCapacity(format!(
                         "node {node} (valence {}) sits at layout index {idx}, which is not a \
                          dispatched place of a valence-{} bucket",
                         valence[node as usize], b.valence
@@ -225,7 +229,7 @@ impl ValenceLayout {
             }
         }
         if placed != model.node_count() {
-            return Err(Error::Model(format!(
+            return Err(Error::LayoutCapacity(format!(
                 "the arrangement places {placed} of the model's {} nodes",
                 model.node_count()
             )));

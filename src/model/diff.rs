@@ -222,18 +222,27 @@ impl PackedModel {
             if (i as usize) < n {
                 Ok(())
             } else {
-                Err(Error::Model(format!(
-                    "{what} names node {i}, but the model has {n} nodes after the change"
-                )))
+                Err(Error::NodeOutOfRange {
+                    node: i as u64,
+                    count: n,
+                    message: format!(
+                        "{what} names node {i}, but the model has {n} nodes after the change"
+                    ),
+                })
             }
         };
         for a in &diff.added_nodes {
             let sources = a.state_from.into_iter().chain(a.blend.map(|b| b.with));
             for s in sources {
                 if s as usize >= self.node_count() {
-                    return Err(Error::Model(format!(
-                        "an added node copies the state of node {s}, which does not exist yet"
-                    )));
+                    return Err(Error::NodeOutOfRange {
+                        node: s as u64,
+                        count: self.node_count(),
+                        message: format!(
+                            "an added node copies the state of node {s}, which does not exist \
+                             yet"
+                        ),
+                    });
                 }
             }
             if let Some(b) = a.blend {
@@ -246,25 +255,27 @@ impl PackedModel {
                 }
             }
             if !(a.mass > 0.0 && a.mass.is_finite()) {
-                return Err(Error::Model(format!(
-                    "an added node has mass {}; give a positive mass",
-                    a.mass
-                )));
+                return Err(Error::InvalidParameter {
+                    name: "the mass of an added node".into(),
+                    value: a.mass,
+                    requirement: "be finite and positive".into(),
+                });
             }
         }
         for c in &diff.changed_nodes {
             check_node(c.node, "a node change")?;
             if !(c.mass > 0.0 && c.mass.is_finite()) {
-                return Err(Error::Model(format!(
-                    "node {} would get mass {}; give a positive mass",
-                    c.node, c.mass
-                )));
+                return Err(Error::InvalidParameter {
+                    name: format!("the new mass of node {}", c.node),
+                    value: c.mass,
+                    requirement: "be finite and positive".into(),
+                });
             }
         }
         let mut removed = HashSet::new();
         for &[a, b] in &diff.removed_springs {
             if self.spring_index(a, b).is_none() || !removed.insert(pair(a, b)) {
-                return Err(Error::Model(format!(
+                return Err(Error::DiffMismatch(format!(
                     "cannot remove spring {a}-{b}: there is no such spring (or it is removed twice)"
                 )));
             }
@@ -277,7 +288,7 @@ impl PackedModel {
             let key = pair(a, b);
             let exists = self.spring_index(a, b).is_some() && !removed.contains(&key);
             if a == b || exists || !added.insert(key) {
-                return Err(Error::Model(format!(
+                return Err(Error::DiffMismatch(format!(
                     "cannot add spring {a}-{b}: its ends must be two distinct nodes not already \
                      joined by a spring"
                 )));
@@ -289,7 +300,7 @@ impl PackedModel {
             let present = (self.spring_index(a, b).is_some() && !removed.contains(&key))
                 || added.contains(&key);
             if !present {
-                return Err(Error::Model(format!(
+                return Err(Error::DiffMismatch(format!(
                     "cannot change spring {a}-{b}: there is no such spring after the removals"
                 )));
             }

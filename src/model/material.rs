@@ -140,9 +140,11 @@ impl Material {
     /// Check that every parameter is finite and in range; the message says which is not.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str, v: f64| {
-            Err(Error::Model(format!(
-                "{what} is {v}; it must be finite and positive"
-            )))
+            Err(Error::InvalidParameter {
+                name: what.into(),
+                value: v,
+                requirement: "be finite and positive".into(),
+            })
         };
         match self.stiffness {
             Stiffness::Material {
@@ -154,9 +156,11 @@ impl Material {
                     return bad("young's modulus", e);
                 }
                 if !(0.0..0.5).contains(&nu) {
-                    return Err(Error::Model(format!(
-                        "poisson ratio is {nu}; it must lie in [0, 0.5)"
-                    )));
+                    return Err(Error::InvalidParameter {
+                        name: "poisson ratio".into(),
+                        value: nu,
+                        requirement: "lie in [0, 0.5)".into(),
+                    });
                 }
             }
             Stiffness::Spring(k) if !(k.is_finite() && k > 0.0) => {
@@ -174,9 +178,11 @@ impl Material {
             SpringDamping::Absolute(c) | SpringDamping::StiffnessProportional(c)
                 if !(c.is_finite() && c >= 0.0) =>
             {
-                Err(Error::Model(format!(
-                    "spring damping is {c}; it must be finite and not negative"
-                )))
+                Err(Error::InvalidParameter {
+                    name: "spring damping".into(),
+                    value: c,
+                    requirement: "be finite and not negative".into(),
+                })
             }
             _ => Ok(()),
         }

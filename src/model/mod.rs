@@ -127,20 +127,32 @@ impl SpringModel {
     pub fn build(mesh: &TetMesh, config: &ModelConfig) -> Result<Self> {
         config.material.validate()?;
         for (r, m) in &config.regions {
-            m.validate()
-                .map_err(|e| Error::Model(format!("region {r}: {e}")))?;
+            m.validate().map_err(|e| match e {
+                Error::InvalidParameter {
+                    name,
+                    value,
+                    requirement,
+                } => Error::InvalidParameter {
+                    name: format!("region {r}: {name}"),
+                    value,
+                    requirement,
+                },
+                e => Error::Model(format!("region {r}: {e}")),
+            })?;
         }
-        if !config.gravity.iter().all(|g| g.is_finite()) {
-            return Err(Error::Model(format!(
-                "gravity {:?} is not finite",
-                config.gravity
-            )));
+        if let Some(c) = config.gravity.iter().position(|g| !g.is_finite()) {
+            return Err(Error::InvalidParameter {
+                name: format!("component {c} of gravity {:?}", config.gravity),
+                value: config.gravity[c],
+                requirement: "be finite".into(),
+            });
         }
         if !(config.mass_damping.is_finite() && config.mass_damping >= 0.0) {
-            return Err(Error::Model(format!(
-                "mass damping {} must be finite and not negative",
-                config.mass_damping
-            )));
+            return Err(Error::InvalidParameter {
+                name: "mass damping".into(),
+                value: config.mass_damping,
+                requirement: "be finite and not negative".into(),
+            });
         }
         let mut model = SpringModel {
             springs: SlotMap::with_key(),
@@ -444,10 +456,11 @@ impl SpringModel {
     /// and the region's own rule is kept (it is exact already).
     pub fn add_split_tet(&mut self, mesh: &TetMesh, tk: TetKey, parent_density: f64) -> Result<()> {
         if !(parent_density.is_finite() && parent_density > 0.0) {
-            return Err(Error::Model(format!(
-                "a split tet's parent has mass density {parent_density}; it must be finite and \
-                 positive"
-            )));
+            return Err(Error::InvalidParameter {
+                name: "a split tet's parent mass density".into(),
+                value: parent_density,
+                requirement: "be finite and positive".into(),
+            });
         }
         self.add_tet_with(mesh, tk, Some(parent_density))
     }
@@ -546,11 +559,13 @@ impl SpringModel {
             rest.push([p.x, p.y, p.z]);
             let m = self.mass.get(k).copied().unwrap_or(0.0);
             if !(m > 0.0 && m.is_finite()) {
-                return Err(Error::Model(format!(
-                    "node {} has mass {m}; every node needs a positive mass (remove nodes \
-                     that no tet uses)",
-                    dense.index[k]
-                )));
+                return Err(Error::InvalidParameter {
+                    name: format!("the mass of node {}", dense.index[k]),
+                    value: m,
+                    requirement: "be positive: every node needs a mass (remove nodes that no \
+                                  tet uses)"
+                        .into(),
+                });
             }
             mass.push(m);
             fixed.push(self.fixed.contains_key(k));
@@ -631,14 +646,22 @@ impl PackedModel {
     ) -> Result<Self> {
         let n = rest.len();
         if mass.len() != n {
-            return Err(Error::Model(format!(
-                "{} masses for {n} nodes; give one per node",
-                mass.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: mass.len(),
+                expected: n,
+                message: format!("{} masses for {n} nodes; give one per node", mass.len()),
+            });
         }
         let mut packed = Vec::with_capacity(springs.len());
         for &([a, b], k, c) in springs {
-            if a as usize >= n || b as usize >= n || a == b {
+            if a as usize >= n || b as usize >= n {
+                return Err(Error::NodeOutOfRange {
+                    node: a.max(b) as u64,
+                    count: n,
+                    message: format!("spring {a}-{b} needs two distinct nodes below {n}"),
+                });
+            }
+            if a == b {
                 return Err(Error::Model(format!(
                     "spring {a}-{b} needs two distinct nodes below {n}"
                 )));

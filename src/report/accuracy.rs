@@ -31,7 +31,7 @@ use serde::Serialize;
 
 use super::bench::relative_l2;
 use crate::engine::reference::ReferenceEngine;
-use crate::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
+use crate::engine::{Engine, EngineKind, GpuOptions, Integrator, SimConfig, Simulation};
 use crate::error::{Error, Result};
 use crate::layout::LayoutKind;
 use crate::model::{stable_time_step, PackedModel};
@@ -275,17 +275,17 @@ impl Run {
     }
 }
 
-/// Run `model` on `kind` at `config.dt`, stopping at each of `counts` steps to read positions.
+/// Run `model` on `kind` (in `layout` on the GPU) at `config.dt`, stopping at each of `counts` steps to read positions.
 /// Only the stepping is timed (after a warm-up and a reset to rest); divergence checks and
 /// readbacks are not.
 fn run_to(
     model: &PackedModel,
-    kind: EngineKind,
+    (kind, layout): (EngineKind, LayoutKind),
     config: SimConfig,
     counts: &[u64],
     opts: &AccuracyOptions,
 ) -> Result<Run> {
-    let mut sim = Simulation::new(model.clone(), kind, config)?;
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, GpuOptions::from(layout))?;
     let engine = sim.engine_name();
     sim.step_unchecked(opts.warmup_steps);
     let zero;
@@ -520,7 +520,7 @@ pub fn model_accuracy(
                     .map(|&l| (l, format!("gpu-{l:?}").to_lowercase()))
                     .collect()
             }
-            _ => vec![(base.layout, e.to_string())],
+            _ => vec![(LayoutKind::default(), e.to_string())],
         };
         for (l, name) in entries {
             if !series.iter().any(|(_, _, n)| *n == name) {
@@ -537,12 +537,8 @@ pub fn model_accuracy(
                 "{name} at dt {dt:.3e} s ({fraction} of the bound, {} steps)",
                 last(&counts)
             ));
-            let config = SimConfig {
-                dt,
-                layout: *layout,
-                ..base
-            };
-            let run = run_to(model, *kind, config, &counts, opts)?;
+            let config = SimConfig { dt, ..base };
+            let run = run_to(model, (*kind, *layout), config, &counts, opts)?;
             let wall_s_per_sim_s = run.wall_per_sim_s();
             rows.push(AccuracyRow {
                 series: name.clone(),

@@ -8,7 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::bandwidth::Bandwidth;
-use crate::engine::{EngineKind, Integrator, NodeOrdering, SimConfig, Simulation};
+use crate::engine::{EngineKind, GpuOptions, Integrator, NodeOrdering, SimConfig, Simulation};
 use crate::error::{Error, Result};
 use crate::layout::edges::Accumulation;
 use crate::layout::LayoutKind;
@@ -261,12 +261,14 @@ pub fn run_bench(
                 }
             }
             let config = SimConfig {
-                layout: v.layout.unwrap_or(base.layout),
-                accumulation: v.accumulation.unwrap_or(base.accumulation),
                 node_order: v.order.unwrap_or(base.node_order),
                 ..base
             };
-            let mut sim = match Simulation::new(model.clone(), v.engine, config) {
+            let gpu = GpuOptions {
+                layout: v.layout.unwrap_or_default(),
+                accumulation: v.accumulation.unwrap_or_default(),
+            };
+            let mut sim = match Simulation::with_gpu(model.clone(), v.engine, config, gpu) {
                 Ok(sim) => sim,
                 // A variant the device lacks a feature for is skipped with the reason; the rest
                 // of the matrix still runs.

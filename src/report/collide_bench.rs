@@ -16,7 +16,7 @@ use crate::collide::self_broad::GridParams;
 use crate::collide::{Tool, ToolShape};
 use crate::contact::response::{resolve_contacts, ContactSettings};
 use crate::engine::gpu::{GpuContext, GpuEngine};
-use crate::engine::{Engine, EngineKind, SimConfig, Simulation};
+use crate::engine::{DeviceEngine, Engine, EngineKind, SimConfig, Simulation};
 use crate::error::Result;
 use crate::layout::LayoutKind;
 use crate::mesh::generate::BoxGrid;

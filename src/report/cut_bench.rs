@@ -440,11 +440,10 @@ fn one(row: &Row) -> Result<CutRow> {
     let packed = model.pack(&mesh)?;
     let before = stable_time_step(&packed);
     let sim_config = SimConfig {
-        layout,
         allow_unstable: true,
         ..SimConfig::new(0.5 * before.dt)
     };
-    let mut sim = Simulation::new(packed, engine, sim_config)?;
+    let mut sim = Simulation::with_gpu(packed, engine, sim_config, layout.into())?;
     let engine_name = sim.engine_name();
     let mut cutter = Cutter::new(mesh, model, method)?.with_quality_floor(floor);
     sim.set_surface(cutter.surface())?;

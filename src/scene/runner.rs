@@ -211,9 +211,13 @@ pub fn run_scene(
         dt,
         integrator: scene.integrator,
         allow_unstable: scene.allow_unstable,
+        ..SimConfig::new(dt)
+    };
+    // The scene's `layout` and `accumulation` fields (or the options overriding them) choose
+    // how the GPU engine runs; the CPU engines ignore them.
+    let gpu = crate::engine::GpuOptions {
         layout: opts.layout.unwrap_or(scene.layout),
         accumulation: opts.accumulation.unwrap_or(scene.accumulation),
-        ..SimConfig::new(dt)
     };
     let mut summary = RunSummary {
         scene: scene.name.clone(),
@@ -254,7 +258,7 @@ pub fn run_scene(
         expectations: Vec::new(),
         expectations_passed: false,
     };
-    let mut sim = match Simulation::new(packed.clone(), engine, config) {
+    let mut sim = match Simulation::with_gpu(packed.clone(), engine, config, gpu) {
         Ok(sim) => sim,
         Err(e @ Error::UnstableTimeStep { .. }) => {
             summary.refused = true;

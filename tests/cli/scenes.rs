@@ -203,3 +203,37 @@ fn a_cut_without_a_blade_is_warned_about() {
     let plain = Scene::from_ron(&scene_text("", "None"), Path::new("x.ron")).unwrap();
     assert!(plain.warnings().is_empty());
 }
+
+/// A scene's `layout` and `accumulation` fields choose the GPU engine's layout and edge variant
+/// (the runner gives them to the engine as `GpuOptions`, apart from `SimConfig`), and the run
+/// options override them as `--layout` does.
+#[test]
+fn the_scene_layout_and_accumulation_reach_the_gpu_engine() {
+    if lancet::engine::gpu::GpuContext::new().is_err()
+        && std::env::var("LANCET_REQUIRE_GPU").as_deref() != Ok("1")
+    {
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    let text = r#"Scene(
+    name: "x",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    dt: BoundFraction(0.5),
+    steps: 10,
+    engine: Gpu,
+    layout: Edges,
+    accumulation: AtomicFixed,
+)"#;
+    let path = Path::new("x.ron");
+    let scene = Scene::from_ron(text, path).unwrap();
+    let run = |opts: &RunOptions| run_scene(&scene, path, opts, |_, _| {}).unwrap().engine;
+    let engine = run(&RunOptions::default());
+    assert!(engine.starts_with("gpu-edges-atomicfixed on"), "{engine}");
+    let valence = RunOptions {
+        layout: Some(lancet::layout::LayoutKind::Valence),
+        ..RunOptions::default()
+    };
+    let engine = run(&valence);
+    assert!(engine.starts_with("gpu-valence on"), "{engine}");
+}

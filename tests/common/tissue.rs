@@ -42,9 +42,8 @@ pub fn tissue_in(
         .pack(&mesh)
         .unwrap();
     let dt = 0.5 * stable_time_step(&model).dt;
-    let mut sim_config = SimConfig::new(dt);
-    sim_config.layout = layout;
-    let mut sim = Simulation::new(model, kind, sim_config).unwrap();
+    let sim_config = SimConfig::new(dt);
+    let mut sim = Simulation::with_gpu(model, kind, sim_config, layout.into()).unwrap();
     sim.set_surface(Surface::of(&mesh).triangles).unwrap();
     sim
 }

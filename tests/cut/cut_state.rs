@@ -31,11 +31,10 @@ fn cut_stretched_box(kind: EngineKind, layout: LayoutKind) {
     let model = SpringModel::build(&mesh, &config).unwrap();
     let packed = model.pack(&mesh).unwrap();
     let sim_config = SimConfig {
-        layout,
         allow_unstable: true,
         ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
     };
-    let mut sim = Simulation::new(packed, kind, sim_config).unwrap();
+    let mut sim = Simulation::with_gpu(packed, kind, sim_config, layout.into()).unwrap();
     let rest = sim.model().rest.clone();
     let x: Vec<[f64; 3]> = rest.iter().map(|&p| affine(p, 1.0 + STRAIN)).collect();
     let v: Vec<[f64; 3]> = rest

@@ -41,11 +41,10 @@ fn setup(method: CutMethod, kind: EngineKind, layout: LayoutKind) -> (Simulation
     let model = SpringModel::build(&mesh, &config).unwrap();
     let packed = model.pack(&mesh).unwrap();
     let sim_config = SimConfig {
-        layout,
         allow_unstable: true,
         ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
     };
-    let mut sim = Simulation::new(packed, kind, sim_config).unwrap();
+    let mut sim = Simulation::with_gpu(packed, kind, sim_config, layout.into()).unwrap();
     let cutter = Cutter::new(mesh, model, method).unwrap();
     sim.set_surface(cutter.surface()).unwrap();
     (sim, cutter)
@@ -240,11 +239,8 @@ fn falling_box(layout: LayoutKind) -> (Simulation, Vec<[u32; 3]>) {
     model_config.gravity = [0.0, 0.0, -9.81];
     let model = SpringModel::build(&mesh, &model_config).unwrap();
     let packed = model.pack(&mesh).unwrap();
-    let config = SimConfig {
-        layout,
-        ..SimConfig::new(0.4 * stable_time_step(&packed).dt)
-    };
-    let sim = Simulation::new(packed, EngineKind::Gpu, config).unwrap();
+    let config = SimConfig::new(0.4 * stable_time_step(&packed).dt);
+    let sim = Simulation::with_gpu(packed, EngineKind::Gpu, config, layout.into()).unwrap();
     let boundary = Cutter::new(mesh, model, CutMethod::Separate)
         .unwrap()
         .surface();

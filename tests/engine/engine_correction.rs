@@ -23,8 +23,7 @@ fn corrected(
     let model = random_box(91, true);
     let mut config = SimConfig::new(0.5 * stable_time_step(&model).dt);
     config.integrator = integrator;
-    config.layout = layout;
-    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
     let (x, v) = random_state(&model, 91);
     sim.set_state(&x, &v).unwrap();
     sim.run(10).unwrap();

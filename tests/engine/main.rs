@@ -11,6 +11,7 @@ mod models;
 mod read_ahead;
 
 mod engine_agreement;
+mod engine_api;
 mod engine_correction;
 mod engine_patch;
 mod fast_read_ahead;

@@ -3,7 +3,7 @@
 //! random order is a reproducible permutation.
 
 use crate::{common, models};
-use lancet::engine::{EngineKind, NodeOrdering, SimConfig, Simulation};
+use lancet::engine::{EngineKind, GpuOptions, NodeOrdering, SimConfig, Simulation};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::LayoutKind;
 use lancet::model::{stable_time_step, PackedModel};
@@ -25,8 +25,18 @@ const TOLERANCE: f64 = 1e-5;
 
 /// Positions in model order after 100 steps from a random state.
 fn run(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Vec<[f64; 3]> {
+    run_on(model, kind, config, GpuOptions::default())
+}
+
+/// [`run`] with the GPU engine's layout and accumulation `gpu`.
+fn run_on(
+    model: &PackedModel,
+    kind: EngineKind,
+    config: SimConfig,
+    gpu: GpuOptions,
+) -> Vec<[f64; 3]> {
     let (x, v) = random_state(model, 5);
-    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, gpu).unwrap();
     sim.set_state(&x, &v).unwrap();
     sim.run(100).unwrap();
     sim.positions()
@@ -97,12 +107,14 @@ fn gpu_engine_gives_the_same_positions_in_every_node_order_and_layout() {
     for (layout, accumulation) in variants {
         for order in ORDERS {
             let c = SimConfig {
-                layout,
-                accumulation,
                 node_order: order,
                 ..config(&model)
             };
-            let err = relative_l2(&model.rest, &run(&model, EngineKind::Gpu, c), &base);
+            let gpu = GpuOptions {
+                layout,
+                accumulation,
+            };
+            let err = relative_l2(&model.rest, &run_on(&model, EngineKind::Gpu, c, gpu), &base);
             eprintln!("{layout:?}/{accumulation:?} {order}: {err:e}");
             // Fixed point rounds each force to its quantum (about 1e-5 here, the same in every
             // order since integer sums do not depend on the order of the adds).

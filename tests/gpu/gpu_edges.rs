@@ -4,7 +4,7 @@
 
 use crate::{common, models};
 use lancet::engine::gpu::{step_params, GpuEngine};
-use lancet::engine::{Engine, EngineKind, Integrator, SimConfig, Simulation};
+use lancet::engine::{Engine, EngineKind, GpuOptions, Integrator, SimConfig, Simulation};
 use lancet::layout::edges::{Accumulation, EdgeLayout};
 use lancet::layout::{LayoutKind, NodeOrder};
 use lancet::model::{stable_time_step, PackedModel};
@@ -35,11 +35,11 @@ fn engine(model: &PackedModel, config: SimConfig, accumulation: Accumulation) ->
         .device
         .features()
         .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-    let config = SimConfig {
+    let options = GpuOptions {
+        layout: LayoutKind::Edges,
         accumulation,
-        ..config
     };
-    match GpuEngine::with_context(ctx, model, config, LayoutKind::Edges) {
+    match GpuEngine::with_context(ctx, model, config, options) {
         Ok(e) => Some(e),
         Err(Error::Unsupported(msg))
             if accumulation == Accumulation::AtomicFloat && !has_float_atomics =>
@@ -149,15 +149,17 @@ fn gpu_edge_engine_agrees_with_the_float64_reference(
     let dt = 0.8 * stable_time_step(&model).dt;
     let config = SimConfig {
         integrator,
-        layout: LayoutKind::Edges,
-        accumulation,
         ..SimConfig::new(dt)
     };
     // Probe for float atomics first (skips with a message without them).
     if engine(&model, config, accumulation).is_none() {
         return;
     }
-    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let options = GpuOptions {
+        layout: LayoutKind::Edges,
+        accumulation,
+    };
+    let mut gpu = Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, options).unwrap();
     let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config).unwrap();
     gpu.run(300).unwrap();
     reference.run(300).unwrap();

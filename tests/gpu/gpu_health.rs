@@ -4,7 +4,7 @@
 
 use crate::{common, models};
 use lancet::engine::gpu::GpuEngine;
-use lancet::engine::{Engine, EngineKind, SimConfig, Simulation};
+use lancet::engine::{DeviceEngine, Engine, EngineKind, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
 use lancet::model::stable_time_step;
 use lancet::twin::health::health_cpu;
@@ -51,7 +51,7 @@ fn device_energies_match_the_state_read_back(
     let Some((e, model)) = engine(kind, 62) else {
         return;
     };
-    let h = e.health().unwrap().unwrap();
+    let h = e.health().unwrap();
     let (x, v) = e.state();
     let (k, g) = (model.kinetic_energy(&v), model.gravity_energy(&x));
     assert!(k > 0.0 && g.abs() > 0.0, "a moving, displaced state");
@@ -86,7 +86,7 @@ fn the_first_non_finite_node_is_found(
     cur[a][1] = bad;
     cur[b][0] = bad;
     e.set_raw_state(&cur, &second).unwrap();
-    let h = e.health().unwrap().unwrap();
+    let h = e.health().unwrap();
     let first = order.order[a.min(b)] as usize;
     assert_eq!(h.non_finite, Some(first));
 }
@@ -103,8 +103,8 @@ fn a_forced_unstable_gpu_run_is_caught_by_the_device_probe(
     let model = random_model(64, false);
     let mut config = SimConfig::new(2.0 * stable_time_step(&model).dt);
     config.allow_unstable = true;
-    config.layout = kind;
-    let mut sim = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let mut sim =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, kind.into()).unwrap();
     let (x, v) = random_state(&model, 64);
     let tiny: Vec<[f64; 3]> = x
         .iter()

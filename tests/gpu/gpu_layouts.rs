@@ -167,10 +167,10 @@ fn gpu_engine_agrees_with_the_float64_reference(
     let dt = 0.8 * stable_time_step(&model).dt;
     let config = SimConfig {
         integrator,
-        layout,
         ..SimConfig::new(dt)
     };
-    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let mut gpu =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, layout.into()).unwrap();
     let mut reference = Simulation::new(model.clone(), EngineKind::Reference, config).unwrap();
     gpu.run(300).unwrap();
     reference.run(300).unwrap();
@@ -211,11 +211,9 @@ fn gpu_engine_runs_a_real_mesh_like_the_reference(
         .pack(&mesh)
         .unwrap();
     let dt = 0.9 * stable_time_step(&model).dt;
-    let config = SimConfig {
-        layout,
-        ..SimConfig::new(dt)
-    };
-    let mut gpu = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let config = SimConfig::new(dt);
+    let mut gpu =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, layout.into()).unwrap();
     let mut reference =
         Simulation::new(model.clone(), EngineKind::Reference, SimConfig::new(dt)).unwrap();
     gpu.run(200).unwrap();
@@ -237,7 +235,7 @@ fn rows_that_continue_step_on_the_gpu_like_full_rows(
     let model = random_model(1, true);
     let order = NodeOrder::locality(&model);
     match ConnectivityLayout::new(&model, order.clone(), Some(1)) {
-        Err(Error::Model(msg)) => assert!(msg.contains("at least 2 slots"), "{msg}"),
+        Err(Error::LayoutCapacity(msg)) => assert!(msg.contains("at least 2 slots"), "{msg}"),
         other => panic!("expected a capacity error, got {other:?}"),
     }
     let Some(ctx) = common::gpu() else { return };
@@ -260,6 +258,7 @@ fn rows_that_continue_step_on_the_gpu_like_full_rows(
             &model,
             config,
             lancet::layout::PackedLayout::Connectivity(layout.clone()),
+            lancet::layout::edges::Accumulation::Gather,
         )
         .unwrap();
         e.set_raw_state(&cur, &second).unwrap();
@@ -309,12 +308,10 @@ fn layouts_on_the_gpu_agree_with_each_other() {
     let Some(_) = common::gpu() else { return };
     let model = random_model(9, true);
     let dt = 0.8 * stable_time_step(&model).dt;
-    let run = |layout| {
-        let config = SimConfig {
-            layout,
-            ..SimConfig::new(dt)
-        };
-        let mut sim = Simulation::new(model.clone(), EngineKind::Gpu, config).unwrap();
+    let run = |layout: LayoutKind| {
+        let config = SimConfig::new(dt);
+        let mut sim =
+            Simulation::with_gpu(model.clone(), EngineKind::Gpu, config, layout.into()).unwrap();
         sim.run(200).unwrap();
         sim.positions()
     };

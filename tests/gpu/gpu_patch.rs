@@ -5,7 +5,7 @@
 
 use crate::{common, models};
 use lancet::engine::gpu::{merged_ranges, GpuEngine, WRITE_GAP};
-use lancet::engine::{Engine, Integrator, SimConfig};
+use lancet::engine::{Engine, GpuOptions, Integrator, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::patch::LayoutArray;
 use lancet::layout::{LayoutKind, PackedLayout};
@@ -38,8 +38,14 @@ fn rebuilt_steps(
     steps: u32,
 ) -> Raw {
     let ctx = common::gpu().unwrap();
-    let mut rebuilt =
-        GpuEngine::with_layout(ctx, model, config, fresh(model, engine.layout())).unwrap();
+    let mut rebuilt = GpuEngine::with_layout(
+        ctx,
+        model,
+        config,
+        fresh(model, engine.layout()),
+        engine.options().accumulation,
+    )
+    .unwrap();
     rebuilt.set_raw_state(&raw.0, &raw.1).unwrap();
     rebuilt.step(steps);
     rebuilt.raw_state().unwrap()
@@ -105,8 +111,11 @@ fn patched_engine_steps_like_its_twin_and_like_a_rebuild(
     let mut model = random_model(41, true);
     let mut config = SimConfig::new(2e-5);
     config.integrator = integrator;
-    config.accumulation = accumulation;
-    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let options = GpuOptions {
+        layout: kind,
+        accumulation,
+    };
+    let mut engine = GpuEngine::with_context(ctx, &model, config, options).unwrap();
     let (x, v) = random_state(&model, 41);
     engine.set_state(&x, &v);
     engine.step(7);
@@ -282,8 +291,14 @@ fn a_valence_regroup_on_the_device_keeps_every_node_its_state_and_surface() {
     let mut model = random_model(21, false);
     let config = SimConfig::new(2e-5);
     let fragmented = models::fragmented_valence(&model, &config.node_order.order(&model));
-    let mut engine =
-        GpuEngine::with_layout(ctx, &model, config, PackedLayout::Valence(fragmented)).unwrap();
+    let mut engine = GpuEngine::with_layout(
+        ctx,
+        &model,
+        config,
+        PackedLayout::Valence(fragmented),
+        Accumulation::Gather,
+    )
+    .unwrap();
     let (x, v) = random_state(&model, 21);
     engine.set_state(&x, &v);
     engine.step(3);
@@ -561,9 +576,12 @@ fn buffers_outgrown_by_a_patch_grow_alone_and_the_passes_are_kept(
 ) {
     let Some(ctx) = common::gpu() else { return };
     let mut model = random_model(47, true);
-    let mut config = SimConfig::new(2e-5);
-    config.accumulation = accumulation;
-    let mut engine = GpuEngine::with_context(ctx, &model, config, kind).unwrap();
+    let config = SimConfig::new(2e-5);
+    let options = GpuOptions {
+        layout: kind,
+        accumulation,
+    };
+    let mut engine = GpuEngine::with_context(ctx, &model, config, options).unwrap();
     let (x, v) = random_state(&model, 47);
     engine.set_state(&x, &v);
     engine.step(5);

@@ -134,11 +134,10 @@ fn cutting(method: CutMethod, kind: EngineKind, layout: LayoutKind) -> (Simulati
     let packed = model.pack(&mesh).unwrap();
     let dt = 0.5 * lancet::model::stable_time_step(&packed).dt;
     let sim_config = SimConfig {
-        layout,
         check_every: 3,
         ..SimConfig::new(dt)
     };
-    let mut sim = Simulation::new(packed, kind, sim_config).unwrap();
+    let mut sim = Simulation::with_gpu(packed, kind, sim_config, layout.into()).unwrap();
     let cutter = Cutter::new(mesh, model, method).unwrap();
     sim.set_surface(cutter.surface()).unwrap();
     (sim, cutter)

@@ -102,15 +102,14 @@ fn gpu_valence_engine_agrees_with_the_reference_and_the_connectivity_layout(
     let Some(_) = common::gpu() else { return };
     let model = random_model(23, true);
     let dt = 0.8 * stable_time_step(&model).dt;
-    let config = |layout| SimConfig {
+    let config = SimConfig {
         integrator,
-        layout,
         ..SimConfig::new(dt)
     };
     let steps = 200;
     let (x0, v0) = random_state(&model, 24);
-    let run = |kind, layout| {
-        let mut sim = Simulation::new(model.clone(), kind, config(layout)).unwrap();
+    let run = |kind, layout: LayoutKind| {
+        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
         sim.set_state(&x0, &v0).unwrap();
         sim.run(steps).unwrap();
         sim.positions()

@@ -282,7 +282,9 @@ fn material_validation_rejects_bad_parameters_by_name(
     #[case] name: &str,
 ) {
     match material.validate() {
-        Err(Error::Model(msg)) => assert!(msg.contains(name), "{msg:?} does not name {name:?}"),
+        Err(Error::InvalidParameter { name: got, .. }) => {
+            assert!(got.contains(name), "{got:?} does not name {name:?}")
+        }
         other => panic!("expected a model error naming {name}, got {other:?}"),
     }
     // Building a model refuses it too.

@@ -39,12 +39,47 @@ pub struct AtomicEdgePasses {
     passes: super::springs_edges::SpringThenNode,
     /// The overflow flag of the fixed-point variant (16 bytes; nonzero once a force saturated).
     overflow: Option<wgpu::Buffer>,
-    /// Springs, inverse masses, accumulators, fixed-point constants, overflow flag.
-    buffers: [wgpu::Buffer; 5],
-    /// Bind-group layouts of the accumulating and the integrating pass.
-    layouts: [wgpu::BindGroupLayout; 2],
+    buffers: AtomicBuffers,
+    /// Bind-group layout of the accumulating pass.
+    accumulate_layout: wgpu::BindGroupLayout,
+    /// Bind-group layout of the integrating pass.
+    integrate_layout: wgpu::BindGroupLayout,
     /// The fixed-point variant (binds the constants and the overflow flag).
     fixed: bool,
+}
+
+/// The atomic variants' device buffers, by name.
+struct AtomicBuffers {
+    /// The spring records ([`LayoutArray::EdgeSprings`]).
+    springs: wgpu::Buffer,
+    /// Inverse masses ([`LayoutArray::InvMass`]).
+    inv_mass: wgpu::Buffer,
+    /// Three accumulators per node the mass buffer has room for.
+    accumulators: wgpu::Buffer,
+    /// The fixed-point constants (uniform; bound by the fixed-point variant only).
+    fixed_point: wgpu::Buffer,
+    /// The overflow flag (bound by the fixed-point variant only).
+    overflow: wgpu::Buffer,
+}
+
+impl AtomicBuffers {
+    /// The buffer holding a layout array, if these passes have it.
+    fn array(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match array {
+            LayoutArray::EdgeSprings => Some(&self.springs),
+            LayoutArray::InvMass => Some(&self.inv_mass),
+            _ => None,
+        }
+    }
+
+    /// [`AtomicBuffers::array`], mutably.
+    fn array_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
+        match array {
+            LayoutArray::EdgeSprings => Some(&mut self.springs),
+            LayoutArray::InvMass => Some(&mut self.inv_mass),
+            _ => None,
+        }
+    }
 }
 
 impl AtomicEdgePasses {
@@ -182,8 +217,15 @@ impl AtomicEdgePasses {
                 bind_groups: Vec::new(),
             },
             overflow: fixed.then(|| overflow.clone()),
-            buffers: [springs, inv_mass, acc, fx, overflow],
-            layouts: [accumulate_layout, integrate_layout],
+            buffers: AtomicBuffers {
+                springs,
+                inv_mass,
+                accumulators: acc,
+                fixed_point: fx,
+                overflow,
+            },
+            accumulate_layout,
+            integrate_layout,
             fixed,
         };
         passes.rebind(ctx, uniform, state)?;
@@ -194,7 +236,7 @@ impl AtomicEdgePasses {
     /// they were made for).
     pub fn set_fixed_point(&self, ctx: &GpuContext, fp: &FixedPoint) {
         ctx.queue
-            .write_buffer(&self.buffers[3], 0, bytemuck::bytes_of(fp));
+            .write_buffer(&self.buffers.fixed_point, 0, bytemuck::bytes_of(fp));
     }
 
     /// Record one step in phase `phase`: the accumulating spring pass, then the node pass.
@@ -235,11 +277,11 @@ fn accumulators(ctx: &GpuContext, inv_mass: &wgpu::Buffer) -> Result<wgpu::Buffe
 
 impl LayoutBuffers for AtomicEdgePasses {
     fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        Some(&self.buffers[atomic_buffer_index(array)?])
+        self.buffers.array(array)
     }
 
     fn buffer_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
-        Some(&mut self.buffers[atomic_buffer_index(array)?])
+        self.buffers.array_mut(array)
     }
 
     fn rebind(
@@ -250,11 +292,18 @@ impl LayoutBuffers for AtomicEdgePasses {
     ) -> Result<()> {
         let d = &ctx.device;
         // Grown masses: accumulators for all the nodes they have room for.
-        if self.buffers[2].size() < self.buffers[1].size() / 4 * 12 {
-            self.buffers[2] = accumulators(ctx, &self.buffers[1])?;
+        if self.buffers.accumulators.size() < self.buffers.inv_mass.size() / 4 * 12 {
+            self.buffers.accumulators = accumulators(ctx, &self.buffers.inv_mass)?;
         }
-        let [springs, inv_mass, acc, fx, overflow] = &self.buffers;
-        let [accumulate_layout, integrate_layout] = &self.layouts;
+        let AtomicBuffers {
+            springs,
+            inv_mass,
+            accumulators: acc,
+            fixed_point: fx,
+            overflow,
+        } = &self.buffers;
+        let (accumulate_layout, integrate_layout) =
+            (&self.accumulate_layout, &self.integrate_layout);
         self.passes.bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
@@ -288,14 +337,5 @@ impl LayoutBuffers for AtomicEdgePasses {
             })
             .collect();
         Ok(())
-    }
-}
-
-/// Where [`AtomicEdgePasses`] keeps the buffer of a layout array.
-fn atomic_buffer_index(array: LayoutArray) -> Option<usize> {
-    match array {
-        LayoutArray::EdgeSprings => Some(0),
-        LayoutArray::InvMass => Some(1),
-        _ => None,
     }
 }

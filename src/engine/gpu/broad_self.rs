@@ -53,9 +53,40 @@ impl Pass {
     }
 }
 
+/// One value per pass of the self broad phase, by name; [`Stages::in_order`] gives them in
+/// dispatch order.
+struct Stages<T> {
+    /// Count the triangles per grid cell.
+    count: T,
+    /// Prefix sums within blocks of cells.
+    scan_blocks: T,
+    /// Prefix sum of the block totals.
+    scan_top: T,
+    /// Add the block offsets to the cells.
+    scan_apply: T,
+    /// Write each triangle into its cells' buckets.
+    scatter: T,
+    /// Test the pairs sharing a bucket.
+    pairs: T,
+}
+
+impl<T> Stages<T> {
+    /// The six values in dispatch order.
+    fn in_order(&self) -> [&T; 6] {
+        [
+            &self.count,
+            &self.scan_blocks,
+            &self.scan_top,
+            &self.scan_apply,
+            &self.scatter,
+            &self.pairs,
+        ]
+    }
+}
+
 /// The passes and their buffers.
 pub struct SelfCuller {
-    passes: [Pass; 6],
+    passes: Stages<Pass>,
     params: wgpu::Buffer,
     counts: wgpu::Buffer,
     block_sums: wgpu::Buffer,
@@ -67,7 +98,7 @@ pub struct SelfCuller {
     overflow: wgpu::Buffer,
     grid: GridParams,
     /// Per rotation phase: the bind groups of the six passes.
-    bind_groups: Vec<Vec<wgpu::BindGroup>>,
+    bind_groups: Vec<Stages<wgpu::BindGroup>>,
 }
 
 impl SelfCuller {
@@ -83,18 +114,18 @@ impl SelfCuller {
         let storage =
             |label: &str, bytes: u64| buffers::zeroed_storage(ctx, label, bytes, Sizing::Exact);
         let table = grid.table as u64;
-        let passes = [
-            Pass::new(ctx, "self_count", &[true, true, true, false, false])?,
-            Pass::new(ctx, "scan_blocks", &[true, false])?,
-            Pass::new(ctx, "scan_top", &[false])?,
-            Pass::new(ctx, "scan_apply", &[true, true, false, false])?,
-            Pass::new(ctx, "self_scatter", &[true, true, true, false, false])?,
-            Pass::new(
+        let passes = Stages {
+            count: Pass::new(ctx, "self_count", &[true, true, true, false, false])?,
+            scan_blocks: Pass::new(ctx, "scan_blocks", &[true, false])?,
+            scan_top: Pass::new(ctx, "scan_top", &[false])?,
+            scan_apply: Pass::new(ctx, "scan_apply", &[true, true, false, false])?,
+            scatter: Pass::new(ctx, "self_scatter", &[true, true, true, false, false])?,
+            pairs: Pass::new(
                 ctx,
                 "self_pairs",
                 &[true, true, true, true, true, true, false, false],
             )?,
-        ];
+        };
         let mut culler = SelfCuller {
             passes,
             params: d.create_buffer(&wgpu::BufferDescriptor {
@@ -168,9 +199,9 @@ impl SelfCuller {
         self.bind_groups = (0..state.phases())
             .map(|phase| {
                 let disp = state.bindings(phase).cur;
-                vec![
-                    group(
-                        &p[0],
+                Stages {
+                    count: group(
+                        &p.count,
                         &[
                             &self.params,
                             triangles,
@@ -180,10 +211,13 @@ impl SelfCuller {
                             &self.overflow,
                         ],
                     ),
-                    group(&p[1], &[&self.params, &self.counts, &self.block_sums]),
-                    group(&p[2], &[&self.params, &self.block_sums]),
-                    group(
-                        &p[3],
+                    scan_blocks: group(
+                        &p.scan_blocks,
+                        &[&self.params, &self.counts, &self.block_sums],
+                    ),
+                    scan_top: group(&p.scan_top, &[&self.params, &self.block_sums]),
+                    scan_apply: group(
+                        &p.scan_apply,
                         &[
                             &self.params,
                             &self.counts,
@@ -192,8 +226,8 @@ impl SelfCuller {
                             &self.cursors,
                         ],
                     ),
-                    group(
-                        &p[4],
+                    scatter: group(
+                        &p.scatter,
                         &[
                             &self.params,
                             triangles,
@@ -203,8 +237,8 @@ impl SelfCuller {
                             &self.entries,
                         ],
                     ),
-                    group(
-                        &p[5],
+                    pairs: group(
+                        &p.pairs,
                         &[
                             &self.params,
                             triangles,
@@ -217,7 +251,7 @@ impl SelfCuller {
                             &self.count,
                         ],
                     ),
-                ]
+                }
             })
             .collect();
     }
@@ -258,17 +292,18 @@ impl SelfCuller {
                     timestamp_writes: None,
                 });
                 let groups = &self.bind_groups[phase];
-                let sizes = [
-                    tri_groups,
-                    (block_groups, 1),
-                    (1, 1),
-                    (block_groups, 1),
-                    tri_groups,
-                    tri_groups,
-                ];
-                for (i, (p, size)) in self.passes.iter().zip(sizes).enumerate() {
+                let sizes = Stages {
+                    count: tri_groups,
+                    scan_blocks: (block_groups, 1),
+                    scan_top: (1, 1),
+                    scan_apply: (block_groups, 1),
+                    scatter: tri_groups,
+                    pairs: tri_groups,
+                };
+                let stages = self.passes.in_order().into_iter();
+                for ((p, group), size) in stages.zip(groups.in_order()).zip(sizes.in_order()) {
                     pass.set_pipeline(&p.pipeline);
-                    pass.set_bind_group(0, &groups[i], &[]);
+                    pass.set_bind_group(0, group, &[]);
                     pass.dispatch_workgroups(size.0, size.1, 1);
                 }
             }

@@ -26,6 +26,7 @@ pub mod time_step;
 pub mod timing;
 pub mod upload;
 
+mod device;
 mod patching;
 mod state;
 mod stepping;
@@ -39,12 +40,15 @@ pub use context::GpuContext;
 pub use state::{NodeState, PhaseBindings};
 use surface::{SurfaceCulling, SurfaceSync};
 
-use super::{Engine, EngineMemory, Health, Integrator, NearReads, PatchCost, SimConfig};
+use super::{
+    DeviceEngine, Engine, EngineMemory, GpuOptions, Health, Integrator, NearReads, PatchCost,
+    SimConfig,
+};
 use crate::collide::broad::ToolBox;
 use crate::error::Result;
 use crate::layout::edges::{Accumulation, FixedPoint};
 use crate::layout::patch::{Dirty, LayoutArray};
-use crate::layout::{LayoutKind, NodeOrder, PackedLayout};
+use crate::layout::{NodeOrder, PackedLayout};
 use crate::model::{ModelDiff, PackedModel};
 use crate::physics::StepParams;
 use buffers::{Growth, Sizing};
@@ -143,6 +147,8 @@ pub struct GpuEngine {
     ctx: GpuContext,
     config: SimConfig,
     layout: PackedLayout,
+    /// How the edge layout sums spring forces (the layout kind is `layout`'s).
+    accumulation: Accumulation,
     rest: Vec<[f64; 3]>,
     fixed: Vec<bool>,
     state: NodeState,
@@ -177,29 +183,38 @@ pub struct GpuEngine {
 }
 
 impl GpuEngine {
-    /// Open the preferred adapter and upload `model` in `layout`.
-    pub fn new(model: &PackedModel, config: SimConfig, layout: LayoutKind) -> Result<Self> {
-        Self::with_context(GpuContext::new()?, model, config, layout)
+    /// Open the preferred adapter and upload `model` with the layout and accumulation of
+    /// `options` (a [`crate::layout::LayoutKind`] alone gives the default accumulation).
+    pub fn new(
+        model: &PackedModel,
+        config: SimConfig,
+        options: impl Into<GpuOptions>,
+    ) -> Result<Self> {
+        Self::with_context(GpuContext::new()?, model, config, options)
     }
 
-    /// Upload `model` in `layout` on an open device, nodes in locality (RCM) order.
+    /// Upload `model` as `options` say on an open device, nodes in the order of
+    /// `config.node_order`.
     pub fn with_context(
         ctx: GpuContext,
         model: &PackedModel,
         config: SimConfig,
-        layout: LayoutKind,
+        options: impl Into<GpuOptions>,
     ) -> Result<Self> {
-        let packed = PackedLayout::pack(model, layout, config.node_order.order(model))?;
-        Self::with_layout(ctx, model, config, packed)
+        let options = options.into();
+        let packed = PackedLayout::pack(model, options.layout, config.node_order.order(model))?;
+        Self::with_layout(ctx, model, config, packed, options.accumulation)
     }
 
     /// Upload `model` packed as `layout` (which must be a packing of `model`) on an open
-    /// device: for programs that arrange the layout themselves.
+    /// device, the edge layout summing its forces by `accumulation` (ignored by the other
+    /// layouts): for programs that arrange the layout themselves.
     pub fn with_layout(
         ctx: GpuContext,
         model: &PackedModel,
         config: SimConfig,
         mut layout: PackedLayout,
+        accumulation: Accumulation,
     ) -> Result<Self> {
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
@@ -242,7 +257,7 @@ impl GpuEngine {
         let passes = build_passes(
             &ctx,
             &layout,
-            config,
+            accumulation,
             &uniform,
             &state,
             fixed_point,
@@ -268,6 +283,7 @@ impl GpuEngine {
             ctx,
             config,
             layout,
+            accumulation,
             rest: crate::model::room::copy_with_room(&model.rest),
             fixed: crate::model::room::copy_with_room(&model.fixed),
             state,
@@ -407,10 +423,18 @@ impl GpuEngine {
         self.fixed_point
     }
 
+    /// The layout and accumulation this engine runs (what it was built with).
+    pub fn options(&self) -> GpuOptions {
+        GpuOptions {
+            layout: self.layout.kind(),
+            accumulation: self.accumulation,
+        }
+    }
+
     /// `"gpu-connectivity on <adapter>"`; the edge layout with atomics names its variant
     /// ("gpu-edges-atomicfixed on ...").
     pub fn describe(&self) -> String {
-        let variant = match (&self.passes, self.config.accumulation) {
+        let variant = match (&self.passes, self.accumulation) {
             (Passes::AtomicEdges(..), a) => format!("-{a:?}").to_lowercase(),
             _ => String::new(),
         };
@@ -469,11 +493,15 @@ fn constants(base: StepUniform, layout: &PackedLayout, dispatch: Dispatch) -> St
 }
 
 /// Device memory of `layout` with its node state, and the bytes a step moves.
-fn layout_memory(layout: &PackedLayout, config: SimConfig) -> EngineMemory {
+fn layout_memory(
+    layout: &PackedLayout,
+    config: SimConfig,
+    accumulation: Accumulation,
+) -> EngineMemory {
     let (stats, bytes_per_step) = match layout {
         PackedLayout::Connectivity(c) => c.memory(config.integrator),
         PackedLayout::Valence(v) => v.memory(config.integrator),
-        PackedLayout::Edges(e) => e.memory(config.integrator, config.accumulation),
+        PackedLayout::Edges(e) => e.memory(config.integrator, accumulation),
     };
     EngineMemory {
         stats,
@@ -486,7 +514,7 @@ fn layout_memory(layout: &PackedLayout, config: SimConfig) -> EngineMemory {
 fn build_passes(
     ctx: &GpuContext,
     layout: &PackedLayout,
-    config: SimConfig,
+    accumulation: Accumulation,
     uniform: &wgpu::Buffer,
     state: &NodeState,
     fixed_point: FixedPoint,
@@ -499,7 +527,7 @@ fn build_passes(
         PackedLayout::Valence(v) => Passes::Valence(springs_valence::ValencePass::new(
             ctx, v, uniform, state, sizing,
         )?),
-        PackedLayout::Edges(e) => match config.accumulation {
+        PackedLayout::Edges(e) => match accumulation {
             Accumulation::Gather => Passes::Edges(springs_edges::EdgePasses::new(
                 ctx, e, uniform, state, sizing,
             )?),

@@ -83,7 +83,7 @@ impl GpuEngine {
             self.passes = build_passes(
                 &self.ctx,
                 &self.layout,
-                self.config,
+                self.accumulation,
                 &self.uniform,
                 &self.state,
                 self.fixed_point,
@@ -165,7 +165,7 @@ impl GpuEngine {
     /// the step bit-identical to before the patch otherwise.
     pub(super) fn update_fixed_point(&mut self, model: &PackedModel) {
         if let (PackedLayout::Edges(e), Accumulation::AtomicFixed) =
-            (&self.layout, self.config.accumulation)
+            (&self.layout, self.accumulation)
         {
             let fp = e.fixed_point(model);
             if fp.limit < self.fixed_point.limit {

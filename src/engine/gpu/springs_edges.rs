@@ -22,10 +22,49 @@ const GATHER: &str = concat!(
 /// The two passes with their device data.
 pub struct EdgePasses {
     passes: SpringThenNode,
-    /// Springs, incidence rows, incidence, inverse masses, forces.
-    buffers: [wgpu::Buffer; 5],
-    /// Bind-group layouts of the spring pass and the gather.
-    layouts: [wgpu::BindGroupLayout; 2],
+    buffers: EdgeBuffers,
+    /// Bind-group layout of the spring pass.
+    spring_layout: wgpu::BindGroupLayout,
+    /// Bind-group layout of the gather.
+    gather_layout: wgpu::BindGroupLayout,
+}
+
+/// The edge layout's device buffers, by name.
+struct EdgeBuffers {
+    /// The spring records ([`LayoutArray::EdgeSprings`]).
+    springs: wgpu::Buffer,
+    /// Each node's range in the incidence list ([`LayoutArray::IncidenceRows`]).
+    rows: wgpu::Buffer,
+    /// The incidence list ([`LayoutArray::Incidence`]).
+    incidence: wgpu::Buffer,
+    /// Inverse masses ([`LayoutArray::InvMass`]).
+    inv_mass: wgpu::Buffer,
+    /// Scratch: one force per spring record, written by the spring pass, read by the gather.
+    forces: wgpu::Buffer,
+}
+
+impl EdgeBuffers {
+    /// The buffer holding a layout array, if this layout has it.
+    fn array_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
+        match array {
+            LayoutArray::EdgeSprings => Some(&mut self.springs),
+            LayoutArray::IncidenceRows => Some(&mut self.rows),
+            LayoutArray::Incidence => Some(&mut self.incidence),
+            LayoutArray::InvMass => Some(&mut self.inv_mass),
+            _ => None,
+        }
+    }
+
+    /// [`EdgeBuffers::array_mut`], shared.
+    fn array(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
+        match array {
+            LayoutArray::EdgeSprings => Some(&self.springs),
+            LayoutArray::IncidenceRows => Some(&self.rows),
+            LayoutArray::Incidence => Some(&self.incidence),
+            LayoutArray::InvMass => Some(&self.inv_mass),
+            _ => None,
+        }
+    }
 }
 
 /// A pass over springs followed by a pass over nodes, each with one bind group per rotation
@@ -122,8 +161,15 @@ impl EdgePasses {
                 nodes: buffers::compute_pipeline(ctx, "gather_edges", GATHER, &[&gather_layout])?,
                 bind_groups: Vec::new(),
             },
-            buffers: [springs, rows, incidence, inv_mass, forces],
-            layouts: [spring_layout, gather_layout],
+            buffers: EdgeBuffers {
+                springs,
+                rows,
+                incidence,
+                inv_mass,
+                forces,
+            },
+            spring_layout,
+            gather_layout,
         };
         passes.rebind(ctx, uniform, state)?;
         Ok(passes)
@@ -156,13 +202,11 @@ fn force_buffer(ctx: &GpuContext, springs: &wgpu::Buffer) -> Result<wgpu::Buffer
 
 impl LayoutBuffers for EdgePasses {
     fn buffer(&self, array: LayoutArray) -> Option<&wgpu::Buffer> {
-        let i = edge_buffer_index(array)?;
-        Some(&self.buffers[i])
+        self.buffers.array(array)
     }
 
     fn buffer_mut(&mut self, array: LayoutArray) -> Option<&mut wgpu::Buffer> {
-        let i = edge_buffer_index(array)?;
-        Some(&mut self.buffers[i])
+        self.buffers.array_mut(array)
     }
 
     fn rebind(
@@ -173,11 +217,17 @@ impl LayoutBuffers for EdgePasses {
     ) -> Result<()> {
         let d = &ctx.device;
         // Grown springs: forces for all the records they have room for.
-        if self.buffers[4].size() < self.buffers[0].size() / 32 * 16 {
-            self.buffers[4] = force_buffer(ctx, &self.buffers[0])?;
+        if self.buffers.forces.size() < self.buffers.springs.size() / 32 * 16 {
+            self.buffers.forces = force_buffer(ctx, &self.buffers.springs)?;
         }
-        let [springs, rows, incidence, inv_mass, forces] = &self.buffers;
-        let [spring_layout, gather_layout] = &self.layouts;
+        let EdgeBuffers {
+            springs,
+            rows,
+            incidence,
+            inv_mass,
+            forces,
+        } = &self.buffers;
+        let (spring_layout, gather_layout) = (&self.spring_layout, &self.gather_layout);
         self.passes.bind_groups = (0..state.phases())
             .map(|phase| {
                 let b = state.bindings(phase);
@@ -205,16 +255,5 @@ impl LayoutBuffers for EdgePasses {
             })
             .collect();
         Ok(())
-    }
-}
-
-/// Where [`EdgePasses`] keeps the buffer of a layout array.
-fn edge_buffer_index(array: LayoutArray) -> Option<usize> {
-    match array {
-        LayoutArray::EdgeSprings => Some(0),
-        LayoutArray::IncidenceRows => Some(1),
-        LayoutArray::Incidence => Some(2),
-        LayoutArray::InvMass => Some(3),
-        _ => None,
     }
 }

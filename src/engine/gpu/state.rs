@@ -127,11 +127,19 @@ impl GpuEngine {
         self.forget_ahead();
         let n = self.layout.node_slots();
         if cur.len() != n || second.len() != n {
-            return Err(crate::Error::Model(format!(
-                "raw state of {} and {} entries for a layout of {n} node slots",
-                cur.len(),
-                second.len()
-            )));
+            return Err(crate::Error::LengthMismatch {
+                given: if cur.len() != n {
+                    cur.len()
+                } else {
+                    second.len()
+                },
+                expected: n,
+                message: format!(
+                    "raw state of {} and {} entries for a layout of {n} node slots",
+                    cur.len(),
+                    second.len()
+                ),
+            });
         }
         let b = self.state.bindings(self.phase);
         self.ctx

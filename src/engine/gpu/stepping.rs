@@ -62,20 +62,6 @@ impl Engine for GpuEngine {
         self.near_reads
     }
 
-    fn last_device_seconds(&self) -> Option<f64> {
-        // A failed readback only loses the timing; the step itself is unaffected.
-        self.timer.as_ref()?.last_seconds(&self.ctx).ok().flatten()
-    }
-
-    fn wait(&mut self) {
-        // This engine's last step only: the device is shared (`GpuContext::new`), and waiting
-        // for all of it would wait for other engines' work too.
-        let _ = self.ctx.device.poll(wgpu::PollType::Wait {
-            submission_index: self.last_submission.clone(),
-            timeout: None,
-        });
-    }
-
     fn positions(&self) -> Vec<[f64; 3]> {
         self.state_f64().0
     }
@@ -149,7 +135,7 @@ impl Engine for GpuEngine {
 
     fn memory(&self) -> EngineMemory {
         // Counted when asked (a pass over the slot table), not at every patch.
-        layout_memory(&self.layout, self.config)
+        layout_memory(&self.layout, self.config, self.accumulation)
     }
 
     fn name(&self) -> String {
@@ -294,40 +280,15 @@ impl Engine for GpuEngine {
         Ok(())
     }
 
-    fn set_surface(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
-        GpuEngine::set_surface(self, triangles)
+    fn device(&self) -> Option<&dyn DeviceEngine> {
+        Some(self)
     }
 
-    fn edit_surface(&mut self, triangles: &[[u32; 3]], changed: &[u32]) -> Result<()> {
-        GpuEngine::edit_surface(self, triangles, changed)
+    fn device_mut(&mut self) -> Option<&mut dyn DeviceEngine> {
+        Some(self)
     }
 
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
         GpuEngine::nodes_near(self, lo, hi)
-    }
-
-    fn cull_tools(&mut self, boxes: &[ToolBox]) -> Result<Option<Vec<[u32; 2]>>> {
-        GpuEngine::cull_tools(self, boxes).map(|r| Some(r.candidates))
-    }
-
-    fn cull_self(&mut self, margin: f64) -> Result<Option<Vec<[u32; 2]>>> {
-        GpuEngine::cull_self(self, margin).map(|r| Some(r.pairs))
-    }
-
-    fn health(&self) -> Result<Option<Health>> {
-        let h = self
-            .health
-            .run(&self.ctx, self.phase, self.dispatch.nodes)?;
-        let (kinetic, gravity) = h.totals();
-        let order = &self.layout.order().order;
-        Ok(Some(Health {
-            non_finite: h
-                .first_bad
-                .map(|i| order[i as usize])
-                .filter(|&m| m != NodeOrder::HOLE)
-                .map(|m| m as usize),
-            kinetic,
-            gravity,
-        }))
     }
 }

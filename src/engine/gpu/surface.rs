@@ -49,9 +49,19 @@ fn edited_grid(grid: GridParams, triangles: usize) -> GridParams {
 
 /// The error for culling before a surface was given.
 pub(super) fn no_surface() -> crate::Error {
-    crate::Error::Model(
+    crate::Error::NoSurface(
         "no surface to cull: call set_surface with the boundary triangles first".into(),
     )
+}
+
+/// The error for a surface triangle `t` naming a node past the model's `n`.
+pub(crate) fn surface_node_error(t: &[u32; 3], n: usize) -> crate::Error {
+    let node = t.iter().copied().find(|&i| i as usize >= n).unwrap_or(t[0]);
+    crate::Error::NodeOutOfRange {
+        node: node as u64,
+        count: n,
+        message: format!("surface triangle {t:?} names a node past the model's {n} nodes"),
+    }
 }
 
 impl GpuEngine {
@@ -65,9 +75,7 @@ impl GpuEngine {
             .iter()
             .find(|t| t.iter().any(|&i| i as usize >= n))
         {
-            return Err(crate::Error::Model(format!(
-                "surface triangle {t:?} names a node past the model's {n} nodes"
-            )));
+            return Err(surface_node_error(t, n));
         }
         let (tris, rest) = (self.in_layout_order(triangles), self.rest_f32());
         // A culler that exists keeps its pipeline: only what changed is written. On error the
@@ -130,9 +138,7 @@ impl GpuEngine {
             .map(|&c| &triangles[c as usize])
             .find(|t| t.iter().any(|&i| i as usize >= n))
         {
-            return Err(crate::Error::Model(format!(
-                "surface triangle {t:?} names a node past the model's {n} nodes"
-            )));
+            return Err(surface_node_error(t, n));
         }
         let order = &self.layout.order();
         // The model node at a layout slot (none at a hole).

@@ -37,11 +37,15 @@ impl Simulation {
     ) -> Result<PatchCost> {
         let n = self.model.node_count();
         if positions.len() != n {
-            return Err(Error::Model(format!(
-                "{} positions given for a model of {n} nodes: pass the positions read since \
-                 the last step or change",
-                positions.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: positions.len(),
+                expected: n,
+                message: format!(
+                    "{} positions given for a model of {n} nodes: pass the positions read \
+                     since the last step or change",
+                    positions.len()
+                ),
+            });
         }
         self.apply_inner(diff, allow_unstable, Some(positions))
     }
@@ -94,10 +98,11 @@ impl Simulation {
                     v.push(u);
                 }
                 debug_assert_eq!(x.len(), before + diff.added_nodes.len());
-                let (mut engine, _, _) = make_engine(&self.model, self.kind, self.config)?;
+                let (mut engine, _, _) =
+                    make_engine(&self.model, self.kind, self.config, self.gpu)?;
                 engine.set_state(&x, &v);
-                if let Some(t) = &self.surface {
-                    engine.set_surface(t)?;
+                if let (Some(t), Some(d)) = (&self.surface, engine.device_mut()) {
+                    d.set_surface(t)?;
                 }
                 let memory = engine.memory();
                 self.engine = engine;
@@ -179,9 +184,13 @@ impl Simulation {
         if let Some(&i) = nodes.last().filter(|&&i| i >= n) {
             // Validated again by `PackedModel::apply`; refused here before any position is
             // looked up.
-            return Err(Error::Model(format!(
-                "an added node starts from the state of node {i}, which does not exist yet"
-            )));
+            return Err(Error::NodeOutOfRange {
+                node: i as u64,
+                count: self.model.node_count(),
+                message: format!(
+                    "an added node starts from the state of node {i}, which does not exist yet"
+                ),
+            });
         }
         let x: Vec<[f64; 3]> = match positions {
             Some(p) => {
@@ -236,9 +245,11 @@ impl Simulation {
     /// engine's step parameters.
     pub fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(Error::Model(format!(
-                "time step {dt} must be finite and positive"
-            )));
+            return Err(Error::InvalidParameter {
+                name: "time step".into(),
+                value: dt,
+                requirement: "be finite and positive".into(),
+            });
         }
         if dt > self.bound.dt && !self.config.allow_unstable {
             return Err(Error::UnstableTimeStep {

@@ -5,7 +5,7 @@ use super::*;
 
 impl Simulation {
     /// Check the current state for divergence. Engines with a device-side probe
-    /// ([`Engine::health`]) read back a few bytes: kinetic plus gravitational energy is a lower
+    /// ([`crate::engine::DeviceEngine::health`]) read back a few bytes: kinetic plus gravitational energy is a lower
     /// bound of the total (elastic energy is never negative), so when it is within the limit
     /// nothing more is read; otherwise, or when a node is not finite, the whole state is read
     /// and checked exactly, which names the node.
@@ -15,7 +15,8 @@ impl Simulation {
 
     /// [`Simulation::check`], returning the total energy where it was computed exactly.
     pub(super) fn check_total(&self) -> Result<Option<f64>> {
-        if let Some(h) = self.engine.health()? {
+        if let Some(device) = self.engine.device() {
+            let h = device.health()?;
             let lower = h.kinetic + h.gravity;
             if h.non_finite.is_none()
                 && lower.is_finite()

@@ -14,11 +14,16 @@ impl Simulation {
             .iter()
             .find(|t| t.iter().any(|&i| i as usize >= n))
         {
-            return Err(Error::Model(format!(
-                "surface triangle {t:?} names a node past the model's {n} nodes"
-            )));
+            let node = t.iter().copied().find(|&i| i as usize >= n).unwrap_or(t[0]);
+            return Err(Error::NodeOutOfRange {
+                node: node as u64,
+                count: n,
+                message: format!("surface triangle {t:?} names a node past the model's {n} nodes"),
+            });
         }
-        self.engine.set_surface(&triangles)?;
+        if let Some(d) = self.engine.device_mut() {
+            d.set_surface(&triangles)?;
+        }
         // Built here, not at the first edit, so that the first cut does not pay for it.
         self.surface_slots = Some(
             triangles
@@ -40,7 +45,7 @@ impl Simulation {
     pub fn edit_surface(&mut self, edit: &crate::collide::broad::SurfaceEdit) -> Result<()> {
         let n = self.model.node_count();
         let Some(triangles) = &mut self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to edit: call set_surface with the boundary triangles first".into(),
             ));
         };
@@ -62,10 +67,14 @@ impl Simulation {
         let mut new = HashSet::new();
         for t in &edit.added {
             if let Some(&i) = t.iter().find(|&&i| i as usize >= n) {
-                return Err(Error::Model(format!(
-                    "surface edit adds triangle {t:?}, whose node {i} is past the model's {n} \
-                     nodes"
-                )));
+                return Err(Error::NodeOutOfRange {
+                    node: i as u64,
+                    count: n,
+                    message: format!(
+                        "surface edit adds triangle {t:?}, whose node {i} is past the model's \
+                         {n} nodes"
+                    ),
+                });
             }
             let k = key(t);
             if (slots.contains_key(&k) && !gone.contains(&k)) || !new.insert(k) {
@@ -76,9 +85,11 @@ impl Simulation {
         }
         // Edited in place; undone the same way if the engine refuses the edit.
         let applied = surface_list::apply(triangles, slots, edit);
-        if let Err(e) = self.engine.edit_surface(triangles, &applied.changed) {
-            surface_list::undo(triangles, slots, edit, applied);
-            return Err(e);
+        if let Some(d) = self.engine.device_mut() {
+            if let Err(e) = d.edit_surface(triangles, &applied.changed) {
+                surface_list::undo(triangles, slots, edit, applied);
+                return Err(e);
+            }
         }
         Ok(())
     }
@@ -97,12 +108,12 @@ impl Simulation {
         boxes: &[crate::collide::broad::ToolBox],
     ) -> Result<Vec<crate::collide::broad::Candidate>> {
         let Some(triangles) = &self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };
-        if let Some(c) = self.engine.cull_tools(boxes)? {
-            return Ok(c);
+        if let Some(d) = self.engine.device_mut() {
+            return d.cull_tools(boxes);
         }
         let exact: Vec<([f64; 3], [f64; 3])> = boxes
             .iter()
@@ -135,12 +146,12 @@ impl Simulation {
             )));
         }
         let Some(triangles) = &self.surface else {
-            return Err(Error::Model(
+            return Err(Error::NoSurface(
                 "no surface to cull: call set_surface with the boundary triangles first".into(),
             ));
         };
-        if let Some(pairs) = self.engine.cull_self(margin)? {
-            return Ok(pairs);
+        if let Some(d) = self.engine.device_mut() {
+            return d.cull_self(margin);
         }
         // The twin over float32 rest positions plus float32 displacements, as on the device.
         let rest = &self.model.rest;

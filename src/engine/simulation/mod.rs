@@ -47,7 +47,12 @@ type Made = (Box<dyn Engine>, EngineKind, Option<String>);
 
 /// Build the engine of `kind`; `Auto` resolves to the GPU or, failing that, the fast CPU engine
 /// with a note saying why.
-fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Result<Made> {
+fn make_engine(
+    model: &PackedModel,
+    kind: EngineKind,
+    config: SimConfig,
+    gpu: GpuOptions,
+) -> Result<Made> {
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(reference::ReferenceEngine::new(model, config)),
@@ -55,8 +60,8 @@ fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Resu
             None,
         ),
         EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
-        EngineKind::Gpu => (gpu_engine(model, config)?, kind, None),
-        EngineKind::Auto => match gpu_engine(model, config) {
+        EngineKind::Gpu => (gpu_engine(model, config, gpu)?, kind, None),
+        EngineKind::Auto => match gpu_engine(model, config, gpu) {
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
                 Box::new(fast::FastEngine::new(model, config)),
@@ -68,12 +73,12 @@ fn make_engine(model: &PackedModel, kind: EngineKind, config: SimConfig) -> Resu
 }
 
 #[cfg(feature = "gpu")]
-fn gpu_engine(model: &PackedModel, config: SimConfig) -> Result<Box<dyn Engine>> {
-    Ok(Box::new(gpu::GpuEngine::new(model, config, config.layout)?))
+fn gpu_engine(model: &PackedModel, config: SimConfig, gpu: GpuOptions) -> Result<Box<dyn Engine>> {
+    Ok(Box::new(gpu::GpuEngine::new(model, config, gpu)?))
 }
 
 #[cfg(not(feature = "gpu"))]
-fn gpu_engine(_: &PackedModel, _: SimConfig) -> Result<Box<dyn Engine>> {
+fn gpu_engine(_: &PackedModel, _: SimConfig, _: GpuOptions) -> Result<Box<dyn Engine>> {
     Err(Error::Unsupported(
         "this build has no GPU engine (enable the `gpu` cargo feature)".into(),
     ))
@@ -107,6 +112,8 @@ pub struct Simulation {
     engine: Box<dyn Engine>,
     model: PackedModel,
     config: SimConfig,
+    /// The GPU engine's layout and accumulation (kept for rebuilds; unused by CPU engines).
+    gpu: GpuOptions,
     kind: EngineKind,
     bound: StabilityBound,
     steps: u64,
@@ -173,8 +180,20 @@ impl NodeSprings {
 
 impl Simulation {
     /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or is above the
-    /// stable bound (unless `config.allow_unstable`).
-    pub fn new(mut model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
+    /// stable bound (unless `config.allow_unstable`). A GPU engine (`Gpu`, or `Auto` finding an
+    /// adapter) takes the default [`GpuOptions`]; [`Simulation::with_gpu`] chooses them.
+    pub fn new(model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
+        Self::with_gpu(model, kind, config, GpuOptions::default())
+    }
+
+    /// [`Simulation::new`] with the GPU engine's layout and accumulation `gpu` (used where
+    /// `kind` is `Gpu`, or `Auto` and an adapter is found; the CPU engines ignore them).
+    pub fn with_gpu(
+        mut model: PackedModel,
+        kind: EngineKind,
+        config: SimConfig,
+        gpu: GpuOptions,
+    ) -> Result<Self> {
         // Cuts append nodes and springs: room made now (see `model::room`).
         use crate::model::room::reserve_room;
         reserve_room(&mut model.node_keys);
@@ -183,13 +202,18 @@ impl Simulation {
         reserve_room(&mut model.fixed);
         model.reserve_springs(crate::model::room::spare(model.springs().len()));
         if !(config.dt.is_finite() && config.dt > 0.0) {
-            return Err(Error::Model(format!(
-                "time step {} must be finite and positive",
-                config.dt
-            )));
+            return Err(Error::InvalidParameter {
+                name: "time step".into(),
+                value: config.dt,
+                requirement: "be finite and positive".into(),
+            });
         }
         if config.check_every == 0 {
-            return Err(Error::Model("check_every must be at least 1 step".into()));
+            return Err(Error::InvalidParameter {
+                name: "check_every".into(),
+                value: 0.0,
+                requirement: "be at least 1 step".into(),
+            });
         }
         let bound = stable_time_step(&model);
         if config.dt > bound.dt && !config.allow_unstable {
@@ -199,7 +223,7 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let (engine, kind, mut note) = make_engine(&model, kind, config)?;
+        let (engine, kind, mut note) = make_engine(&model, kind, config, gpu)?;
         if let Some(precision) = verlet_precision_note(kind, &config, bound.dt) {
             note = Some(match note {
                 Some(n) => format!("{n}; {precision}"),
@@ -220,6 +244,7 @@ impl Simulation {
             engine,
             model,
             config,
+            gpu,
             kind,
             bound,
             steps: 0,
@@ -313,7 +338,9 @@ impl Simulation {
     /// engines have finished when `run` returns). For timing what follows a step apart from
     /// the step itself.
     pub fn wait(&mut self) {
-        self.engine.wait();
+        if let Some(d) = self.engine.device_mut() {
+            d.wait();
+        }
     }
 
     /// Advance `steps` steps with no divergence check (for timing); call
@@ -323,14 +350,14 @@ impl Simulation {
             self.hand_prefetch();
         }
         self.engine.step(steps);
-        self.engine.wait();
+        self.wait();
         self.steps += steps as u64;
     }
 
     /// Device time of the last [`Simulation::step_unchecked`] call, s, where the engine can
     /// measure it (the GPU engine on an adapter with timestamp queries).
     pub fn last_device_seconds(&self) -> Option<f64> {
-        self.engine.last_device_seconds()
+        self.engine.device()?.last_device_seconds()
     }
 
     /// The engine's name as reported in summaries (with its device for the GPU).
@@ -348,11 +375,19 @@ impl Simulation {
     pub fn set_state(&mut self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) -> Result<()> {
         let n = self.model.node_count();
         if positions.len() != n || velocities.len() != n {
-            return Err(Error::Model(format!(
-                "state has {} positions and {} velocities for {n} nodes",
-                positions.len(),
-                velocities.len()
-            )));
+            return Err(Error::LengthMismatch {
+                given: if positions.len() != n {
+                    positions.len()
+                } else {
+                    velocities.len()
+                },
+                expected: n,
+                message: format!(
+                    "state has {} positions and {} velocities for {n} nodes",
+                    positions.len(),
+                    velocities.len()
+                ),
+            });
         }
         self.engine.set_state(positions, velocities);
         self.reset_energy_reference();
@@ -403,6 +438,12 @@ impl Simulation {
     /// The configuration.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// The GPU engine's layout and accumulation this simulation was set up with (see
+    /// [`Simulation::with_gpu`]; the CPU engines ignore them).
+    pub fn gpu_options(&self) -> GpuOptions {
+        self.gpu
     }
 
     /// Memory and per-step traffic of the engine.
