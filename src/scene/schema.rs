@@ -284,9 +284,10 @@ pub struct Scene {
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,
-    /// Run on when tets turn inside out. By default the run checks for inverted tets every
-    /// [`super::runner::INVERSION_CHECK_EVERY`] steps (and at each frame) and stops, reported
-    /// like a divergence, at the first.
+    /// Run on when tets turn inside out ([`crate::engine::SimConfig::allow_inverted`]). By
+    /// default the simulation checks for inverted tets every
+    /// [`crate::engine::INVERSION_CHECK_EVERY`] steps and stops, reported like a divergence,
+    /// at the first step with one.
     #[serde(default)]
     pub allow_inverted: bool,
     /// VTU output.
