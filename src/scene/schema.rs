@@ -443,6 +443,23 @@ impl SceneTool {
     }
 }
 
+/// A scene error placed at the line of the first field `field` in `text` (a line that starts,
+/// after white space, with `field:`), where there is one: the checks run on the parsed scene,
+/// which keeps no lines.
+fn at_field_line(e: Error, text: &str, field: &str) -> Error {
+    let line = text.lines().position(|l| {
+        l.trim_start()
+            .strip_prefix(field)
+            .is_some_and(|rest| rest.trim_start().starts_with(':'))
+    });
+    match (e, line) {
+        (Error::Scene { path, message }, Some(i)) => {
+            Error::parse(path, crate::error::Location::Line(i + 1), None, message, "")
+        }
+        (e, _) => e,
+    }
+}
+
 /// The scene lancet runs when given none: a soft beam, clamped at one end, sagging under
 /// gravity. Embedded so that `lancet run` works with no files.
 pub const DEFAULT_SCENE: &str = include_str!("../../fixtures/scenes/default.ron");
@@ -465,7 +482,9 @@ impl Scene {
         })?;
         scene.validate_tools(path)?;
         scene.validate_cut(path)?;
-        scene.validate_time_step(path)?;
+        scene
+            .validate_time_step(path)
+            .map_err(|e| at_field_line(e, text, "dt"))?;
         scene.validate_fixed(path)?;
         scene.validate_expectations(path)?;
         Ok(scene)
