@@ -470,6 +470,8 @@ impl Scene {
     /// [`Scene::validate_expectations`]), so a mistake is reported before any mesh is read.
     /// Unknown fields are refused, naming the nearest valid one.
     pub fn from_ron(text: &str, path: &Path) -> Result<Scene> {
+        // A UTF-8 byte-order mark (editors on Windows write one) is not RON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let scene: Scene = ron::from_str(text).map_err(|e| {
             let (message, hint) = describe_ron_error(&e.code);
             Error::parse(

@@ -285,3 +285,13 @@ fn an_out_of_memory_error_does_not_blame_the_path() {
     .to_string();
     assert!(missing.contains("path exists"), "{missing}");
 }
+
+/// A scene saved with a UTF-8 byte-order mark was refused at line 1 ("expected opening `(`").
+#[test]
+fn a_scene_with_a_utf8_byte_order_mark_is_read() {
+    let text = scene_with("");
+    let plain = Scene::from_ron(&text, Path::new("dir/x.ron")).unwrap();
+    let marked = Scene::from_ron(&format!("\u{feff}{text}"), Path::new("dir/x.ron"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((marked.name, marked.steps), (plain.name, plain.steps));
+}

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use lancet::mesh::io::vtu::{write_vtu_to, VtuOptions};
 use lancet::mesh::io::{self, LoadedMesh};
 use lancet::{Error, IdKind};
 
@@ -103,10 +104,20 @@ fn a_file_without_tetrahedra_says_what_it_holds() {
 /// line; the text readers skip it and read the same mesh.
 #[test]
 fn a_utf8_byte_order_mark_is_accepted() {
-    for (text, ext) in [(ONE_TET, "msh"), (ONE_TET_MEDIT, "mesh")] {
-        let plain = load(text.as_bytes(), ext).unwrap();
+    let vtu = {
+        let mesh = load(ONE_TET.as_bytes(), "msh").unwrap().mesh;
+        let mut out = Vec::new();
+        write_vtu_to(&mut out, &mesh, None, &VtuOptions::default()).unwrap();
+        out
+    };
+    for (text, ext) in [
+        (ONE_TET.as_bytes(), "msh"),
+        (ONE_TET_MEDIT.as_bytes(), "mesh"),
+        (&vtu[..], "vtu"),
+    ] {
+        let plain = load(text, ext).unwrap();
         let mut bom = b"\xEF\xBB\xBF".to_vec();
-        bom.extend(text.as_bytes());
+        bom.extend(text);
         let marked = load(&bom, ext).unwrap_or_else(|e| panic!("{ext}: {e}"));
         assert_eq!(marked.mesh.tet_count(), plain.mesh.tet_count(), "{ext}");
         assert_eq!(marked.mesh.volume(), plain.mesh.volume(), "{ext}");

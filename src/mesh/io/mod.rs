@@ -417,7 +417,9 @@ pub fn read_bytes(bytes: &[u8], ext: &str, path: &Path) -> Result<LoadedMesh> {
         "veg" => vega::parse(bytes, path)?,
         "vtk" => vtk_legacy::parse(bytes, path)?,
         #[cfg(feature = "vtu")]
-        "vtu" => vtu::parse(bytes, path)?,
+        // The XML reader counts appended-data offsets from the first byte: a byte-order mark
+        // is cut off first (byte offsets in its messages then count from after it).
+        "vtu" => vtu::parse(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), path)?,
         _ => {
             return Err(Error::Unsupported(format!(
                 "{}: unknown mesh extension {ext:?}; lancet reads .msh (gmsh 1, 2.2, 4.1), \
