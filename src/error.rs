@@ -30,6 +30,16 @@ impl fmt::Display for Location {
     }
 }
 
+/// What the id in a [`ParseError`] numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum IdKind {
+    /// An element (a tet, a cell, a face), by its id in the file.
+    #[default]
+    Element,
+    /// A node (a point, a vertex), by its id in the file.
+    Node,
+}
+
 /// A problem in an input file: where, which element, what, and how to fix it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParseError {
@@ -37,8 +47,11 @@ pub struct ParseError {
     pub path: PathBuf,
     /// Where in the file.
     pub location: Location,
-    /// The element (tet, node, cell) concerned, by the id written in the file, if any.
+    /// The element (tet, cell) or node concerned, by the id written in the file, if any
+    /// ([`ParseError::id_kind`] says which).
     pub element: Option<i64>,
+    /// Whether `element` numbers an element or a node.
+    pub id_kind: IdKind,
     /// What is wrong, lowercase.
     pub message: String,
     /// What the user can do about it, lowercase; may be empty.
@@ -49,13 +62,49 @@ impl fmt::Display for ParseError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}: {}: ", self.path.display(), self.location)?;
         if let Some(e) = self.element {
-            write!(f, "element {e}: ")?;
+            let kind = match self.id_kind {
+                IdKind::Element => "element",
+                IdKind::Node => "node",
+            };
+            write!(f, "{kind} {e}: ")?;
         }
         write!(f, "{}", self.message)?;
         if !self.hint.is_empty() {
             write!(f, " ({})", self.hint)?;
         }
         Ok(())
+    }
+}
+
+/// Where periodic checks place a failure: the check that found it, the last check that found
+/// the state good, and whether the reported step was pinned down by replaying the steps between.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BadStep {
+    /// The step at which the check that found the failure ran.
+    pub found_at: u64,
+    /// The step of the last check that found the state good (0: the start).
+    pub last_good: u64,
+    /// Whether the reported step is the first bad one, found by replaying one step at a time
+    /// from the state kept at `last_good`. False where the run was changed in between (contact
+    /// corrections, cuts, a new state or time step), so that a replay would not be the same
+    /// run: the failure then happened after `last_good`, by `found_at`.
+    pub replayed: bool,
+}
+
+/// The part of a divergence or inversion message that says how its step was found.
+fn found_text(found: &Option<BadStep>) -> String {
+    match found {
+        Some(f) if f.replayed => format!(
+            " (the first bad step: the check at step {} found it, a replay from the good state \
+             of step {} placed it)",
+            f.found_at, f.last_good
+        ),
+        Some(f) => format!(
+            " (found by the check at step {}; last seen good at step {}, and the run was \
+             changed in between, so it was not replayed)",
+            f.found_at, f.last_good
+        ),
+        None => String::new(),
     }
 }
 
@@ -176,36 +225,58 @@ pub enum Error {
 
     /// The simulation blew up: NaN, infinity or exploding energy.
     #[error(
-        "simulation diverged at step {step}, node {node}: {reason} (lower dt or raise damping)"
+        "simulation diverged at step {step}{}, node {node}: {reason} (lower dt or raise damping)",
+        found_text(.found)
     )]
     Diverged {
-        /// The step at which divergence was detected (1-based count of steps taken).
+        /// The first bad step (1-based count of steps taken) where a replay from the last good
+        /// check placed it (see `found`), else the step of the check that saw it.
         step: u64,
         /// The node (index in the mesh's node order) that showed it first or worst.
         node: usize,
         /// What was seen.
         reason: String,
+        /// Which periodic check found it and when the state was last seen good; `None` where
+        /// it was seen at the step itself.
+        found: Option<BadStep>,
     },
 
     /// Tets turned inside out during a run (a material far too soft for its load, or a step
-    /// too large): reported like a divergence, unless the scene allows it.
+    /// too large): reported like a divergence, unless the run allows it
+    /// ([`crate::engine::SimConfig::allow_inverted`], a scene's `allow_inverted`).
     #[error(
-        "{count} tets inverted by step {step} (checked every {every} steps); tet {tet} first, \
-         at {ratio:.3} of its rest volume (stiffen the material, lower dt, or give the scene \
-         `allow_inverted: true` to run on)"
+        "{count} tets inverted at step {step}{}; tet {tet} first, at {ratio:.3} of its rest \
+         volume (stiffen the material, lower dt, or set `allow_inverted: true` to run on)",
+        found_text(.found)
     )]
     Inverted {
-        /// The step at which the inversion was found.
+        /// The first step with an inverted tet where a replay from the last good check placed
+        /// it (see `found`), else the step of the check that found them.
         step: u64,
-        /// How many steps apart the checks are: the tets turned over within the last `every`.
-        every: u64,
-        /// The first inverted tet (index in the mesh's tet order, the order of a written VTU's
-        /// cells).
+        /// The first inverted tet (index in the order of the tets watched: a mesh's tet order,
+        /// the order of a written VTU's cells).
         tet: usize,
         /// How many tets are inverted.
         count: usize,
         /// The first inverted tet's signed volume over its rest volume (negative).
         ratio: f64,
+        /// Which periodic check found them and when the tets were last seen upright.
+        found: Option<BadStep>,
+    },
+
+    /// A face shared by more than two tets (a non-manifold mesh, or a tet listed twice), which
+    /// a cut cannot split consistently. Nodes and tets are numbered from 0 in the mesh's order,
+    /// as a written VTU numbers its points and cells.
+    #[error(
+        "the face of nodes {face:?} is shared by tets {tets:?}, and a face can have at most two; \
+         a non-manifold mesh cannot be cut (remove duplicated tets, or repair the mesh, e.g. \
+         with TetGen -d; nodes and tets are numbered from 0 as in a written VTU)"
+    )]
+    NonManifold {
+        /// The face's corners (node indices in the mesh's dense order).
+        face: [usize; 3],
+        /// The tets that hold it (indices in the mesh's tet order), the one added last included.
+        tets: Vec<usize>,
     },
 
     /// A scene file is inconsistent (unknown region, missing mesh, ...).
@@ -244,9 +315,22 @@ impl Error {
             path: path.into(),
             location,
             element,
+            id_kind: IdKind::Element,
             message: message.into(),
             hint: hint.into(),
         }))
+    }
+
+    /// This error, where it is a parse error, about the node its id numbers rather than an
+    /// element (readers share their number parsing between node and element rows).
+    pub fn about_node(self) -> Self {
+        match self {
+            Error::Parse(mut p) => {
+                p.id_kind = IdKind::Node;
+                Error::Parse(p)
+            }
+            other => other,
+        }
     }
 
     /// Build an I/O error for `path`.

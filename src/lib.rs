@@ -21,7 +21,7 @@ pub mod contact;
 pub mod error;
 pub mod mesh;
 
-pub use error::{Error, Location, ParseError, Result};
+pub use error::{BadStep, Error, IdKind, Location, ParseError, Result};
 pub use mesh::{NodeKey, TetKey, TetMesh};
 pub mod engine;
 pub mod layout;

@@ -166,7 +166,7 @@ impl Cutter {
         }
         for &t in plan.replace.keys() {
             let tet = *self.mesh.tet(t).expect("a tet");
-            self.faces.insert(t, &tet)?;
+            self.faces.insert(t, &tet, &self.mesh)?;
         }
         // A pair leaves the crack once its tets no longer share a face.
         let faces = &self.faces;

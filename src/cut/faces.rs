@@ -99,13 +99,28 @@ impl Indexed {
     }
 }
 
+/// The error for a face of more than two tets: the face's corners and the tets, numbered as
+/// in `mesh` (a pass over the mesh, on this error only). A tet not in `mesh` is left out.
+fn crowded(mesh: &TetMesh, face: FaceId, tets: impl Iterator<Item = TetKey>) -> Error {
+    let dense = mesh.dense_nodes();
+    let order: FxHashMap<TetKey, usize> =
+        mesh.tets().enumerate().map(|(i, (k, _))| (k, i)).collect();
+    let mut tets: Vec<usize> = tets.filter_map(|t| order.get(&t).copied()).collect();
+    tets.sort_unstable();
+    tets.dedup();
+    Error::NonManifold {
+        face: face.map(|n| dense.index.get(n).map_or(usize::MAX, |&i| i as usize)),
+        tets,
+    }
+}
+
 impl FaceIndex {
     /// Index `mesh`. Fails on a face shared by more than two tets (a non-manifold mesh cannot be
     /// cut consistently).
     pub fn of(mesh: &TetMesh) -> Result<Self> {
         let mut index = FaceIndex::default();
         for (tk, tet) in mesh.tets() {
-            index.insert(tk, tet)?;
+            index.insert(tk, tet, mesh)?;
         }
         // Not `clear`: that keeps room for every face of the mesh, and each take would scan
         // and reset all of it (tens of microseconds a cut on a 100k-tet mesh).
@@ -139,20 +154,17 @@ impl FaceIndex {
         Some(t.triangle(local_face(&t.nodes, id)?))
     }
 
-    /// Add a tet's faces and incidences.
-    pub fn insert(&mut self, tk: TetKey, tet: &Tet) -> Result<()> {
+    /// Add a tet's faces and incidences. A face that would have a third tet is refused, naming
+    /// the face and its tets as numbered in `mesh` (the mesh the tets are in).
+    pub fn insert(&mut self, tk: TetKey, tet: &Tet, mesh: &TetMesh) -> Result<()> {
         debug_assert!(
             !self.tets.contains_key(tk),
             "a tet is indexed twice; remove it first"
         );
         let ids: [FaceId; 4] = std::array::from_fn(|local| face_id(tet, local));
         let users = ids.map(|id| self.users(&id));
-        if users.iter().any(|u| u.count >= 2) {
-            return Err(Error::Mesh(
-                "a face is shared by more than two tets; a non-manifold mesh cannot be cut \
-                 (repair it, e.g. with TetGen -d)"
-                    .into(),
-            ));
+        if let Some(l) = users.iter().position(|u| u.count >= 2) {
+            return Err(crowded(mesh, ids[l], users[l].iter().chain([tk])));
         }
         let mut me = Indexed {
             nodes: tet.nodes,
@@ -400,7 +412,9 @@ mod tests {
             if step % 3 == 2 {
                 // Put one back from the middle of what is out.
                 let back = out.remove(out.len() / 2);
-                index.insert(back.0, &back.1).expect("it fitted before");
+                index
+                    .insert(back.0, &back.1, &mesh)
+                    .expect("it fitted before");
                 indexed.push(back);
             }
             check_against_brute_force(&index, &indexed);
@@ -443,7 +457,7 @@ mod tests {
             .find(|(k, t)| (0..4).any(|l| index.neighbour(*k, t, l).is_some()))
             .expect("the cube has inner faces");
         let (boundary, faces) = (index.boundary_len(), index.face_count());
-        assert!(index.insert(fake, &inner.1).is_err());
+        assert!(index.insert(fake, &inner.1, &mesh).is_err());
         assert_eq!(index.boundary_len(), boundary);
         assert_eq!(index.face_count(), faces);
         check_against_brute_force(&index, &tets);

@@ -192,7 +192,7 @@ impl Cutter {
                 None => self.model.add_tet(&self.mesh, t)?,
             }
             let tet = *self.mesh.tet(t).expect("a sub-tet");
-            self.faces.insert(t, &tet)?;
+            self.faces.insert(t, &tet, &self.mesh)?;
         }
         Ok(children)
     }

@@ -15,6 +15,10 @@ pub struct SimConfig {
     /// Run even when `dt` is above the stable bound (divergence is still detected).
     #[serde(default)]
     pub allow_unstable: bool,
+    /// Run on when watched tets turn inside out ([`crate::engine::Simulation::watch_mesh`]);
+    /// by default the checks report them as [`crate::Error::Inverted`], like a divergence.
+    #[serde(default)]
+    pub allow_inverted: bool,
     /// Steps between divergence checks; divergence is reported at most this many steps after
     /// the energy crosses the limit.
     #[serde(default = "default_check_every")]
@@ -121,6 +125,7 @@ impl SimConfig {
             dt,
             integrator: Integrator::Verlet,
             allow_unstable: false,
+            allow_inverted: false,
             check_every: default_check_every(),
             node_order: NodeOrdering::Locality,
         }

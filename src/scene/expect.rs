@@ -84,28 +84,6 @@ pub fn deformed_volume(mesh: &TetMesh, x: &[[f64; 3]]) -> f64 {
         .sum()
 }
 
-/// The tets turned inside out at positions `x` (node order of `mesh.dense_nodes()`): how many,
-/// and the first (index in the mesh's tet order) with its signed volume over its rest volume.
-pub fn inverted_tets(mesh: &TetMesh, x: &[[f64; 3]]) -> Option<(usize, usize, f64)> {
-    let dense = mesh.dense_nodes();
-    let mut first = None;
-    let mut count = 0;
-    for (i, (_, t)) in mesh.tets().enumerate() {
-        let p = t
-            .nodes
-            .map(|k| nalgebra::Point3::from(x[dense.index[k] as usize]));
-        let v = signed_volume6(&p[0], &p[1], &p[2], &p[3]);
-        if v < 0.0 {
-            count += 1;
-            if first.is_none() {
-                let r = mesh.tet_points(t);
-                first = Some((i, v / signed_volume6(&r[0], &r[1], &r[2], &r[3])));
-            }
-        }
-    }
-    first.map(|(tet, ratio)| (count, tet, ratio))
-}
-
 fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }

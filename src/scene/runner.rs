@@ -109,11 +109,9 @@ pub struct RunSummary {
     pub expectations_passed: bool,
 }
 
-/// Steps between checks for inverted tets (unless the scene allows them), where frames are
-/// not written more often: a check reads the positions (on the GPU, back from the device) and
-/// computes every tet's volume, about as much work as one step, so a check this far apart costs
-/// a fraction of a per cent.
-pub const INVERSION_CHECK_EVERY: u64 = 500;
+/// Steps between checks for inverted tets (unless the scene allows them): the simulation's
+/// cadence ([`crate::engine::INVERSION_CHECK_EVERY`]), kept here under its old name.
+pub const INVERSION_CHECK_EVERY: u64 = crate::engine::INVERSION_CHECK_EVERY;
 
 /// Build the scene's mesh, with region boxes applied.
 pub fn build_mesh(scene: &Scene, scene_path: &Path) -> Result<TetMesh> {
@@ -211,6 +209,7 @@ pub fn run_scene(
         dt,
         integrator: scene.integrator,
         allow_unstable: scene.allow_unstable,
+        allow_inverted: scene.allow_inverted,
         ..SimConfig::new(dt)
     };
     // The scene's `layout` and `accumulation` fields (or the options overriding them) choose
@@ -270,6 +269,7 @@ pub fn run_scene(
     };
     summary.engine = sim.engine_name();
     summary.engine_note = sim.engine_note().map(str::to_string);
+    sim.watch_mesh(&mesh)?;
 
     // `--output DIR` turns output on even for a scene without an `output` section, writing
     // about ten frames.
@@ -307,12 +307,9 @@ pub fn run_scene(
     let start = Instant::now();
     let mut done = 0;
     let every = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
-    // Inverted tets are looked for between chunks: no further apart than this.
-    let chunk = if scene.allow_inverted {
-        every
-    } else {
-        every.min(INVERSION_CHECK_EVERY)
-    };
+    // Cuts leave the tets they touched unwatched until the tets are given again, at the end
+    // of a chunk: chunks no longer than the inversion checks are apart.
+    let chunk = every.min(INVERSION_CHECK_EVERY);
     while done < steps {
         // Chunks end at every frame's step, so that frames stay `every` steps apart.
         let to_frame = every - done % every;
@@ -327,24 +324,9 @@ pub fn run_scene(
             None => sim.run_with(n, |d| progress(done + d, steps)),
         };
         done = sim.steps();
-        let result = result.and_then(|()| {
-            if scene.allow_inverted {
-                return Ok(());
-            }
-            let current = stage
-                .as_ref()
-                .and_then(|s| s.cut.as_ref())
-                .map_or(&mesh, |c| c.mesh());
-            match expect::inverted_tets(current, &sim.positions()) {
-                Some((count, tet, ratio)) => Err(Error::Inverted {
-                    step: done,
-                    every: chunk,
-                    tet,
-                    count,
-                    ratio,
-                }),
-                None => Ok(()),
-            }
+        let result = result.and_then(|()| match stage.as_ref().and_then(|s| s.cut.as_ref()) {
+            Some(cut) if sim.watched_tets_touched() => sim.watch_mesh(cut.mesh()),
+            _ => Ok(()),
         });
         if let Err(e) = result {
             summary.diverged = matches!(e, Error::Diverged { .. } | Error::Inverted { .. });

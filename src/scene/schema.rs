@@ -284,9 +284,10 @@ pub struct Scene {
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,
-    /// Run on when tets turn inside out. By default the run checks for inverted tets every
-    /// [`super::runner::INVERSION_CHECK_EVERY`] steps (and at each frame) and stops, reported
-    /// like a divergence, at the first.
+    /// Run on when tets turn inside out ([`crate::engine::SimConfig::allow_inverted`]). By
+    /// default the simulation checks for inverted tets every
+    /// [`crate::engine::INVERSION_CHECK_EVERY`] steps and stops, reported like a divergence,
+    /// at the first step with one.
     #[serde(default)]
     pub allow_inverted: bool,
     /// VTU output.
@@ -442,6 +443,23 @@ impl SceneTool {
     }
 }
 
+/// A scene error placed at the line of the first field `field` in `text` (a line that starts,
+/// after white space, with `field:`), where there is one: the checks run on the parsed scene,
+/// which keeps no lines.
+fn at_field_line(e: Error, text: &str, field: &str) -> Error {
+    let line = text.lines().position(|l| {
+        l.trim_start()
+            .strip_prefix(field)
+            .is_some_and(|rest| rest.trim_start().starts_with(':'))
+    });
+    match (e, line) {
+        (Error::Scene { path, message }, Some(i)) => {
+            Error::parse(path, crate::error::Location::Line(i + 1), None, message, "")
+        }
+        (e, _) => e,
+    }
+}
+
 /// The scene lancet runs when given none: a soft beam, clamped at one end, sagging under
 /// gravity. Embedded so that `lancet run` works with no files.
 pub const DEFAULT_SCENE: &str = include_str!("../../fixtures/scenes/default.ron");
@@ -452,6 +470,8 @@ impl Scene {
     /// [`Scene::validate_expectations`]), so a mistake is reported before any mesh is read.
     /// Unknown fields are refused, naming the nearest valid one.
     pub fn from_ron(text: &str, path: &Path) -> Result<Scene> {
+        // A UTF-8 byte-order mark (editors on Windows write one) is not RON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let scene: Scene = ron::from_str(text).map_err(|e| {
             let (message, hint) = describe_ron_error(&e.code);
             Error::parse(
@@ -464,7 +484,9 @@ impl Scene {
         })?;
         scene.validate_tools(path)?;
         scene.validate_cut(path)?;
-        scene.validate_time_step(path)?;
+        scene
+            .validate_time_step(path)
+            .map_err(|e| at_field_line(e, text, "dt"))?;
         scene.validate_fixed(path)?;
         scene.validate_expectations(path)?;
         Ok(scene)

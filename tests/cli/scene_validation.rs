@@ -249,14 +249,22 @@ fn building_a_box_far_too_large_is_an_error_not_an_abort() {
 
 // Item 9: messages.
 
-/// A zero time step was refused by the engine with a message naming no file.
+/// A zero time step was refused by the engine with a message naming no file: it is refused
+/// when the scene is read, naming the file and the line of `dt`.
 #[test]
-fn a_zero_or_negative_time_step_is_refused_naming_the_scene_file() {
+fn a_zero_or_negative_time_step_is_refused_naming_the_scene_file_and_line() {
     for dt in ["Seconds(0.0)", "Seconds(-1e-4)", "BoundFraction(NaN)"] {
         let text = scene_with("").replace("BoundFraction(0.5)", dt);
-        let msg = refusal(&text).to_string();
-        assert!(msg.starts_with("dir/x.ron: dt:"), "{dt}: {msg}");
+        let err = refusal(&text);
+        let msg = err.to_string();
+        let line = line_of(&text, "dt:");
+        assert!(
+            msg.starts_with(&format!("dir/x.ron: line {line}: dt:")),
+            "{dt}: {msg}"
+        );
         assert!(msg.contains("finite and positive"), "{dt}: {msg}");
+        let p = err.as_parse().expect("a parse error with a place");
+        assert_eq!(p.location, lancet::Location::Line(line), "{dt}");
     }
 }
 
@@ -276,4 +284,14 @@ fn an_out_of_memory_error_does_not_blame_the_path() {
     )
     .to_string();
     assert!(missing.contains("path exists"), "{missing}");
+}
+
+/// A scene saved with a UTF-8 byte-order mark was refused at line 1 ("expected opening `(`").
+#[test]
+fn a_scene_with_a_utf8_byte_order_mark_is_read() {
+    let text = scene_with("");
+    let plain = Scene::from_ron(&text, Path::new("dir/x.ron")).unwrap();
+    let marked = Scene::from_ron(&format!("\u{feff}{text}"), Path::new("dir/x.ron"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((marked.name, marked.steps), (plain.name, plain.steps));
 }

@@ -19,3 +19,4 @@ mod cut_snap;
 mod cut_state;
 mod cut_surface;
 mod cut_time_step;
+mod cut_topology_errors;

@@ -510,7 +510,7 @@ const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTUR
 #[case::tetgen_non_numeric_coordinate(
     "tetgen",
     "2 3 0 0\n1 0 0 0\n2 1 zero 0\n|0 4 0\n",
-    "line 3: element 2",
+    "line 3: node 2",
     "coordinate \"zero\" is not a number"
 )]
 #[case::tetgen_nan_coordinate(
@@ -540,7 +540,7 @@ const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTUR
 #[case::medit_non_numeric_vertex(
     "mesh",
     "MeshVersionFormatted 1\nDimension 3\nVertices 1\n0 x 0 0\n",
-    "line 4: element 1",
+    "line 4: node 1",
     "coordinate \"x\" is not a number"
 )]
 #[case::medit_infinite_vertex(
@@ -571,7 +571,7 @@ const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTUR
 #[case::vega_infinite_coordinate(
     "veg",
     "*VERTICES\n1 3 0 0\n1 0 -inf 0\n",
-    "line 3: element 1",
+    "line 3: node 1",
     "not a finite number"
 )]
 #[case::vega_undefined_set("veg", &format!("{VEGA_HEAD}*ELEMENTS\nTET\n1 4 0\n1 1 2 3 4\n*REGION\nnosuch, mat\n"), "line 12", "set \"nosuch\", which is not defined")]
@@ -586,7 +586,7 @@ const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTUR
 #[case::vtk_hexahedron("vtk", &format!("{VTK_HEAD}POINTS 8 float\n0 0 0 1 0 0 1 1 0 0 1 0\n0 0 1 1 0 1 1 1 1 0 1 1\nCELLS 1 9\n8 0 1 2 3 4 5 6 7\nCELL_TYPES 1\n12\n"), "line 9: element 1", "unsupported cell type 12 (hexahedron)")]
 #[case::vtk_wedge("vtk", &format!("{VTK_HEAD}POINTS 6 float\n0 0 0 1 0 0 0 1 0\n0 0 1 1 0 1 0 1 1\nCELLS 1 7\n6 0 1 2 3 4 5\nCELL_TYPES 1\n13\n"), "line 9", "(wedge)")]
 #[case::vtk_cells_size_mismatch("vtk", &format!("{VTK_HEAD}POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 6\n4 0 1 2 3\nCELL_TYPES 1\n10\n"), "line 8", "declares size 6 but the 1 cell lists hold 5 values")]
-#[case::vtk_non_numeric_point("vtk", &format!("{VTK_HEAD}POINTS 1 float\n0 0 abc\n"), "line 6: element 0", "coordinate \"abc\" is not a number")]
+#[case::vtk_non_numeric_point("vtk", &format!("{VTK_HEAD}POINTS 1 float\n0 0 abc\n"), "line 6: node 0", "coordinate \"abc\" is not a number")]
 #[case::vtk_undefined_point("vtk", &format!("{VTK_HEAD}POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 99\nCELL_TYPES 1\n10\n"), "line 8: element 1", "references point 99, which is not defined")]
 #[case::vtk_wrong_point_count_for_tet("vtk", &format!("{VTK_HEAD}POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 4\n3 0 1 2\nCELL_TYPES 1\n10\n"), "line 8: element 1", "cell of type 10 has 3 points, expected 4")]
 #[case::vtk_more_points_than_declared("vtk", &format!("{VTK_HEAD}POINTS 1 float\n0 0 0\n1 1 1\n"), "line 7", "more values than declared")]

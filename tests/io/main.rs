@@ -7,6 +7,7 @@ mod io_bombs;
 mod io_duplicates;
 mod io_formats;
 mod io_gmsh;
+mod io_messages;
 mod io_vtu;
 mod mesh_topology;
 mod readers_never_panic;

@@ -11,4 +11,5 @@ mod model_springs;
 mod physics_beam;
 mod physics_energy;
 mod physics_oscillator;
+mod run_checks;
 mod stability;

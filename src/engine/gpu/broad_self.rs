@@ -325,6 +325,7 @@ impl SelfCuller {
                         reason: "the tissue surface stretched beyond any grid cell (non-finite \
                                  or enormous positions)"
                             .into(),
+                        found: None,
                     });
                 }
                 continue;

@@ -118,6 +118,11 @@ impl Simulation {
         };
         debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
         self.node_springs = None;
+        // A replay from a state kept before would not make this change: none from here.
+        self.changes += 1;
+        if let Some(watch) = &mut self.watch {
+            watch.touch(&diff.touched_nodes(before), self.model.node_count());
+        }
         // The divergence reference follows the energy the change took out of or put into the
         // springs it touched (splitting a node shares its mass and keeps its velocity, so the
         // kinetic and gravitational energies do not change; carving only lowers them).
@@ -263,6 +268,7 @@ impl Simulation {
         self.steps_at_dt_change = self.steps;
         let cost = self.engine.set_time_step(dt)?;
         self.config.dt = dt;
+        self.changes += 1;
         self.reset_energy_reference();
         Ok(cost)
     }

@@ -1,7 +1,10 @@
 //! Divergence checks and energies: non-finite state and energy growth, measured where the state
-//! lives, against a reference that model changes and position corrections move.
+//! lives, against a reference that model changes and position corrections move. A check that
+//! fails replays the steps since the last good state it kept, one at a time, to report the
+//! first bad step ([`BadStep`]).
 
 use super::*;
+use crate::error::BadStep;
 
 impl Simulation {
     /// Check the current state for divergence. Engines with a device-side probe
@@ -31,18 +34,98 @@ impl Simulation {
     /// The exact check over the whole state; returns the total energy.
     pub(super) fn check_exact(&self) -> Result<f64> {
         let (x, v) = self.engine.state();
+        self.judge(&x, &v, self.steps)
+    }
+
+    /// The check of [`Simulation::run`]: [`Simulation::check_total`], keeping the state of an
+    /// exact check that passed (where a replay to the first bad step would start), and on a
+    /// failure replaying from the last good state to the first bad step (see [`BadStep`]).
+    /// `exact` forces an exact check where the probe would do.
+    pub(super) fn check_run(&mut self, exact: bool) -> Result<Option<f64>> {
+        if !exact {
+            if let Some(h) = self.engine.health()? {
+                let lower = h.kinetic + h.gravity;
+                if h.non_finite.is_none()
+                    && lower.is_finite()
+                    && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale
+                {
+                    self.last_good = self.steps;
+                    return Ok(None);
+                }
+            }
+        }
+        let (x, v) = self.engine.state();
+        match self.judge(&x, &v, self.steps) {
+            Ok(total) => {
+                self.last_good = self.steps;
+                self.good_energy = Some(Snapshot {
+                    step: self.steps,
+                    changes: self.changes,
+                    x,
+                    v,
+                });
+                Ok(Some(total))
+            }
+            Err(e) => Err(self.place_divergence(e)),
+        }
+    }
+
+    /// Replay from the newest good state kept by a check, one step at a time with an exact
+    /// check after each, to the first bad step; where the run was changed since (or no state
+    /// was kept), report the check's finding with the last good step.
+    fn place_divergence(&mut self, seen: Error) -> Error {
+        let found_at = self.steps;
+        let with = |e: Error, replayed, last_good| match e {
+            Error::Diverged {
+                step, node, reason, ..
+            } => Error::Diverged {
+                step,
+                node,
+                reason,
+                found: Some(BadStep {
+                    found_at,
+                    last_good,
+                    replayed,
+                }),
+            },
+            other => other,
+        };
+        let newest = match (self.good_energy.take(), self.good_shape.take()) {
+            (Some(a), Some(b)) => Some(if a.step >= b.step { a } else { b }),
+            (a, b) => a.or(b),
+        };
+        let Some(snap) = newest.filter(|s| s.changes == self.changes && s.step < found_at) else {
+            return with(seen, false, self.last_good);
+        };
+        self.engine.set_state(&snap.x, &snap.v);
+        self.steps = snap.step;
+        while self.steps < found_at {
+            self.engine.step(1);
+            self.steps += 1;
+            let (x, v) = self.engine.state();
+            if let Err(e) = self.judge(&x, &v, self.steps) {
+                return with(e, true, snap.step);
+            }
+        }
+        with(seen, false, snap.step)
+    }
+
+    /// Whether the state `x`, `v` at `step` has diverged: a node not finite, or the total
+    /// energy above the limit; returns the total energy.
+    fn judge(&self, x: &[[f64; 3]], v: &[[f64; 3]], step: u64) -> Result<f64> {
         let bad = x
             .iter()
-            .zip(&v)
+            .zip(v)
             .position(|(p, u)| !p.iter().chain(u).all(|c| c.is_finite()));
         if let Some(node) = bad {
             return Err(Error::Diverged {
-                step: self.steps,
+                step,
                 node,
                 reason: "position or velocity is not finite".into(),
+                found: None,
             });
         }
-        let e = self.energy_of(&x, &v);
+        let e = self.energy_of(x, v);
         let total = e.total();
         if !total.is_finite() || total - self.start_energy > ENERGY_GROWTH_LIMIT * self.energy_scale
         {
@@ -57,13 +140,14 @@ impl Simulation {
                 })
                 .map_or(0, |(i, _)| i);
             return Err(Error::Diverged {
-                step: self.steps,
+                step,
                 node,
                 reason: format!(
                     "total energy grew from {:.3e} J to {total:.3e} J (limit: +{:.0} x the \
                      energy scale {:.3e} J); the node shown moves fastest",
                     self.start_energy, ENERGY_GROWTH_LIMIT, self.energy_scale
                 ),
+                found: None,
             });
         }
         Ok(total)

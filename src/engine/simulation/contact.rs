@@ -177,6 +177,7 @@ impl Simulation {
             reason: "the tissue surface stretched beyond any grid cell (non-finite or enormous \
                      positions)"
                 .into(),
+            found: None,
         })
     }
 
@@ -247,6 +248,7 @@ impl Simulation {
         check_correction(nodes, positions, self.model.node_count())?;
         let work = self.correction_work(nodes, positions)?;
         self.engine.correct_positions(nodes, positions)?;
+        self.changes += 1;
         self.start_energy += work;
         self.energy_scale = self.base_scale + (self.start_energy - self.base_energy).max(0.0);
         Ok(())

@@ -2,11 +2,15 @@
 //! bound is refused, divergence is caught within [`SimConfig::check_every`] steps and reported
 //! with the step and node, and model changes, surfaces and contact corrections reach the engine
 //! through it. One idea per file: changes to the model and the time step (`changes.rs`), the
-//! divergence checks and energies (`checks.rs`), the surface and contact calls (`contact.rs`).
+//! divergence checks and energies (`checks.rs`), the surface and contact calls (`contact.rs`),
+//! the watch for inverted tets (`inversion.rs`).
 
 mod changes;
 mod checks;
 mod contact;
+mod inversion;
+
+pub use inversion::INVERSION_CHECK_EVERY;
 
 use std::collections::{HashMap, HashSet};
 
@@ -136,11 +140,37 @@ pub struct Simulation {
     /// The springs at each node, built at the first position correction.
     node_springs: Option<NodeSprings>,
     note: Option<String>,
+    /// The tets watched for inversion, once given ([`Simulation::watch_mesh`]).
+    watch: Option<inversion::TetWatch>,
+    /// Steps since the watched tets were last checked.
+    steps_since_inversion: u64,
+    /// The state at the last check that found the energy good (`good_energy`), and at the
+    /// last that found the watched tets upright as well (`good_shape`): where a replay to the
+    /// first bad step starts.
+    good_energy: Option<Snapshot>,
+    good_shape: Option<Snapshot>,
+    /// The step of the last check that found the energy good, and the tets upright.
+    last_good: u64,
+    last_upright: u64,
+    /// Counts the changes that make a replay from a kept state differ from the run (model
+    /// changes, position corrections, a new state or time step).
+    changes: u64,
     /// A box whose nodes the last step of the next run reads ahead ([`Simulation::prefetch_near`]).
     near_ahead: Option<([f64; 3], [f64; 3])>,
     /// How reads of nodes near a blade were served, over every engine this simulation had (a
     /// new time step rebuilds it).
     near_reads: NearReads,
+}
+
+/// A state kept by a check, to replay from.
+#[derive(Clone)]
+struct Snapshot {
+    /// Steps taken when it was kept.
+    step: u64,
+    /// [`Simulation::changes`] when it was kept: a replay is the run's only while it is equal.
+    changes: u64,
+    x: Vec<[f64; 3]>,
+    v: Vec<[f64; 3]>,
 }
 
 /// The springs at each node (indices into the model's springs), packed.
@@ -261,8 +291,16 @@ impl Simulation {
             near_ahead: None,
             near_reads: NearReads::default(),
             note,
+            watch: None,
+            steps_since_inversion: 0,
+            good_energy: None,
+            good_shape: None,
+            last_good: 0,
+            last_upright: 0,
+            changes: 0,
         };
         sim.reset_energy_reference();
+        sim.keep_start();
         Ok(sim)
     }
 
@@ -295,11 +333,18 @@ impl Simulation {
         self.base_scale = self.energy_scale;
     }
 
-    /// Run `steps` steps, checking for divergence every `check_every` steps and at the end.
-    /// A check that measures the total energy exactly also lowers the reference that position
-    /// corrections raised (see [`Simulation::correct_positions`]): every check on the CPU
-    /// engines; on the GPU, whose checks read a cheap probe, one every [`EXACT_CHECK_EVERY`]
-    /// steps while corrections hold the reference up.
+    /// Run `steps` steps, checking for divergence every `check_every` steps and at the end,
+    /// and the watched tets ([`Simulation::watch_mesh`]) for inversion at the first check at
+    /// least [`INVERSION_CHECK_EVERY`] steps after the last. A check that measures the total
+    /// energy exactly also lowers the reference that position corrections raised (see
+    /// [`Simulation::correct_positions`]): every check on the CPU engines; on the GPU, whose
+    /// checks read a cheap probe, one every [`EXACT_CHECK_EVERY`] steps while corrections hold
+    /// the reference up, and one every [`INVERSION_CHECK_EVERY`] steps in any case.
+    ///
+    /// A failed check replays the steps since the last state a check kept (exact checks keep
+    /// theirs), one at a time, and reports the first bad step; the simulation is left there.
+    /// Where the run was changed since that state (corrections, cuts, a new state or time
+    /// step), it reports the check's step and the last good one ([`crate::BadStep`]).
     pub fn run(&mut self, steps: u64) -> Result<()> {
         self.run_with(steps, |_| {})
     }
@@ -315,20 +360,19 @@ impl Simulation {
             self.engine.step(chunk);
             self.steps += chunk as u64;
             done += chunk as u64;
-            let mut exact = self.check_total()?;
             self.steps_since_exact += chunk as u64;
-            // Engines with a cheap probe measure the total only now and then, while
-            // corrections hold the reference more than a scale above where it was taken.
-            if exact.is_none()
-                && self.steps_since_exact >= EXACT_CHECK_EVERY
-                && self.start_energy > self.base_energy + self.base_scale
-            {
-                exact = Some(self.check_exact()?);
-            }
-            if let Some(total) = exact {
+            self.steps_since_inversion += chunk as u64;
+            // Engines with a cheap probe measure the total only now and then: while
+            // corrections hold the reference more than a scale above where it was taken, and
+            // at the inversion cadence, so that a failure has a state to replay from.
+            let force = self.steps_since_inversion >= INVERSION_CHECK_EVERY
+                || (self.steps_since_exact >= EXACT_CHECK_EVERY
+                    && self.start_energy > self.base_energy + self.base_scale);
+            if let Some(total) = self.check_run(force)? {
                 self.tighten_reference(total);
                 self.steps_since_exact = 0;
             }
+            self.check_inversion_due()?;
             progress(done);
         }
         Ok(())
@@ -352,6 +396,7 @@ impl Simulation {
         self.engine.step(steps);
         self.wait();
         self.steps += steps as u64;
+        self.steps_since_inversion += steps as u64;
     }
 
     /// Device time of the last [`Simulation::step_unchecked`] call, s, where the engine can
@@ -391,7 +436,25 @@ impl Simulation {
         }
         self.engine.set_state(positions, velocities);
         self.reset_energy_reference();
+        self.keep_start();
         Ok(())
+    }
+
+    /// Keep the current state as the start of any replay: a new run or a new state, which
+    /// nothing before can be replayed into.
+    fn keep_start(&mut self) {
+        self.changes += 1;
+        let (x, v) = self.engine.state();
+        let snap = Snapshot {
+            step: self.steps,
+            changes: self.changes,
+            x,
+            v,
+        };
+        self.good_shape = Some(snap.clone());
+        self.good_energy = Some(snap);
+        self.last_good = self.steps;
+        self.last_upright = self.steps;
     }
 
     /// Current positions, m, in packed node order.

@@ -614,9 +614,12 @@ fn read_count(lines: &mut Lines, section: &str) -> Result<u64> {
 /// The three coordinates of node `id`.
 fn read_point(src: &mut dyn Source, id: i64) -> Result<[f64; 3]> {
     Ok([
-        src.float("x coordinate", Some(id))?,
-        src.float("y coordinate", Some(id))?,
-        src.float("z coordinate", Some(id))?,
+        src.float("x coordinate", Some(id))
+            .map_err(Error::about_node)?,
+        src.float("y coordinate", Some(id))
+            .map_err(Error::about_node)?,
+        src.float("z coordinate", Some(id))
+            .map_err(Error::about_node)?,
     ])
 }
 
@@ -749,6 +752,13 @@ impl<'a> Reader<'a> {
     /// and three doubles per node).
     fn nodes_v2(&mut self, lines: &mut Lines<'a>, name: &'static str) -> Result<()> {
         let count = read_count(lines, name)?;
+        // A binary node is an int and three doubles. Rows of a count the rest of the file
+        // cannot hold are read from whatever follows, and the error they meet (a misread id)
+        // would hide the cause: it is said first.
+        let row = 4 + 3 * 8;
+        let left = lines.bytes().len().saturating_sub(lines.byte_pos()) as u64;
+        let binary = matches!(self.header, Header::V2 { binary: Some(_) });
+        let impossible = binary && count.saturating_mul(row) > left;
         self.with_source(lines, name, |r, src| {
             r.reserve_points(count, src.bytes_left());
             for i in 0..count {
@@ -759,6 +769,20 @@ impl<'a> Reader<'a> {
                 r.add_point(id, p, src.loc())?;
             }
             Ok(())
+        })
+        .map_err(|e| match e {
+            Error::Parse(mut p) if impossible => {
+                p.message = format!(
+                    "{name} declares {count} nodes, impossible for the file size (at least \
+                     {row} bytes each, {left} bytes left); reading on: {}",
+                    p.message
+                );
+                p.hint = "the count line is wrong or the file is truncated; export the mesh \
+                          again"
+                    .into();
+                Error::Parse(p)
+            }
+            e => e,
         })
     }
 
@@ -1082,10 +1106,10 @@ impl<'a> Reader<'a> {
     /// The raw mesh, with one note per kind of element ignored or simplified.
     fn finish(mut self) -> RawMesh {
         for (&t, n) in &self.ignored {
-            let name = element_type(t).map_or("unknown", |e| e.2);
-            self.raw
-                .notes
-                .push(format!("ignored {n} {name} elements (type {t})"));
+            self.raw.notes.push(match element_type(t) {
+                Some((_, _, name)) => format!("ignored {n} {name} elements (type {t})"),
+                None => format!("ignored {n} elements of unknown type {t}"),
+            });
         }
         for (&t, n) in &self.corners_only {
             let Some((_, kind, name)) = element_type(t) else {

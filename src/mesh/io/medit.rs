@@ -241,10 +241,11 @@ fn vertices(toks: &mut Tokens, st: &mut State) -> Result<()> {
         let id = st.raw.points.len() as i64 + 1;
         let mut p = [0.0; 3];
         for c in p.iter_mut() {
-            *c = rows.f64("coordinate", id)?;
+            *c = rows.f64("coordinate", id).map_err(Error::about_node)?;
         }
         // The vertex reference (a boundary tag) is not used by the simulation.
-        rows.int::<i64>("vertex reference", id)?;
+        rows.int::<i64>("vertex reference", id)
+            .map_err(Error::about_node)?;
         st.raw.points.push(p);
         st.raw.point_ids.push(id);
     }

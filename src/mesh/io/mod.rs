@@ -190,11 +190,22 @@ impl RawMesh {
             Error::parse(path, t.location, Some(t.id), msg, hint)
         };
         if self.tets.is_empty() {
+            // Say what the file held instead: a surface, or elements of types skipped.
+            let mut held = Vec::new();
+            if !self.triangles.is_empty() {
+                held.push(format!("{} surface triangles", self.triangles.len()));
+            }
+            held.extend(self.notes.iter().cloned());
+            let held = if held.is_empty() {
+                String::new()
+            } else {
+                format!(" (it holds: {})", held.join("; "))
+            };
             return Err(Error::parse(
                 path,
                 Location::Unknown,
                 None,
-                "the file contains no tetrahedra",
+                format!("the file contains no tetrahedra{held}"),
                 "lancet simulates volumes: export the volume mesh, not only its surface",
             ));
         }
@@ -359,7 +370,8 @@ impl IdMap {
                 Some(id),
                 format!("node id {id} is defined twice"),
                 "give every node a unique id",
-            ));
+            )
+            .about_node());
         }
         Ok(())
     }
@@ -405,7 +417,9 @@ pub fn read_bytes(bytes: &[u8], ext: &str, path: &Path) -> Result<LoadedMesh> {
         "veg" => vega::parse(bytes, path)?,
         "vtk" => vtk_legacy::parse(bytes, path)?,
         #[cfg(feature = "vtu")]
-        "vtu" => vtu::parse(bytes, path)?,
+        // The XML reader counts appended-data offsets from the first byte: a byte-order mark
+        // is cut off first (byte offsets in its messages then count from after it).
+        "vtu" => vtu::parse(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), path)?,
         _ => {
             return Err(Error::Unsupported(format!(
                 "{}: unknown mesh extension {ext:?}; lancet reads .msh (gmsh 1, 2.2, 4.1), \

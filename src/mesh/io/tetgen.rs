@@ -127,10 +127,15 @@ fn parse_nodes(bytes: &[u8], path: &Path, raw: &mut RawMesh) -> Result<IdMap> {
         }
         let mut p = [0.0; 3];
         for (c, tok) in p.iter_mut().zip(&toks[1..4]) {
-            *c = lines.f64(tok, "coordinate", Some(id))?;
+            *c = lines
+                .f64(tok, "coordinate", Some(id))
+                .map_err(Error::about_node)?;
         }
-        let index = u32::try_from(raw.points.len())
-            .map_err(|_| lines.error(Some(id), "too many nodes", "split the mesh"))?;
+        let index = u32::try_from(raw.points.len()).map_err(|_| {
+            lines
+                .error(Some(id), "too many nodes", "split the mesh")
+                .about_node()
+        })?;
         ids.insert(id, index, path, lines.loc())?;
         if k == 0 {
             raw.notes

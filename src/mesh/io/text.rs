@@ -6,6 +6,9 @@ use std::str::FromStr;
 
 use crate::error::{Error, Location, Result};
 
+/// The UTF-8 encoding of U+FEFF, the byte-order mark.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
 /// A cursor over the lines of a (mostly) text file, tracking 1-based line numbers and byte
 /// offsets so that binary sections (Gmsh, VTK) can be read from the same position.
 ///
@@ -21,12 +24,18 @@ pub(crate) struct Lines<'a> {
 }
 
 impl<'a> Lines<'a> {
-    /// A cursor at the start of `bytes`; `comment` marks comment lines to skip.
+    /// A cursor at the start of `bytes`, after a UTF-8 byte-order mark if the file starts with
+    /// one (editors on Windows write it); `comment` marks comment lines to skip. Byte offsets
+    /// stay offsets in the file.
     pub(crate) fn new(path: &'a Path, bytes: &'a [u8], comment: Option<u8>) -> Self {
         Lines {
             path,
             bytes,
-            pos: 0,
+            pos: if bytes.starts_with(UTF8_BOM) {
+                UTF8_BOM.len()
+            } else {
+                0
+            },
             line: 0,
             comment,
         }

@@ -173,10 +173,15 @@ fn vertices(lines: &mut Lines, st: &mut State) -> Result<()> {
         }
         let mut p = [0.0; 3];
         for (c, t) in p.iter_mut().zip(&v[1..]) {
-            *c = lines.f64(t, "coordinate", Some(id))?;
+            *c = lines
+                .f64(t, "coordinate", Some(id))
+                .map_err(Error::about_node)?;
         }
-        let index = u32::try_from(st.raw.points.len())
-            .map_err(|_| lines.error(Some(id), "too many vertices", "split the mesh"))?;
+        let index = u32::try_from(st.raw.points.len()).map_err(|_| {
+            lines
+                .error(Some(id), "too many vertices", "split the mesh")
+                .about_node()
+        })?;
         st.ids.insert(id, index, lines.path(), lines.loc())?;
         st.raw.points.push(p);
         st.raw.point_ids.push(id);

@@ -469,7 +469,9 @@ impl<'a> Vtk<'a> {
             for i in 0..n {
                 let mut p = [0.0; 3];
                 for c in p.iter_mut() {
-                    *c = d.float(ty, "coordinate", Some(i as i64))?;
+                    *c = d
+                        .float(ty, "coordinate", Some(i as i64))
+                        .map_err(Error::about_node)?;
                 }
                 points.push(p);
             }
