@@ -7,13 +7,13 @@
 mod accuracy;
 mod bench;
 mod info;
+mod progress;
 mod run;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use lancet::engine::{EngineKind, NodeOrdering};
