@@ -143,8 +143,9 @@ enum Command {
         /// Mesh files (repeatable).
         #[arg(long)]
         mesh: Vec<PathBuf>,
-        /// Engines to compare, comma-separated.
-        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast"])]
+        /// Engines to compare, comma-separated. The GPU's rows (one per layout) are measured
+        /// when an adapter exists and listed as skipped, with the reason, when none does.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast", "gpu"])]
         engine: Vec<EngineArg>,
         /// GPU layouts to compare, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
