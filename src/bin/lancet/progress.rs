@@ -54,18 +54,13 @@ impl RunProgress {
 
     /// `done` of `total` steps have run.
     pub(crate) fn update(&mut self, done: u64, total: u64) {
-        if self.pending {
-            match expected_long(self.start.elapsed(), done, total) {
-                Some(true) => {
-                    self.pending = false;
-                    self.bar.set_length(total);
-                    self.bar.set_draw_target(ProgressDrawTarget::stderr());
-                }
-                // Judged short, or too early to tell: judged again at the next update, since
-                // a run can slow down (cuts add nodes). A clock reading costs far less than a
-                // step.
-                Some(false) | None => {}
-            }
+        // Judged short, or too early to tell, the run is judged again at the next update,
+        // since a run can slow down (cuts add nodes); a clock reading costs far less than a
+        // step.
+        if self.pending && expected_long(self.start.elapsed(), done, total) == Some(true) {
+            self.pending = false;
+            self.bar.set_length(total);
+            self.bar.set_draw_target(ProgressDrawTarget::stderr());
         }
         self.bar.set_position(done);
     }
