@@ -4,8 +4,9 @@
 //! frame, so a run that stops early, is killed, or is watched while it runs, always leaves a
 //! series ParaView can open. Syncing to disk, which costs more than writing a small frame, is
 //! kept off the per-frame path: frames and collection are synced together every
-//! [`SYNC_EVERY`] and when the series is finished, so that a crash of the system itself loses
-//! at most the frames since.
+//! [`SYNC_EVERY`] and when the series is finished. A crash of the system itself (not of the
+//! process) can lose the frames written since the last sync: they may then be missing or
+//! empty, though the collection lists them.
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -40,7 +41,8 @@ impl PvdWriter {
     /// An existing `<stem>.pvd` is replaced, and the frame files of an earlier series of the
     /// same name (`<stem>_<NNNNNN>.vtu`) are removed first, so that a rerun with fewer frames
     /// leaves none that its collection does not list, and so are the hidden temporary files a
-    /// killed writer of the series left (`.<stem>_<NNNNNN>.vtu.<pid>.tmp`, `.<stem>.pvd.<pid>.tmp`).
+    /// killed writer of the series left (`.<stem>_<NNNNNN>.vtu.<pid>.tmp`,
+    /// `.<stem>.pvd.<pid>.tmp`).
     pub fn new(dir: &Path, stem: &str, opts: VtuOptions) -> Result<Self> {
         if stem.is_empty() || stem.contains(['/', '\\']) || stem == "." || stem == ".." {
             return Err(Error::io(
@@ -97,9 +99,9 @@ impl PvdWriter {
     }
 
     /// Sync the frames written since the last sync, then the collection listing them, then
-    /// the folder (which holds their names), so that after a crash of the system the
-    /// collection lists only frames that are on disk. Done every [`SYNC_EVERY`] while frames
-    /// are written; call it once more at the end.
+    /// the folder (which holds their names): frames first, so that a collection on disk after
+    /// a sync lists only frames on disk. Done every [`SYNC_EVERY`] while frames are written;
+    /// call it once more at the end.
     pub fn finish(&mut self) -> Result<()> {
         for path in &self.unsynced {
             std::fs::OpenOptions::new()
