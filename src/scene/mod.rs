@@ -3,6 +3,7 @@
 pub mod cut_settings;
 pub mod cuts;
 pub mod expect;
+pub mod placement;
 pub mod runner;
 pub mod schema;
 pub mod tools;

@@ -150,6 +150,7 @@ pub fn build_mesh(scene: &Scene, scene_path: &Path) -> Result<TetMesh> {
             }
         }
     };
+    scene.mesh_transform.apply_to(&mut mesh);
     for rb in &scene.region_boxes {
         mesh.set_region_where(rb.tag, |c| {
             (0..3).all(|i| c[i] >= rb.min[i] && c[i] <= rb.max[i])
@@ -273,25 +274,19 @@ pub fn run_scene(
 
     // `--output DIR` turns output on even for a scene without an `output` section, writing
     // about ten frames.
-    let out_dir = opts.output_dir.clone().or_else(|| {
-        scene
-            .output
-            .as_ref()
-            .map(|o| scene_path.parent().unwrap_or(Path::new(".")).join(&o.dir))
-    });
     let every = scene
         .output
         .as_ref()
         .map_or((steps / 10).max(1), |o| o.every.max(1));
-    let mut frames = match out_dir {
-        Some(dir) if !opts.no_output => {
+    let mut frames = match output_dir(scene, scene_path, opts) {
+        Some(dir) => {
             let stem = series_stem(scene, opts.cut_method);
             let mut w = PvdWriter::new(&dir, &stem, Default::default())?;
             w.frame(0.0, &mesh, Some(&sim.positions()))?;
-            summary.pvd = Some(dir.join(format!("{stem}.pvd")));
+            summary.pvd = Some(w.pvd_path());
             Some((w, every))
         }
-        _ => None,
+        None => None,
     };
 
     let mut stage = super::tools::ToolStage::new(scene, &mesh, &mut sim)?;
@@ -357,7 +352,10 @@ pub fn run_scene(
     summary.dt_bound_final = sim.bound().dt;
     summary.dt_bound_node_final = sim.bound().node;
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
-    summary.frames_written = frames.as_ref().map_or(0, |(w, _)| w.frames());
+    if let Some((w, _)) = frames.as_mut() {
+        w.finish()?;
+        summary.frames_written = w.frames();
+    }
     summary.energy = sim.energy();
     let x = sim.positions();
     let mut mesh = mesh;
@@ -420,24 +418,48 @@ fn finish(
     summary.expectations_passed = clean && summary.expectations.iter().all(|r| r.passed);
 }
 
+/// The folder a run writes its frames to, if it writes any: `--output DIR` (which turns output
+/// on even for a scene without an `output` section, writing about ten frames) or the scene's
+/// `output.dir`, relative to the scene file's folder.
+pub fn output_dir(scene: &Scene, scene_path: &Path, opts: &RunOptions) -> Option<PathBuf> {
+    if opts.no_output {
+        return None;
+    }
+    opts.output_dir.clone().or_else(|| {
+        scene
+            .output
+            .as_ref()
+            .map(|o| scene_path.parent().unwrap_or(Path::new(".")).join(&o.dir))
+    })
+}
+
+/// The `.pvd` collection a run of `scene` with `opts` writes (its frames are named after it),
+/// if it writes any. A folder run compares these before it starts, so that no run replaces
+/// another's files.
+pub fn series_path(scene: &Scene, scene_path: &Path, opts: &RunOptions) -> Option<PathBuf> {
+    output_dir(scene, scene_path, opts)
+        .map(|dir| dir.join(format!("{}.pvd", series_stem(scene, opts.cut_method))))
+}
+
 /// The name of a run's series (its `.pvd` and frames): the scene's name made file-name-safe,
-/// and, for a scene that cuts, the method it runs with, so that the runs of a scene's methods
-/// do not write over one another.
+/// and, for a scene that cuts, `.` and the method it runs with, so that the runs of a scene's
+/// methods do not write over one another. A made-safe name never holds a `.`, so no scene's
+/// name can read as another scene's name and method.
 pub fn series_stem(scene: &Scene, cut_method: Option<crate::cut::CutMethod>) -> String {
     let stem = sanitize(&scene.name);
     let method = cut_method.or_else(|| scene.cut.as_ref().and_then(|c| c.methods.first().copied()));
     match method {
-        Some(m) => format!("{stem}_{}", sanitize(&m.to_string()).to_lowercase()),
+        Some(m) => format!("{stem}.{}", sanitize(&m.to_string()).to_lowercase()),
         None => stem,
     }
 }
 
-/// A file-name-safe version of a scene name: letters, digits, `-` and `_` kept, spaces made
-/// `_`. A name with any other character (`a.b`, `a/b`, `a:b` would all read `a_b`) gets a
-/// short hash of the whole name appended, so that names differing only in punctuation give
-/// different files.
+/// A file-name-safe version of a scene name, different for different names. A name of
+/// letters, digits, `-` and spaces keeps its readable form, spaces made `_`. Any other name
+/// (`a.b`, `a/b`, `a:b` and `a_b` would all read `a_b`, as would `a b`) is made safe the same
+/// way, every other character made `_`, and gets a short hash of the whole name appended.
 fn sanitize(name: &str) -> String {
-    let keep = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
+    let keep = |c: char| c.is_ascii_alphanumeric() || c == '-';
     let s: String = name
         .chars()
         .map(|c| if keep(c) { c } else { '_' })

@@ -247,6 +247,11 @@ pub struct Scene {
     pub name: String,
     /// The mesh.
     pub mesh: MeshSource,
+    /// Scale, rotation and translation of the mesh as read or generated (a file without units
+    /// or in millimetres brought to metres); everything else in the scene is in the placed
+    /// mesh's coordinates.
+    #[serde(default)]
+    pub mesh_transform: super::placement::MeshTransform,
     /// Region tags to assign to generated (or file) meshes, applied in order.
     #[serde(default)]
     pub region_boxes: Vec<RegionBox>,
@@ -487,6 +492,10 @@ impl Scene {
         scene
             .validate_time_step(path)
             .map_err(|e| at_field_line(e, text, "dt"))?;
+        scene.mesh_transform.validate().map_err(|m| Error::Scene {
+            path: path.to_path_buf(),
+            message: format!("mesh_transform: {m}"),
+        })?;
         scene.validate_fixed(path)?;
         scene.validate_expectations(path)?;
         Ok(scene)

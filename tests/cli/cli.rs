@@ -589,6 +589,49 @@ fn without_a_gpu_bench_runs_the_cpu_rows_and_skips_the_gpu_ones() {
     assert!(skipped[0].starts_with("gpu rows skipped: "), "{skipped:?}");
 }
 
+/// `lancet bench` without `--engine` once benchmarked the CPU engines only, the GPU layouts
+/// only when asked for; it measures every GPU layout when an adapter exists, and without one
+/// runs the CPU rows and lists the GPU rows as skipped with the reason.
+#[test]
+fn bench_includes_the_gpu_layouts_by_default() {
+    let args = ["bench", "--cube", "3", "--steps", "10", "--json"];
+    let engines = |v: &serde_json::Value| -> Vec<String> {
+        v["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["engine"].as_str().unwrap().to_string())
+            .collect()
+    };
+    if common::gpu().is_some() {
+        let v = ok_json(&lancet(&args));
+        let rows = engines(&v);
+        for layout in ["connectivity", "valence", "edges"] {
+            assert!(
+                rows.iter()
+                    .any(|e| e.starts_with("gpu-") && e.contains(layout)),
+                "no {layout} row in {rows:?}"
+            );
+        }
+        assert!(rows.iter().any(|e| e.contains("fast")), "{rows:?}");
+    } else {
+        assert_ne!(std::env::var("LANCET_REQUIRE_GPU").as_deref(), Ok("1"));
+    }
+    let v = ok_json(&lancet_without_gpu(&args));
+    let rows = engines(&v);
+    assert!(rows.iter().all(|e| !e.starts_with("gpu-")), "{rows:?}");
+    assert!(rows.iter().any(|e| e.contains("fast")), "{rows:?}");
+    let skipped = v["skipped"].as_array().unwrap();
+    assert_eq!(skipped.len(), 1, "{skipped:?}");
+    assert!(
+        skipped[0]
+            .as_str()
+            .unwrap()
+            .starts_with("gpu rows skipped: "),
+        "{skipped:?}"
+    );
+}
+
 #[test]
 fn without_a_gpu_auto_runs_on_the_cpu_and_says_why() {
     let out = lancet_without_gpu(&["run", "--engine", "auto", "--no-output"]);

@@ -295,3 +295,59 @@ fn a_scene_with_a_utf8_byte_order_mark_is_read() {
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!((marked.name, marked.steps), (plain.name, plain.steps));
 }
+
+/// A mesh transform that would turn every tet inside out or move nodes to no place is refused
+/// when the scene is read, naming the field.
+#[test]
+fn a_mesh_transform_without_a_positive_finite_scale_is_refused() {
+    for bad in [
+        "mesh_transform: (scale: 0.0),",
+        "mesh_transform: (scale: -0.001),",
+        "mesh_transform: (scale: NaN),",
+        "mesh_transform: (rotation: (0.0, inf, 0.0)),",
+    ] {
+        let msg = refusal(&scene_with(bad)).to_string();
+        assert!(
+            msg.contains("mesh_transform") && msg.contains("x.ron"),
+            "{bad}: {msg}"
+        );
+    }
+    // Translated, rotated and scaled, a box keeps its volume times the cube of the scale.
+    let path = Path::new("x.ron");
+    let placed = Scene::from_ron(
+        &scene_with(
+            "mesh_transform: (scale: 2.0, rotation: (30.0, 45.0, 60.0), translation: (1.0, 0.0, 0.0)),",
+        ),
+        path,
+    )
+    .unwrap();
+    let mesh = lancet::scene::runner::build_mesh(&placed, path).unwrap();
+    let volume = mesh.volume();
+    assert!((volume / 8e-6 - 1.0).abs() < 1e-9, "{volume}");
+    assert!(mesh.tets().all(|(_, t)| {
+        let [a, b, c, d] = mesh.tet_points(t);
+        (b - a).cross(&(c - a)).dot(&(d - a)) > 0.0
+    }));
+}
+
+/// Scale first, then rotate (about x, then y, then z), then translate: (1, 0, 0) scaled by 2,
+/// turned 90 degrees about z and moved up by 1 is (0, 2, 1); (0, 1, 0) turned about x goes to
+/// z, which the turn about z then leaves alone.
+#[test]
+fn a_mesh_transform_scales_then_rotates_then_translates() {
+    use lancet::scene::placement::MeshTransform;
+    use nalgebra::Point3;
+    let t = MeshTransform {
+        scale: 2.0,
+        rotation: [0.0, 0.0, 90.0],
+        translation: [0.0, 0.0, 1.0],
+    };
+    let p = t.apply(Point3::new(1.0, 0.0, 0.0));
+    assert!((p - Point3::new(0.0, 2.0, 1.0)).norm() < 1e-12, "{p}");
+    let t = MeshTransform {
+        rotation: [90.0, 0.0, 90.0],
+        ..Default::default()
+    };
+    let p = t.apply(Point3::new(0.0, 1.0, 0.0));
+    assert!((p - Point3::new(0.0, 0.0, 1.0)).norm() < 1e-12, "{p}");
+}

@@ -7,13 +7,13 @@
 mod accuracy;
 mod bench;
 mod info;
+mod progress;
 mod run;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use lancet::engine::{EngineKind, NodeOrdering};
@@ -143,8 +143,9 @@ enum Command {
         /// Mesh files (repeatable).
         #[arg(long)]
         mesh: Vec<PathBuf>,
-        /// Engines to compare, comma-separated.
-        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast"])]
+        /// Engines to compare, comma-separated. The GPU's rows (one per layout) are measured
+        /// when an adapter exists and listed as skipped, with the reason, when none does.
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["reference", "fast", "gpu"])]
         engine: Vec<EngineArg>,
         /// GPU layouts to compare, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]

@@ -30,6 +30,9 @@ pub(crate) fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet
         Some(p) => vec![(Scene::read(p)?, p.to_path_buf())],
     };
     let folder = scene.is_some_and(|p| p.is_dir());
+    if let Some(dir) = scene.filter(|_| folder) {
+        check_distinct_series(dir, &scenes, opts)?;
+    }
     let mut summaries = Vec::with_capacity(scenes.len());
     for (scene, path) in &scenes {
         for w in scene.warnings() {
@@ -47,20 +50,15 @@ pub(crate) fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet
             );
             continue;
         }
-        // A scene that cuts runs once per method it names, unless --method picks one.
-        let methods: Vec<Option<lancet::cut::CutMethod>> = match (&scene.cut, opts.cut_method) {
-            (Some(_), Some(m)) => vec![Some(m)],
-            (Some(c), None) => c.methods.iter().map(|&m| Some(m)).collect(),
-            (None, _) => vec![None],
-        };
-        for method in methods {
+        for method in run_methods(scene, opts) {
             let opts = RunOptions {
                 cut_method: method,
                 ..opts.clone()
             };
-            let bar = progress_bar(scene, &opts, json);
-            let summary = run_scene(scene, path, &opts, |done, _| bar.set_position(done));
-            bar.finish_and_clear();
+            let steps = opts.steps.unwrap_or(scene.steps);
+            let mut bar = crate::progress::RunProgress::new(&scene.name, steps, json);
+            let summary = run_scene(scene, path, &opts, |done, total| bar.update(done, total));
+            bar.finish();
             let summary = summary?;
             if !json {
                 print_summary(&summary);
@@ -92,6 +90,77 @@ pub(crate) fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet
     })
 }
 
+/// The cut methods `scene` runs with, once each: those it names, unless `--method` picks one;
+/// `[None]` for a scene that does not cut.
+fn run_methods(scene: &Scene, opts: &RunOptions) -> Vec<Option<lancet::cut::CutMethod>> {
+    match (&scene.cut, opts.cut_method) {
+        (Some(_), Some(m)) => vec![Some(m)],
+        (Some(c), None) => c.methods.iter().map(|&m| Some(m)).collect(),
+        (None, _) => vec![None],
+    }
+}
+
+/// Refuse a folder run, before anything runs, in which two runs would write the same series
+/// (the later one's frames would silently replace the earlier one's): two scenes with the
+/// same name, or names that differ only in letter case (one file on macOS and Windows), in the
+/// same output folder. The error names both scene files and the series.
+pub(crate) fn check_distinct_series(
+    folder: &Path,
+    scenes: &[(Scene, PathBuf)],
+    opts: &RunOptions,
+) -> lancet::Result<()> {
+    let mut seen: std::collections::HashMap<String, (PathBuf, &Path, &str)> =
+        std::collections::HashMap::new();
+    for (scene, path) in scenes {
+        if needs_mesh_dir(scene) && std::env::var_os("LANCET_MESH_DIR").is_none() {
+            continue; // skipped: writes nothing
+        }
+        for method in run_methods(scene, opts) {
+            let opts = RunOptions {
+                cut_method: method,
+                ..opts.clone()
+            };
+            let Some(pvd) = lancet::scene::runner::series_path(scene, path, &opts) else {
+                continue;
+            };
+            let key = comparable(&pvd);
+            if let Some((first, first_path, first_name)) = seen.get(&key) {
+                let case = if *first == pvd {
+                    ""
+                } else {
+                    " (the names differ only in letter case: one file where case is ignored,                      as on macOS and Windows)"
+                };
+                return Err(lancet::Error::Scene {
+                    path: folder.to_path_buf(),
+                    message: format!(
+                        "{} (scene {first_name:?}) and {} (scene {:?}) would both write the                          series {}{case}; nothing was run. Give the scenes different names or                          output folders",
+                        first_path.display(),
+                        path.display(),
+                        scene.name,
+                        first.display()
+                    ),
+                });
+            }
+            seen.insert(key, (pvd, path, &scene.name));
+        }
+    }
+    Ok(())
+}
+
+/// A series path in a form that two paths to the same file share: the folder resolved where
+/// it exists (lexically cleaned where not yet), letters lower-cased.
+fn comparable(pvd: &Path) -> String {
+    let dir = pvd.parent().unwrap_or(Path::new("."));
+    let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| {
+        dir.components()
+            .filter(|c| !matches!(c, std::path::Component::CurDir))
+            .collect()
+    });
+    dir.join(pvd.file_name().unwrap_or_default())
+        .to_string_lossy()
+        .to_lowercase()
+}
+
 /// Why `--method` or `--check`, when given, do nothing for `scene`: both act on cuts, and a
 /// scene without a `cut` section makes none. Said rather than refused, so that a folder of
 /// scenes, some of which cut, can still be run with them.
@@ -118,23 +187,6 @@ pub(crate) fn ignored_cut_options(scene: &Scene, opts: &RunOptions) -> Option<St
 /// Whether a scene reads its mesh from the folder of real meshes.
 pub(crate) fn needs_mesh_dir(scene: &Scene) -> bool {
     matches!(&scene.mesh, lancet::scene::MeshSource::File(f) if f.starts_with("$LANCET_MESH_DIR/"))
-}
-
-/// A progress bar on stderr for long runs; hidden for short runs, JSON output, or when stderr
-/// is not a terminal (indicatif checks that).
-pub(crate) fn progress_bar(scene: &Scene, opts: &RunOptions, json: bool) -> ProgressBar {
-    let steps = opts.steps.unwrap_or(scene.steps);
-    if json || steps < 2000 {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(steps);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps, eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(scene.name.clone());
-    bar
 }
 
 pub(crate) fn print_summary(s: &RunSummary) {

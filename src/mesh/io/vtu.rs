@@ -10,7 +10,7 @@
 
 mod write;
 
-pub(crate) use write::atomic_write;
+pub(crate) use write::{is_temp_of, replace_file, write_vtu_synced};
 pub use write::{write_vtu, write_vtu_to, VtuEncoding, VtuOptions};
 
 use std::borrow::Cow;

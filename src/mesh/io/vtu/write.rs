@@ -146,8 +146,20 @@ pub fn write_vtu(
     positions: Option<&[[f64; 3]]>,
     opts: &VtuOptions,
 ) -> Result<()> {
+    write_vtu_synced(path, mesh, positions, opts, true)
+}
+
+/// [`write_vtu`], syncing the file to disk before the rename only when `sync` is set: a
+/// series syncs its frames in batches instead (see [`crate::mesh::io::pvd::PvdWriter`]).
+pub(crate) fn write_vtu_synced(
+    path: &Path,
+    mesh: &TetMesh,
+    positions: Option<&[[f64; 3]]>,
+    opts: &VtuOptions,
+    sync: bool,
+) -> Result<()> {
     let grid = grid(mesh, positions)?;
-    atomic_write(path, |w| write_grid(w, &grid, opts))
+    replace_file(path, sync, |w| write_grid(w, &grid, opts))
 }
 
 /// Write `mesh` as `.vtu` to any writer; see [`write_vtu`] for the content. I/O errors are
@@ -163,9 +175,13 @@ pub fn write_vtu_to<W: Write>(
 }
 
 /// Write a file by writing a temporary file in the same directory (same file system, so the
-/// rename is atomic), syncing it, and renaming it over `path`.
-pub(crate) fn atomic_write(
+/// rename is atomic) and renaming it over `path`; with `sync`, the temporary file is synced to
+/// disk before the rename. Unsynced, the file is still whole or absent for any reader, and
+/// after the process is killed (the system holds the written pages); only a crash of the
+/// system itself can lose it.
+pub(crate) fn replace_file(
     path: &Path,
+    sync: bool,
     write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> Result<()> {
     let tmp = temp_path(path);
@@ -173,7 +189,9 @@ pub(crate) fn atomic_write(
         let mut w = BufWriter::new(File::create(&tmp)?);
         write(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
+        if sync {
+            file.sync_all()?;
+        }
         std::fs::rename(&tmp, path)
     })();
     result.map_err(|e| {
@@ -184,6 +202,7 @@ pub(crate) fn atomic_write(
 }
 
 /// `dir/.name.<pid>.tmp`: hidden, and distinct per process so parallel writers do not collide.
+/// [`is_temp_of`] recognises them, so that the leftovers of a killed writer can be removed.
 fn temp_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()
@@ -386,4 +405,15 @@ fn zlib_block(data: &[u8]) -> io::Result<Vec<u8>> {
         out.extend_from_slice(s);
     }
     Ok(out)
+}
+
+/// Whether `file_name` is a temporary file [`replace_file`] makes (by any process) while it
+/// writes a file named `target`: `.<target>.<pid>.tmp`.
+pub(crate) fn is_temp_of(file_name: &str, target: &str) -> bool {
+    file_name
+        .strip_prefix('.')
+        .and_then(|r| r.strip_prefix(target))
+        .and_then(|r| r.strip_prefix('.'))
+        .and_then(|r| r.strip_suffix(".tmp"))
+        .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
 }
