@@ -43,7 +43,8 @@ impl Simulation {
     /// `exact` forces an exact check where the probe would do.
     pub(super) fn check_run(&mut self, exact: bool) -> Result<Option<f64>> {
         if !exact {
-            if let Some(h) = self.engine.health()? {
+            if let Some(device) = self.engine.device() {
+                let h = device.health()?;
                 let lower = h.kinetic + h.gravity;
                 if h.non_finite.is_none()
                     && lower.is_finite()
