@@ -387,21 +387,6 @@ fn errors_of(
         .collect()
 }
 
-/// Whether a GPU engine can be built here, and if not, why.
-/// Whether a GPU engine can start here: `Err` with the reason (no adapter, no `gpu` feature).
-pub(crate) fn gpu_usable() -> std::result::Result<(), String> {
-    #[cfg(feature = "gpu")]
-    {
-        crate::engine::gpu::GpuContext::new()
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    }
-    #[cfg(not(feature = "gpu"))]
-    {
-        Err("this build has no GPU engine (enable the `gpu` cargo feature)".into())
-    }
-}
-
 /// The accuracy report of `model` run for `duration` simulated seconds with `integrator`.
 ///
 /// `progress` receives a line before each run starts (what runs, at which step), for a
@@ -507,7 +492,7 @@ pub fn model_accuracy(
         };
         let entries: Vec<(LayoutKind, String)> = match e {
             EngineKind::Gpu => {
-                let usable = gpu_state.get_or_insert_with(gpu_usable);
+                let usable = gpu_state.get_or_insert_with(super::gpu_usable);
                 if let Err(why) = usable {
                     let msg = format!("gpu rows skipped: {why}");
                     if !skipped.contains(&msg) {

@@ -252,7 +252,7 @@ pub fn run_bench(
             // Without a usable adapter the GPU rows are skipped with the reason, once, and the
             // CPU rows still run, as `lancet report accuracy` does.
             if v.engine == EngineKind::Gpu {
-                if let Err(why) = gpu_state.get_or_insert_with(super::accuracy::gpu_usable) {
+                if let Err(why) = gpu_state.get_or_insert_with(super::gpu_usable) {
                     let msg = format!("gpu rows skipped: {why}");
                     if !report.skipped.contains(&msg) {
                         report.skipped.push(msg);
