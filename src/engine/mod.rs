@@ -1,7 +1,7 @@
 //! Engines that step a [`PackedModel`], and the [`Simulation`] that drives one safely.
 //!
-//! An [`Engine`] only steps: it has no checks, so that its inner loop stays tight (and, for the
-//! GPU later, so that many steps go into one submission). [`Simulation`] owns an engine and
+//! An [`Engine`] only steps: it has no checks, so that its inner loop stays tight (and, on the
+//! GPU, so that many steps go into one submission). [`Simulation`] owns an engine and
 //! adds what a user must be able to rely on: a time step above the stable bound is refused,
 //! and divergence (NaN, infinity, exploding energy) is caught within [`SimConfig::check_every`]
 //! steps and reported with the step and node.

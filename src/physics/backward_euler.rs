@@ -1,5 +1,6 @@
 //! Linearised backward Euler with matrix-free preconditioned conjugate gradients, in float64:
-//! the implicit integrator of the seed's §3.1 on the [`TimeIntegrator`] seam.
+//! the implicit integrator (Sørensen and Mosegaard's §3.1, after Baraff and Witkin) on the
+//! [`TimeIntegrator`] seam.
 //!
 //! One step solves (Baraff and Witkin)
 //!
@@ -31,7 +32,7 @@ pub struct SolverSettings {
     /// Stop after this many conjugate-gradient iterations whatever the residual (counted in
     /// [`SolverStats::capped`]).
     pub max_iterations: u32,
-    /// Newton iterations per step: 1 is Baraff and Witkin's linearised step.
+    /// Newton iterations per step: 1 (or 0, taken as 1) is Baraff and Witkin's linearised step.
     pub newton_iterations: u32,
     /// The stiffness matrix the system is built on.
     pub linearization: Linearization,
@@ -57,13 +58,16 @@ pub struct SolverStats {
     pub iterations: u64,
     /// The most iterations one solve took.
     pub max_iterations: u32,
-    /// Solves stopped by the iteration cap before reaching the tolerance.
+    /// Solves that ended above the tolerance: stopped by the iteration cap, or by a direction
+    /// of non-positive curvature (possible only with [`Linearization::Exact`] under
+    /// compression), where the solve keeps what it reached (nothing, at the first iteration:
+    /// the step then moves the nodes at their current velocity).
     pub capped: u64,
     /// Relative residual at the end of the last solve.
     pub last_residual: f64,
 }
 
-/// The backward Euler integrator with its scratch vectors and statistics.
+/// The backward Euler integrator: its settings and statistics.
 #[derive(Debug, Clone, Default)]
 pub struct BackwardEuler {
     settings: SolverSettings,

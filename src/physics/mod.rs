@@ -1,6 +1,7 @@
 //! The step in one place: what one step of the model computes, apart from where its data lives.
 //!
-//! Two seams carry the physics, and every engine and layout goes through them:
+//! Two seams carry the physics. The reference engine steps through them; the float32 kernels of
+//! the fast engine and of every GPU layout are their twins, in their own precision and order:
 //! - the **force model** ([`ForceModel`], in [`force_model`]): the force of the elements on
 //!   their nodes from the current state, and its Jacobian-vector products. Springs today
 //!   ([`SpringForces`], [`springs`]): a scalar stiffness and damping along each tet edge. A

@@ -33,6 +33,7 @@ use super::bench::relative_l2;
 use crate::engine::reference::ReferenceEngine;
 use crate::engine::{Engine, EngineKind, GpuOptions, Integrator, SimConfig, Simulation};
 use crate::error::{Error, Result};
+use crate::layout::edges::Accumulation;
 use crate::layout::LayoutKind;
 use crate::model::{stable_time_step, PackedModel};
 use crate::physics::RungeKutta4;
@@ -52,6 +53,10 @@ pub struct AccuracyOptions {
     pub engines: Vec<EngineKind>,
     /// Layouts to run each GPU engine in.
     pub layouts: Vec<LayoutKind>,
+    /// How the edge layout accumulates spring forces: one series per variant (`gpu-edges` for
+    /// the gather, `gpu-edges-atomic-fixed`, `gpu-edges-atomic-float`); a variant the adapter
+    /// cannot run is listed in [`AccuracyReport::skipped`] with the reason.
+    pub accumulations: Vec<Accumulation>,
     /// Time steps as fractions of the stable bound, each in (0, 1].
     pub ladder: Vec<f64>,
     /// Simulated times at which errors are measured, s; empty for a quarter, a half and all of
@@ -81,6 +86,7 @@ impl Default for AccuracyOptions {
                 LayoutKind::Valence,
                 LayoutKind::Edges,
             ],
+            accumulations: vec![Accumulation::Gather],
             ladder: DEFAULT_LADDER.to_vec(),
             times: Vec::new(),
             reference_fraction: DEFAULT_REFERENCE_FRACTION,
@@ -280,12 +286,12 @@ impl Run {
 /// readbacks are not.
 fn run_to(
     model: &PackedModel,
-    (kind, layout): (EngineKind, LayoutKind),
+    (kind, gpu): (EngineKind, GpuOptions),
     config: SimConfig,
     counts: &[u64],
     opts: &AccuracyOptions,
 ) -> Result<Run> {
-    let mut sim = Simulation::with_gpu(model.clone(), kind, config, GpuOptions::from(layout))?;
+    let mut sim = Simulation::with_gpu(model.clone(), kind, config, gpu)?;
     let engine = sim.engine_name();
     sim.step_unchecked(opts.warmup_steps);
     let zero;
@@ -328,6 +334,38 @@ fn run_to(
         run.states.push(sim.positions());
     }
     Ok(run)
+}
+
+/// The GPU series: one per layout, and for the edge layout one per accumulation variant
+/// (`gpu-edges` for the gather, `gpu-edges-<variant>` for the others).
+fn gpu_series(layouts: &[LayoutKind], accumulations: &[Accumulation]) -> Vec<(GpuOptions, String)> {
+    let mut out = Vec::new();
+    for &layout in layouts {
+        let base = format!("gpu-{layout:?}").to_lowercase();
+        if layout != LayoutKind::Edges {
+            out.push((GpuOptions::from(layout), base));
+            continue;
+        }
+        let variants = if accumulations.is_empty() {
+            &[Accumulation::Gather][..]
+        } else {
+            accumulations
+        };
+        for &accumulation in variants {
+            let name = match accumulation {
+                Accumulation::Gather => base.clone(),
+                a => format!("{base}-{}", super::bench::accumulation_name(a)),
+            };
+            out.push((
+                GpuOptions {
+                    layout,
+                    accumulation,
+                },
+                name,
+            ));
+        }
+    }
+    out
 }
 
 /// The converged reference: [`RungeKutta4`] on the float64 reference engine at `dt`, read at
@@ -483,14 +521,14 @@ pub fn model_accuracy(
     // The series: each CPU engine once, each GPU engine once per layout.
     let mut skipped = Vec::new();
     let mut gpu_state: Option<std::result::Result<(), String>> = None;
-    let mut series: Vec<(EngineKind, LayoutKind, String)> = Vec::new();
+    let mut series: Vec<(EngineKind, GpuOptions, String)> = Vec::new();
     for &e in &opts.engines {
         let e = if e == EngineKind::Auto {
             EngineKind::Gpu
         } else {
             e
         };
-        let entries: Vec<(LayoutKind, String)> = match e {
+        let entries: Vec<(GpuOptions, String)> = match e {
             EngineKind::Gpu => {
                 let usable = gpu_state.get_or_insert_with(super::gpu_usable);
                 if let Err(why) = usable {
@@ -500,12 +538,9 @@ pub fn model_accuracy(
                     }
                     continue;
                 }
-                opts.layouts
-                    .iter()
-                    .map(|&l| (l, format!("gpu-{l:?}").to_lowercase()))
-                    .collect()
+                gpu_series(&opts.layouts, &opts.accumulations)
             }
-            _ => vec![(LayoutKind::default(), e.to_string())],
+            _ => vec![(GpuOptions::default(), e.to_string())],
         };
         for (l, name) in entries {
             if !series.iter().any(|(_, _, n)| *n == name) {
@@ -515,7 +550,7 @@ pub fn model_accuracy(
     }
 
     let mut rows = Vec::new();
-    for (kind, layout, name) in &series {
+    'series: for (kind, gpu, name) in &series {
         for &fraction in &opts.ladder {
             let (dt, counts) = step_for_times(&times, fraction * bound.dt)?;
             progress(&format!(
@@ -523,7 +558,16 @@ pub fn model_accuracy(
                 last(&counts)
             ));
             let config = SimConfig { dt, ..base };
-            let run = run_to(model, (*kind, *layout), config, &counts, opts)?;
+            let run = match run_to(model, (*kind, *gpu), config, &counts, opts) {
+                Ok(run) => run,
+                // A variant the adapter lacks a feature for (float atomics) is skipped with the
+                // reason; the other series still run.
+                Err(Error::Unsupported(why)) if *kind == EngineKind::Gpu => {
+                    skipped.push(format!("{name} skipped: {why}"));
+                    continue 'series;
+                }
+                Err(e) => return Err(e),
+            };
             let wall_s_per_sim_s = run.wall_per_sim_s();
             rows.push(AccuracyRow {
                 series: name.clone(),
@@ -567,6 +611,23 @@ pub fn scene_accuracy(
         path: scene_path.to_path_buf(),
         message,
     };
+    // The report steps the scene's model alone: tools, cuts and self-contact would be dropped
+    // without a word, and the error of a motionless model means nothing.
+    let extras: Vec<&str> = [
+        (!scene.tools.is_empty(), "tools"),
+        (scene.cut.is_some(), "a cut"),
+        (scene.self_contact.is_some(), "self-contact"),
+    ]
+    .iter()
+    .filter(|(has, _)| *has)
+    .map(|(_, what)| *what)
+    .collect();
+    if !extras.is_empty() {
+        return Err(scene_err(format!(
+            "report accuracy measures the time-step error of the model alone and would run this scene without its {}; give a scene without them (its material, mesh, fixed nodes and gravity)",
+            extras.join(", ")
+        )));
+    }
     let mesh = build_mesh(scene, scene_path)?;
     let model = crate::model::SpringModel::build(&mesh, &model_config(scene))
         .map_err(|e| scene_err(e.to_string()))?

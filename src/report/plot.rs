@@ -179,8 +179,13 @@ fn draw<DB: DrawingBackend>(
     if !(y0.is_finite() && y1 > 0.0) {
         (y0, y1) = (1e-8, 1.0);
     }
-    // Pad by a factor on each side so that points do not sit on the frame.
-    let (x0, x1, y0, y1) = (x0 / 1.5, x1 * 1.5, y0 / 3.0, y1 * 3.0);
+    // Pad by a factor on each side so that points do not sit on the frame, then out to whole
+    // decades: a log axis labels its decades, so a range inside one (a single point, or a
+    // ladder whose run times differ by less than ten times) would show no tick label at all.
+    let decade_below = |v: f64| 10f64.powf(v.log10().floor());
+    let decade_above = |v: f64| 10f64.powf(v.log10().ceil());
+    let (x0, x1) = (decade_below(x0 / 1.5), decade_above(x1 * 1.5));
+    let (y0, y1) = (decade_below(y0 / 3.0), decade_above(y1 * 3.0));
 
     let mut builder = ChartBuilder::on(&area);
     builder.margin(15);

@@ -196,7 +196,8 @@ pub fn check(e: &Expectation, s: &FinalState) -> ExpectationResult {
                 EnergyPart::Gravity => s.energy.gravity,
                 EnergyPart::Total => s.energy.total(),
             };
-            ranged(format!("{part:?} energy (J)").to_lowercase(), v, *min, *max)
+            let part = format!("{part:?}").to_lowercase();
+            ranged(format!("{part} energy (J)"), v, *min, *max)
         }
         Expectation::Method(method, inner) => {
             if s.method == Some(*method) {

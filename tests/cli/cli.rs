@@ -88,7 +88,7 @@ fn run_on_a_folder_runs_every_scene_and_prints_a_table() {
         String::from_utf8_lossy(&out.stderr)
     );
     // A scene that cuts runs once per method it names.
-    let scenes: usize = std::fs::read_dir(fixtures())
+    let scenes: Vec<usize> = std::fs::read_dir(fixtures())
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|x| x == "ron"))
@@ -99,9 +99,10 @@ fn run_on_a_folder_runs_every_scene_and_prints_a_table() {
                 || !matches!(&s.mesh, lancet::scene::MeshSource::File(f) if f.starts_with("$LANCET_MESH_DIR/"))
         })
         .map(|s| s.cut.map_or(1, |c| c.methods.len()))
-        .sum();
+        .collect::<Vec<_>>();
+    let (runs, scenes) = (scenes.iter().sum::<usize>(), scenes.len());
     assert!(
-        stdout.contains(&format!("{scenes} scenes, 0 failed")),
+        stdout.contains(&format!("{runs} runs ({scenes} scenes), 0 failed")),
         "{stdout}"
     );
     // The columns say what they hold: expectations met of those listed, nodes before and

@@ -5,6 +5,7 @@ use std::path::Path;
 
 use lancet::engine::EngineKind;
 use lancet::engine::Integrator;
+use lancet::layout::edges::Accumulation;
 use lancet::layout::LayoutKind;
 use lancet::report::accuracy::{
     model_accuracy, scene_accuracy, step_for_times, AccuracyOptions, AccuracyReport, AccuracyRow,
@@ -246,6 +247,53 @@ fn every_engine_and_layout_appears_once_per_dt_with_positive_times() {
     assert!(report.reference.wall_s_per_sim_s > 0.0);
 }
 
+/// `--accumulation`: the edge layout runs once per accumulation variant, each its own series
+/// named for it, with the float64 Verlet engine's error at the same step (the variants change
+/// only the order of float32 additions); a variant the adapter cannot run is listed as skipped.
+#[test]
+fn each_edge_accumulation_is_its_own_series() {
+    if common::gpu().is_none() {
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    let opts = AccuracyOptions {
+        engines: vec![EngineKind::Reference, EngineKind::Gpu],
+        layouts: vec![LayoutKind::Valence, LayoutKind::Edges],
+        accumulations: vec![
+            Accumulation::Gather,
+            Accumulation::AtomicFixed,
+            Accumulation::AtomicFloat,
+        ],
+        ..cpu_options(&[0.5])
+    };
+    let report = run(&tiny_box(0.0), &opts);
+    let series = report.series();
+    for s in ["gpu-valence", "gpu-edges", "gpu-edges-atomic-fixed"] {
+        assert!(series.iter().any(|x| x == s), "{s} missing from {series:?}");
+    }
+    let float_ran = series.iter().any(|x| x == "gpu-edges-atomic-float");
+    let float_skipped = report
+        .skipped
+        .iter()
+        .any(|m| m.contains("gpu-edges-atomic-float"));
+    assert!(
+        float_ran != float_skipped,
+        "{series:?} {:?}",
+        report.skipped
+    );
+    assert_eq!(series.len(), 4 + usize::from(float_ran), "{series:?}");
+    let reference = rows(&report, "cpu-reference-f64")[0].worst_relative_l2();
+    for s in series.iter().filter(|s| s.starts_with("gpu-edges")) {
+        let row = rows(&report, s)[0];
+        assert!(row.engine.contains("edges"), "{}", row.engine);
+        let e = row.worst_relative_l2();
+        assert!(
+            (e - reference).abs() <= 0.05 * reference,
+            "{s}: {e:e} vs {reference:e}"
+        );
+    }
+}
+
 #[test]
 fn steps_divide_every_sample_time() {
     let (dt, counts) = step_for_times(&[0.01, 0.025], 1e-3).unwrap();
@@ -266,6 +314,24 @@ fn steps_divide_every_sample_time() {
     }
     assert!(step_for_times(&[1.0, std::f64::consts::SQRT_2], 1e-3).is_err());
     assert!(step_for_times(&[0.0], 1e-3).is_err());
+}
+
+/// A scene with tools or cuts is refused, naming what the report would leave out: it steps the
+/// model alone (the crossing-cut box, run without its blades, does not move at all).
+#[test]
+fn scenes_with_tools_or_cuts_are_refused_naming_what_would_be_left_out() {
+    for (file, what) in [
+        ("cut_two_crossing.ron", "a cut"),
+        ("grasp_lift.ron", "tools"),
+    ] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures/scenes")
+            .join(file);
+        let scene = Scene::read(&path).unwrap();
+        let err = scene_accuracy(&scene, &path, &cpu_options(&[1.0]), |_| {}).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains(what) && msg.contains(file), "{file}: {msg}");
+    }
 }
 
 #[test]

@@ -198,6 +198,10 @@ enum ReportCommand {
         /// GPU layouts, comma-separated.
         #[arg(long, value_enum, value_delimiter = ',', default_values = ["connectivity", "valence", "edges"])]
         layout: Vec<LayoutArg>,
+        /// Accumulation variants of the GPU edge layout, comma-separated (each gives its own
+        /// series; `atomic-float` is skipped with a note on adapters without float atomics).
+        #[arg(long, value_enum, value_delimiter = ',', default_values = ["gather"])]
+        accumulation: Vec<AccumulationArg>,
         /// Time steps as fractions of the stable bound, comma-separated, each in (0, 1].
         #[arg(long, value_delimiter = ',', default_values = ["1", "0.5", "0.25", "0.125", "0.0625"])]
         ladder: Vec<f64>,
@@ -416,6 +420,7 @@ fn main() -> ExitCode {
                     scene,
                     engine,
                     layout,
+                    accumulation,
                     ladder,
                     time,
                     reference,
@@ -427,6 +432,7 @@ fn main() -> ExitCode {
             let opts = lancet::report::accuracy::AccuracyOptions {
                 engines: engine.iter().map(|&e| e.into()).collect(),
                 layouts: layout.iter().map(|&l| l.into()).collect(),
+                accumulations: accumulation.iter().map(|&a| a.into()).collect(),
                 ladder,
                 times: time,
                 reference_fraction: reference,

@@ -41,6 +41,16 @@ pub(crate) fn run(scene: Option<&Path>, json: bool, opts: &RunOptions) -> lancet
         if let Some(note) = ignored_cut_options(scene, opts) {
             eprintln!("note: {}: {note}", path.display());
         }
+        // The layout and accumulation choose how the GPU engine runs; a CPU engine has neither.
+        let engine = opts.engine.unwrap_or(scene.engine);
+        if matches!(engine, EngineKind::Reference | EngineKind::Fast)
+            && (opts.layout.is_some() || opts.accumulation.is_some())
+        {
+            eprintln!(
+                "note: {}: --layout and --accumulation apply to the GPU engine; the {engine} engine ignores them",
+                path.display()
+            );
+        }
         // In a folder run, a scene on a real mesh is skipped (with a note) when the folder of
         // real meshes is not configured; run on its own it is an error that says so.
         if folder && needs_mesh_dir(scene) && std::env::var_os("LANCET_MESH_DIR").is_none() {
@@ -128,12 +138,12 @@ pub(crate) fn check_distinct_series(
                 let case = if *first == pvd {
                     ""
                 } else {
-                    " (the names differ only in letter case: one file where case is ignored,                      as on macOS and Windows)"
+                    " (the names differ only in letter case: one file where case is ignored, as on macOS and Windows)"
                 };
                 return Err(lancet::Error::Scene {
                     path: folder.to_path_buf(),
                     message: format!(
-                        "{} (scene {first_name:?}) and {} (scene {:?}) would both write the                          series {}{case}; nothing was run. Give the scenes different names or                          output folders",
+                        "{} (scene {first_name:?}) and {} (scene {:?}) would both write the series {}{case}; nothing was run. Give the scenes different names or output folders",
                         first_path.display(),
                         path.display(),
                         scene.name,
@@ -437,7 +447,15 @@ pub(crate) fn print_table(summaries: &[RunSummary]) {
         println!("* a cut lowered dt during the run; the final dt is shown");
     }
     let failed = summaries.iter().filter(|s| !s.expectations_passed).count();
-    println!("{} scenes, {} failed", summaries.len(), failed);
+    // A scene that cuts runs once per method it lists: count both.
+    let scenes: std::collections::BTreeSet<&str> =
+        summaries.iter().map(|s| s.scene.as_str()).collect();
+    println!(
+        "{} runs ({} scenes), {} failed",
+        summaries.len(),
+        scenes.len(),
+        failed
+    );
 }
 
 /// A measured value for the summary: a whole number (a count: fragments, cuts, nodes) as one,

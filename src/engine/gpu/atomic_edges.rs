@@ -9,7 +9,7 @@ use wgpu::util::DeviceExt;
 use super::buffers::{self, Sizing};
 use super::layout_buffers::{self, LayoutBuffers};
 use super::springs_edges::upload;
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::{Error, Result};
 use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};
 use crate::layout::patch::LayoutArray;
@@ -92,7 +92,7 @@ impl AtomicEdgePasses {
         accumulation: Accumulation,
         fp: FixedPoint,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         sizing: Sizing,
     ) -> Result<Self> {
         let fixed = match accumulation {
@@ -288,7 +288,7 @@ impl LayoutBuffers for AtomicEdgePasses {
         &mut self,
         ctx: &GpuContext,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<()> {
         let d = &ctx.device;
         // Grown masses: accumulators for all the nodes they have room for.

@@ -10,7 +10,7 @@
 
 use super::broad_tool::ToolCuller;
 use super::buffers::{self, Sizing};
-use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
+use super::{dispatch_size, GpuContext, StateBuffers, WORKGROUP};
 use crate::collide::self_broad::GridParams;
 use crate::error::{Error, Result};
 
@@ -108,7 +108,7 @@ impl SelfCuller {
         ctx: &GpuContext,
         grid: GridParams,
         tool: &ToolCuller,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<Self> {
         let d = &ctx.device;
         let storage =
@@ -159,7 +159,7 @@ impl SelfCuller {
         ctx: &GpuContext,
         grid: GridParams,
         tool: &ToolCuller,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<()> {
         let storage =
             |label: &str, bytes: u64| buffers::zeroed_storage(ctx, label, bytes, Sizing::SizeClass);
@@ -186,7 +186,7 @@ impl SelfCuller {
 
     /// Rebuild the bind groups (after the node state, the tool culler's surface or the pair
     /// buffer was reallocated).
-    pub fn rebind(&mut self, ctx: &GpuContext, tool: &ToolCuller, state: &NodeState) {
+    pub fn rebind(&mut self, ctx: &GpuContext, tool: &ToolCuller, state: &StateBuffers) {
         let (triangles, rest) = (tool.triangles(), tool.rest());
         let group = |pass: &Pass, buffers: &[&wgpu::Buffer]| {
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -263,7 +263,7 @@ impl SelfCuller {
         &mut self,
         ctx: &GpuContext,
         tool: &ToolCuller,
-        state: &NodeState,
+        state: &StateBuffers,
         phase: usize,
     ) -> Result<SelfCullResult> {
         let tri_groups = dispatch_size(ctx, self.grid.triangles.max(1));

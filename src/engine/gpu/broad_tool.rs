@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::buffers::{self, Sizing};
-use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
+use super::{dispatch_size, GpuContext, StateBuffers, WORKGROUP};
 use crate::collide::broad::{Candidate, ToolBox};
 use crate::error::{Error, Result};
 
@@ -93,7 +93,7 @@ impl ToolCuller {
         ctx: &GpuContext,
         triangles: &[[u32; 3]],
         rest: &[[f32; 4]],
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<Self> {
         let d = &ctx.device;
         let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
@@ -152,7 +152,7 @@ impl ToolCuller {
         ctx: &GpuContext,
         triangles: &[[u32; 3]],
         rest: &[[f32; 4]],
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<()> {
         let tris: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
         buffers::write_changed(
@@ -191,7 +191,7 @@ impl ToolCuller {
         triangles: &[(u32, [u32; 3])],
         slots: usize,
         rest: &[(u32, [f32; 4])],
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<bool> {
         // Checked first: the triangles are written before the rest positions, and a refusal
         // of the second left the first edited.
@@ -265,7 +265,7 @@ impl ToolCuller {
     }
 
     /// Rebuild the bind groups (after the node state or an output buffer was reallocated).
-    pub fn rebind(&mut self, ctx: &GpuContext, state: &NodeState) {
+    pub fn rebind(&mut self, ctx: &GpuContext, state: &StateBuffers) {
         self.bind_groups = (0..state.phases())
             .map(|phase| {
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -289,7 +289,7 @@ impl ToolCuller {
     pub fn cull(
         &mut self,
         ctx: &GpuContext,
-        state: &NodeState,
+        state: &StateBuffers,
         phase: usize,
         boxes: &[ToolBox],
     ) -> Result<CullResult> {
@@ -388,7 +388,7 @@ mod tests {
         let Some(ctx) = opened(GpuContext::new()) else {
             return;
         };
-        let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
+        let state = StateBuffers::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
         let tris: Vec<[u32; 3]> = (0..1000u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
         let rest = vec![[0.5f32; 4]; 8];
         let mut culler = ToolCuller::new(&ctx, &tris, &rest, &state).unwrap();
@@ -424,7 +424,7 @@ mod tests {
         let Some(ctx) = opened(GpuContext::with_limits(lower)) else {
             return;
         };
-        let state = NodeState::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
+        let state = StateBuffers::new(&ctx, 8, Integrator::Verlet, Sizing::Headroom).unwrap();
         let tris: Vec<[u32; 3]> = (0..100u32).map(|i| [i % 8, (i + 1) % 8, 7]).collect();
         let rest = vec![[0.5f32; 4]; 8];
         let mut culler = ToolCuller::new(&ctx, &tris, &rest, &state).unwrap();

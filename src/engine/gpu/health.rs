@@ -3,7 +3,7 @@
 //! and change of gravitational energy per workgroup) and the first non-finite node. The twin is [`crate::twin::health`].
 
 use super::buffers::{self, Sizing};
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::{Error, Result};
 
 /// What the pass reads back; its twin is [`crate::twin::health::health_cpu`].
@@ -33,7 +33,7 @@ impl HealthPass {
         ctx: &GpuContext,
         inv_mass: &wgpu::Buffer,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         groups: u32,
     ) -> Result<Self> {
         let partials = buffers::storage_buffer(
@@ -65,7 +65,7 @@ impl HealthPass {
         ctx: &GpuContext,
         inv_mass: &wgpu::Buffer,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
     ) {
         self.bind_groups = (0..state.phases())
             .map(|phase| {

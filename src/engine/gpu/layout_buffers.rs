@@ -5,7 +5,7 @@
 use std::ops::Range;
 
 use super::buffers::{self, Growth};
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::{Error, Result};
 use crate::layout::patch::LayoutArray;
 
@@ -29,8 +29,12 @@ pub trait LayoutBuffers {
 
     /// Rebuild the bind groups over the buffers the pass holds now, and any buffer sized from
     /// one of them (forces per spring, accumulators per node); the pipelines are kept.
-    fn rebind(&mut self, ctx: &GpuContext, uniform: &wgpu::Buffer, state: &NodeState)
-        -> Result<()>;
+    fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        uniform: &wgpu::Buffer,
+        state: &StateBuffers,
+    ) -> Result<()>;
 
     /// Replace the buffers of `arrays` by larger ones holding the arrays' new contents (see
     /// [`buffers::grown`]), then rebind once.
@@ -39,7 +43,7 @@ pub trait LayoutBuffers {
         ctx: &GpuContext,
         arrays: &[Outgrown<'_>],
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<Growth> {
         let mut cost = Growth::default();
         for a in arrays {

@@ -37,7 +37,7 @@ pub use upload::{merged_ranges, WRITE_GAP};
 use bytemuck::{Pod, Zeroable};
 
 pub use context::GpuContext;
-pub use state::{NodeState, PhaseBindings};
+pub use state::{PhaseBindings, StateBuffers};
 use surface::{SurfaceCulling, SurfaceSync};
 
 use super::{
@@ -151,7 +151,7 @@ pub struct GpuEngine {
     accumulation: Accumulation,
     rest: Vec<[f64; 3]>,
     fixed: Vec<bool>,
-    state: NodeState,
+    state: StateBuffers,
     passes: Passes,
     health: health::HealthPass,
     uniform: wgpu::Buffer,
@@ -240,7 +240,7 @@ impl GpuEngine {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let state = NodeState::new(
+        let state = StateBuffers::new(
             &ctx,
             layout.node_slots(),
             config.integrator,
@@ -460,7 +460,7 @@ fn health_pass(
     ctx: &GpuContext,
     passes: &Passes,
     uniform: &wgpu::Buffer,
-    state: &NodeState,
+    state: &StateBuffers,
     dispatch: Dispatch,
 ) -> Result<health::HealthPass> {
     let inv_mass = passes
@@ -516,7 +516,7 @@ fn build_passes(
     layout: &PackedLayout,
     accumulation: Accumulation,
     uniform: &wgpu::Buffer,
-    state: &NodeState,
+    state: &StateBuffers,
     fixed_point: FixedPoint,
     sizing: Sizing,
 ) -> Result<Passes> {

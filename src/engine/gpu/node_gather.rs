@@ -3,7 +3,7 @@
 
 use super::buffers::{self, Sizing};
 use super::layout_buffers::{self, LayoutBuffers};
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::Result;
 use crate::layout::patch::LayoutArray;
 use crate::layout::Slot;
@@ -27,7 +27,7 @@ impl NodeGather {
         slots: &[Slot],
         inv_mass: &[f32],
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         sizing: Sizing,
     ) -> Result<Self> {
         let slots = buffers::storage_buffer(
@@ -77,7 +77,7 @@ impl LayoutBuffers for NodeGather {
         &mut self,
         ctx: &GpuContext,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<()> {
         self.bind_groups = (0..state.phases())
             .map(|phase| {

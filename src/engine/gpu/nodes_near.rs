@@ -12,7 +12,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::buffers::{self, Sizing};
-use super::{dispatch_size, GpuContext, NodeState, WORKGROUP};
+use super::{dispatch_size, GpuContext, StateBuffers, WORKGROUP};
 use crate::error::{Error, Result};
 
 const SOURCE: &str = include_str!("../../../shaders/nodes_near.wgsl");
@@ -60,7 +60,7 @@ pub type Found = (u32, [f32; 3]);
 
 impl NodesNear {
     /// Compile the pass and bind it to `rest` (positions in layout order) and the node state.
-    pub fn new(ctx: &GpuContext, rest: &wgpu::Buffer, state: &NodeState) -> Result<Self> {
+    pub fn new(ctx: &GpuContext, rest: &wgpu::Buffer, state: &StateBuffers) -> Result<Self> {
         let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("nodes near params"),
             size: std::mem::size_of::<NearParams>() as u64,
@@ -89,7 +89,7 @@ impl NodesNear {
 
     /// Rebuild the bind groups (after the rest positions, the node state or the output buffer
     /// was reallocated).
-    pub fn rebind(&mut self, ctx: &GpuContext, rest: &wgpu::Buffer, state: &NodeState) {
+    pub fn rebind(&mut self, ctx: &GpuContext, rest: &wgpu::Buffer, state: &StateBuffers) {
         self.bind_groups = (0..state.phases())
             .map(|phase| {
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -114,7 +114,7 @@ impl NodesNear {
         &mut self,
         ctx: &GpuContext,
         rest: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         phase: usize,
         slots: u32,
         lo: [f32; 3],

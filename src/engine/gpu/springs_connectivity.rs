@@ -4,7 +4,7 @@
 
 use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::Result;
 use crate::layout::connectivity::ConnectivityLayout;
 
@@ -28,7 +28,7 @@ impl ConnectivityPass {
         ctx: &GpuContext,
         layout: &ConnectivityLayout,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         sizing: Sizing,
     ) -> Result<Self> {
         let gather = NodeGather::new(

@@ -4,7 +4,7 @@
 
 use super::buffers::{self, Sizing};
 use super::layout_buffers::{self, LayoutBuffers};
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::Result;
 use crate::layout::edges::EdgeLayout;
 use crate::layout::patch::LayoutArray;
@@ -113,7 +113,7 @@ impl EdgePasses {
         ctx: &GpuContext,
         layout: &EdgeLayout,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         sizing: Sizing,
     ) -> Result<Self> {
         let label = |a| layout_buffers::label(a);
@@ -213,7 +213,7 @@ impl LayoutBuffers for EdgePasses {
         &mut self,
         ctx: &GpuContext,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
     ) -> Result<()> {
         let d = &ctx.device;
         // Grown springs: forces for all the records they have room for.

@@ -8,7 +8,7 @@
 
 use super::buffers::{self, Sizing};
 use super::node_gather::NodeGather;
-use super::{GpuContext, NodeState};
+use super::{GpuContext, StateBuffers};
 use crate::error::Result;
 use crate::layout::valence::{table_bytes, Bucket, ValenceLayout, TABLE_HEADER};
 
@@ -36,7 +36,7 @@ impl ValencePass {
         ctx: &GpuContext,
         layout: &ValenceLayout,
         uniform: &wgpu::Buffer,
-        state: &NodeState,
+        state: &StateBuffers,
         sizing: Sizing,
     ) -> Result<Self> {
         let d = &ctx.device;

@@ -7,7 +7,7 @@ use super::*;
 pub(super) type StatePair = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// The node-state buffers and their rotation.
-pub struct NodeState {
+pub struct StateBuffers {
     pub(super) integrator: Integrator,
     /// Displacements (three for Verlet, two for symplectic Euler).
     pub(super) x: Vec<wgpu::Buffer>,
@@ -27,7 +27,7 @@ pub struct PhaseBindings<'a> {
     pub second_out: &'a wgpu::Buffer,
 }
 
-impl NodeState {
+impl StateBuffers {
     pub(super) fn new(
         ctx: &GpuContext,
         n: usize,
@@ -50,7 +50,7 @@ impl NodeState {
             Integrator::Verlet => (3, 1, 16),
             Integrator::SymplecticEuler => (2, 2, bytes),
         };
-        Ok(NodeState {
+        Ok(StateBuffers {
             integrator,
             x: (0..nx).map(|_| make("displacements", bytes)).collect(),
             v: (0..nv).map(|_| make("velocities", vbytes)).collect(),
@@ -72,7 +72,7 @@ impl NodeState {
 
     /// New buffers with room for `n` nodes (a size class), holding this state.
     pub(super) fn grown(&self, ctx: &GpuContext, n: usize) -> Result<Self> {
-        let next = NodeState::new(ctx, n, self.integrator, Sizing::SizeClass)?;
+        let next = StateBuffers::new(ctx, n, self.integrator, Sizing::SizeClass)?;
         let mut enc = ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
