@@ -5,41 +5,11 @@
 
 use lancet::engine::reference::ReferenceEngine;
 use lancet::engine::{Engine, Integrator};
-use lancet::mesh::generate::beam;
-use lancet::model::{stable_time_step, FixedSelector};
+use lancet::model::stable_time_step;
 use lancet::physics::{BackwardEuler, Explicit, SolverSettings};
-use lancet::{EngineKind, Material, ModelConfig, PackedModel, SimConfig, Simulation, SpringModel};
+use lancet::{EngineKind, PackedModel, SimConfig, Simulation};
 
-const G: f64 = 9.81;
-
-/// The 10 x 2 x 2 cm cantilever of E = 1 MPa clamped at x = 0, under gravity, with mass
-/// damping `alpha` (1/s).
-fn cantilever(alpha: f64) -> PackedModel {
-    let mesh = beam(0.1, 0.02, 0.02, 10, 2).unwrap();
-    let mut config = ModelConfig::new(Material::elastic(1e6, 0.25, 1000.0));
-    config.gravity = [0.0, 0.0, -G];
-    config.mass_damping = alpha;
-    config.fixed = vec![FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [1.0, 0.0, 0.0],
-        tolerance: 1e-9,
-    }];
-    SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap()
-}
-
-/// Mean z-displacement of the free end (x = 0.1).
-fn tip_sag(model: &PackedModel, x: &[[f64; 3]]) -> f64 {
-    let tip: Vec<f64> = x
-        .iter()
-        .zip(&model.rest)
-        .filter(|(_, r)| (r[0] - 0.1).abs() < 1e-9)
-        .map(|(p, r)| p[2] - r[2])
-        .collect();
-    tip.iter().sum::<f64>() / tip.len() as f64
-}
+use super::physics_beam::{cantilever_damped as cantilever, tip_sag};
 
 fn implicit(model: &PackedModel, dt: f64) -> ReferenceEngine {
     ReferenceEngine::with_integrator(

@@ -12,10 +12,15 @@ const G: f64 = 9.81;
 /// enough to stay near-linear. Mass damping 100/s is just under critical for the first bending
 /// mode (about 10 Hz, w = 63/s), and every underdamped mode decays as exp(-50 t).
 fn cantilever() -> PackedModel {
+    cantilever_damped(100.0)
+}
+
+/// The cantilever clamped at x = 0 under gravity, with mass damping `alpha` (1/s).
+pub(crate) fn cantilever_damped(alpha: f64) -> PackedModel {
     let mesh = beam(0.1, 0.02, 0.02, 10, 2).unwrap();
     let mut config = ModelConfig::new(Material::elastic(1e6, 0.25, 1000.0));
     config.gravity = [0.0, 0.0, -G];
-    config.mass_damping = 100.0;
+    config.mass_damping = alpha;
     config.fixed = vec![FixedSelector::Plane {
         point: [0.0; 3],
         normal: [1.0, 0.0, 0.0],
@@ -28,7 +33,7 @@ fn cantilever() -> PackedModel {
 }
 
 /// Mean z-displacement of the nodes at the free end (x = 0.1).
-fn tip_sag(model: &PackedModel, x: &[[f64; 3]]) -> f64 {
+pub(crate) fn tip_sag(model: &PackedModel, x: &[[f64; 3]]) -> f64 {
     let tip: Vec<f64> = x
         .iter()
         .zip(&model.rest)

@@ -18,17 +18,24 @@ impl Simulation {
 
     /// [`Simulation::check`], returning the total energy where it was computed exactly.
     pub(super) fn check_total(&self) -> Result<Option<f64>> {
-        if let Some(device) = self.engine.device() {
-            let h = device.health()?;
-            let lower = h.kinetic + h.gravity;
-            if h.non_finite.is_none()
-                && lower.is_finite()
-                && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale
-            {
-                return Ok(None);
-            }
+        if self.probe_passes()? {
+            return Ok(None);
         }
         self.check_exact().map(Some)
+    }
+
+    /// Whether the engine's device-side probe shows the state healthy: every node finite and
+    /// the kinetic plus gravitational energy (a lower bound of the total) within the limit.
+    /// `false` where it does not, or where the engine has no device probe.
+    fn probe_passes(&self) -> Result<bool> {
+        let Some(device) = self.engine.device() else {
+            return Ok(false);
+        };
+        let h = device.health()?;
+        let lower = h.kinetic + h.gravity;
+        Ok(h.non_finite.is_none()
+            && lower.is_finite()
+            && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale)
     }
 
     /// The exact check over the whole state; returns the total energy.
@@ -42,18 +49,9 @@ impl Simulation {
     /// failure replaying from the last good state to the first bad step (see [`BadStep`]).
     /// `exact` forces an exact check where the probe would do.
     pub(super) fn check_run(&mut self, exact: bool) -> Result<Option<f64>> {
-        if !exact {
-            if let Some(device) = self.engine.device() {
-                let h = device.health()?;
-                let lower = h.kinetic + h.gravity;
-                if h.non_finite.is_none()
-                    && lower.is_finite()
-                    && lower - self.start_energy <= ENERGY_GROWTH_LIMIT * self.energy_scale
-                {
-                    self.last_good = self.steps;
-                    return Ok(None);
-                }
-            }
+        if !exact && self.probe_passes()? {
+            self.last_good = self.steps;
+            return Ok(None);
         }
         let (x, v) = self.engine.state();
         match self.judge(&x, &v, self.steps) {
