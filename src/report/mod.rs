@@ -9,6 +9,8 @@ pub mod collide_bench;
 pub mod cut_bench;
 pub mod device_copy;
 #[cfg(feature = "plot")]
+mod labels;
+#[cfg(feature = "plot")]
 pub mod plot;
 
 /// Whether a GPU engine can start here: `Err` with the reason (no adapter, no `gpu` feature).

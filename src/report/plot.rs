@@ -234,8 +234,22 @@ fn draw<DB: DrawingBackend>(
             ))
             .map_err(err)?;
     }
+    // Point labels placed clear of each other and of every marker (`labels::place_labels`):
+    // 11 px text, about 6.5 px a character.
+    let anchors: Vec<(i32, i32)> = points
+        .iter()
+        .flatten()
+        .map(|&(x, y, _)| chart.backend_coord(&(x, y)))
+        .collect();
+    let sizes: Vec<(i32, i32)> = points
+        .iter()
+        .flatten()
+        .map(|&(_, _, f)| (fraction_label(f).chars().count() as i32 * 13 / 2 + 2, 12))
+        .collect();
+    let mut offsets = super::labels::place_labels(&anchors, &sizes).into_iter();
     for (i, pts) in points.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
+        let series_offsets: Vec<Option<(i32, i32)>> = offsets.by_ref().take(pts.len()).collect();
         chart
             .draw_series(LineSeries::new(
                 pts.iter().map(|&(x, y, _)| (x, y)),
@@ -250,15 +264,20 @@ fn draw<DB: DrawingBackend>(
             .map_err(err)?;
         if text {
             chart
-                .draw_series(pts.iter().map(|&(x, y, f)| {
-                    // Above and right of the marker, in pixels.
-                    EmptyElement::at((x, y))
-                        + Text::new(
-                            fraction_label(f),
-                            (5, -16),
-                            (FAMILY, 11).into_font().color(&color),
-                        )
-                }))
+                .draw_series(
+                    pts.iter()
+                        .zip(&series_offsets)
+                        .filter_map(|(&(x, y, f), o)| {
+                            o.map(|offset| {
+                                EmptyElement::at((x, y))
+                                    + Text::new(
+                                        fraction_label(f),
+                                        offset,
+                                        (FAMILY, 11).into_font().color(&color),
+                                    )
+                            })
+                        }),
+                )
                 .map_err(err)?;
         }
     }
