@@ -600,6 +600,23 @@ impl Scene {
 
     /// Read a scene file.
     pub fn read(path: &Path) -> Result<Scene> {
+        // A mesh given where a scene goes would fail as RON ("expected opening `(`") or as
+        // UTF-8: say what it is and what to do with it instead.
+        const MESH_EXTENSIONS: [&str; 8] =
+            ["msh", "mesh", "vtu", "vtk", "node", "ele", "veg", "face"];
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if let Some(ext) = extension.filter(|e| MESH_EXTENSIONS.contains(&e.as_str())) {
+            return Err(Error::Scene {
+                path: path.to_path_buf(),
+                message: format!(
+                    "this is a mesh (.{ext}), not a scene (.ron): `lancet info` reads a mesh, and \
+                     a scene runs one with `mesh: File(\"...\")`"
+                ),
+            });
+        }
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         Scene::from_ron(&text, path)
     }

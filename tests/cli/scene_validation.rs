@@ -351,3 +351,16 @@ fn a_mesh_transform_scales_then_rotates_then_translates() {
     let p = t.apply(Point3::new(0.0, 1.0, 0.0));
     assert!((p - Point3::new(0.0, 0.0, 1.0)).norm() < 1e-12, "{p}");
 }
+
+/// A mesh given where a scene goes is named as a mesh, with what to do instead; it failed as
+/// RON ("expected opening `(`") or as UTF-8 before.
+#[test]
+fn a_mesh_given_as_a_scene_is_named_as_a_mesh() {
+    for file in ["liver.msh", "box.VTU", "torus.veg", "tets.ele"] {
+        let err = Scene::read(Path::new(file)).unwrap_err().to_string();
+        assert!(
+            err.contains(file) && err.contains("is a mesh") && err.contains("lancet info"),
+            "{file}: {err}"
+        );
+    }
+}

@@ -310,7 +310,7 @@ impl RawMesh {
         }
         if reoriented > 0 {
             notes.push(format!(
-                "warning: reoriented {reoriented} inverted tet(s) (negative signed volume)"
+                "reoriented {reoriented} inverted tet(s) (negative signed volume)"
             ));
         }
         if dropped > 0 {
