@@ -419,8 +419,8 @@ impl CutStage {
                 });
             }
             TimeStepPolicy::Warn => self.report.time_step_events.push(format!(
-                "step {step}: the cut lowered the stable bound to {bound:e} s (node {node}) \
-                 below dt {dt:e} s; going on"
+                "step {step}: the cut lowered the stable bound to {bound:.4e} s (node {node}) \
+                 below dt {dt:.4e} s; going on"
             )),
             TimeStepPolicy::Substep => {
                 change.dt_after = self.bound_fraction * bound;
@@ -429,8 +429,8 @@ impl CutStage {
                 // the patch.
                 applied.time_step_bytes = sim.set_time_step(change.dt_after)?.uploaded_bytes;
                 self.report.time_step_events.push(format!(
-                    "step {step}: the cut lowered the stable bound to {bound:e} s (node {node}); \
-                     dt {dt:e} s -> {:e} s",
+                    "step {step}: the cut lowered the stable bound to {bound:.4e} s (node {node}); \
+                     dt {dt:.4e} s -> {:.4e} s",
                     change.dt_after
                 ));
             }

@@ -103,7 +103,7 @@ fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
     let warning = warning.expect("a time-step event is listed").clone();
     assert!(
         warning.contains(&format!("step {}", event.step))
-            && warning.contains(&format!("{:e} s", bound.dt))
+            && warning.contains(&format!("{:.4e} s", bound.dt))
             && warning.contains(&format!("node {}", bound.node)),
         "{warning}"
     );
@@ -288,7 +288,7 @@ fn warn_runs_to_the_end_at_the_scene_step_and_reports_the_lowered_bound() {
     let warnings = v["cuts"]["time_step_events"].as_array().unwrap();
     assert_eq!(warnings.len(), 1);
     let w = warnings[0].as_str().unwrap();
-    assert!(w.contains(&format!("{bound:e} s")), "{w}");
+    assert!(w.contains(&format!("{bound:.4e} s")), "{w}");
 
     let text = String::from_utf8_lossy(&run("Warn", steps, &[]).stdout).into_owned();
     assert!(text.contains(&format!("  {w}")), "{text}");
