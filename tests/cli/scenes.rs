@@ -279,3 +279,33 @@ fn the_liver_fixture_is_scaled_to_the_size_and_mass_of_a_human_liver() {
     let summary = run_scene(&scene, &path, &opts, |_, _| {}).unwrap();
     assert!(summary.expectations_passed, "{:#?}", summary.expectations);
 }
+
+/// A scene whose step is refused (above the bound, and it does not expect the refusal) runs no
+/// step: its expectations are shown as not run instead of measured on the rest state, where a
+/// volume ratio of 1 passed and a displacement of 0 failed, and the run still fails.
+#[test]
+fn a_refused_run_shows_its_expectations_as_not_run() {
+    let text = r#"Scene(
+    name: "x",
+    mesh: Box((cells: (2, 2, 2), size: (0.01, 0.01, 0.01))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.25), mass: Density(1000.0)),
+    gravity: (0.0, 0.0, -9.81),
+    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 0.0, 1.0), tolerance: 1e-9)],
+    dt: BoundFraction(1.5),
+    steps: 10,
+    expect: [
+        VolumeRatio(min: Some(0.99), max: Some(1.01)),
+        MaxDisplacement(min: Some(1e-6)),
+    ],
+)"#;
+    let path = Path::new("x.ron");
+    let scene = Scene::from_ron(text, path).unwrap();
+    let summary = run_scene(&scene, path, &RunOptions::default(), |_, _| {}).unwrap();
+    assert!(summary.refused);
+    assert_eq!(summary.steps, 0);
+    assert_eq!(summary.expectations.len(), 2);
+    for e in &summary.expectations {
+        assert!(e.skipped && e.measured.is_none(), "{e:?}");
+    }
+    assert!(!summary.expectations_passed);
+}
