@@ -99,6 +99,9 @@ struct System<'a> {
     lin: Linearization,
     /// Inverse diagonal blocks (identity on fixed nodes).
     inverse_diagonal: Vec<Mat3>,
+    /// Scratch for `K w` and `D w`, kept across the solver's iterations.
+    kw: Vec<Vec3>,
+    dw: Vec<Vec3>,
 }
 
 impl<'a> System<'a> {
@@ -135,16 +138,19 @@ impl<'a> System<'a> {
             h,
             lin,
             inverse_diagonal,
+            kw: vec![[0.0; 3]; n],
+            dw: vec![[0.0; 3]; n],
         }
     }
 
     /// `out = A w` on the free nodes, zero on the fixed ones (`w` is zero there).
-    fn apply(&self, w: &[Vec3], out: &mut [Vec3]) {
+    fn apply(&mut self, w: &[Vec3], out: &mut [Vec3]) {
         out.iter_mut().for_each(|o| *o = [0.0; 3]);
-        let (mut k, mut d) = (vec![[0.0; 3]; w.len()], vec![[0.0; 3]; w.len()]);
-        self.forces
-            .add_stiffness_product(self.x, self.lin, w, &mut k);
-        self.forces.add_damping_product(self.x, w, &mut d);
+        let (k, d) = (&mut self.kw, &mut self.dw);
+        k.iter_mut().chain(d.iter_mut()).for_each(|v| *v = [0.0; 3]);
+        self.forces.add_stiffness_product(self.x, self.lin, w, k);
+        self.forces.add_damping_product(self.x, w, d);
+        let (k, d) = (&self.kw, &self.dw);
         let (h, alpha) = (self.h, self.nodes.mass_damping);
         for i in 0..w.len() {
             if self.nodes.fixed[i] {
@@ -163,7 +169,7 @@ impl<'a> System<'a> {
 
     /// Solve `A y = b` from `y = 0` by preconditioned conjugate gradients; returns the
     /// iterations and the final relative residual.
-    fn solve(&self, b: &[Vec3], y: &mut [Vec3], settings: &SolverSettings) -> (u32, f64) {
+    fn solve(&mut self, b: &[Vec3], y: &mut [Vec3], settings: &SolverSettings) -> (u32, f64) {
         let n = b.len();
         y.iter_mut().for_each(|v| *v = [0.0; 3]);
         let norm = |v: &[Vec3]| v.iter().map(|a| dot(*a, *a)).sum::<f64>().sqrt();
@@ -241,7 +247,7 @@ impl TimeIntegrator for BackwardEuler {
         for i in (0..n).filter(|&i| !nodes.fixed[i]) {
             rhs[i] = [0, 1, 2].map(|c| h * (rhs[i][c] + h * kv[i][c]));
         }
-        let system = System::new(forces, nodes, &state.x, h, settings.linearization);
+        let mut system = System::new(forces, nodes, &state.x, h, settings.linearization);
         self.record(system.solve(&rhs, &mut dv, &settings));
         // Further Newton iterations on `g(y) = M (y - v) - h F(x + h y, y)`, `y = v + dv`.
         let mut delta = vec![[0.0; 3]; n];
@@ -261,7 +267,7 @@ impl TimeIntegrator for BackwardEuler {
                     [0, 1, 2].map(|c| h * f[i][c] - nodes.mass[i] * dv[i][c])
                 })
                 .collect();
-            let system = System::new(forces, nodes, &xk, h, settings.linearization);
+            let mut system = System::new(forces, nodes, &xk, h, settings.linearization);
             self.record(system.solve(&minus_g, &mut delta, &settings));
             for i in 0..n {
                 for c in 0..3 {

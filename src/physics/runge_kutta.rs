@@ -11,10 +11,17 @@
 use super::force_model::{ForceModel, Vec3};
 use super::time_integrator::{NodeState, Nodes, TimeIntegrator};
 
-/// Classical RK4 on positions and velocities.
+/// Classical RK4 on positions and velocities, with its stages kept between steps (no
+/// allocation per step once the first has sized them).
 #[derive(Debug, Clone, Default)]
 pub struct RungeKutta4 {
     force: Vec<Vec3>,
+    /// The stages' accelerations `a1..a4`.
+    a: [Vec<Vec3>; 4],
+    /// The stages' velocities `v2..v4` (`v1` is the state's).
+    v: [Vec<Vec3>; 3],
+    /// A stage's positions.
+    x: Vec<Vec3>,
 }
 
 impl RungeKutta4 {
@@ -22,43 +29,38 @@ impl RungeKutta4 {
     pub fn new() -> Self {
         Self::default()
     }
+}
 
-    /// Accelerations at `(x, v)`, zero on fixed nodes.
-    fn accelerations(
-        &mut self,
-        forces: &dyn ForceModel,
-        nodes: &Nodes,
-        x: &[Vec3],
-        v: &[Vec3],
-    ) -> Vec<Vec3> {
-        self.force.clear();
-        self.force.resize(x.len(), [0.0; 3]);
-        forces.add_forces(x, v, &mut self.force);
-        (0..x.len())
-            .map(|i| {
-                if nodes.fixed[i] {
-                    [0.0; 3]
-                } else {
-                    nodes.acceleration(i, self.force[i], v[i])
-                }
-            })
-            .collect()
+/// Accelerations at `(x, v)` into `out`, zero on fixed nodes; `force` is scratch.
+fn accelerations(
+    force: &mut Vec<Vec3>,
+    forces: &dyn ForceModel,
+    nodes: &Nodes,
+    x: &[Vec3],
+    v: &[Vec3],
+    out: &mut [Vec3],
+) {
+    force.clear();
+    force.resize(x.len(), [0.0; 3]);
+    forces.add_forces(x, v, force);
+    for (i, a) in out.iter_mut().enumerate() {
+        *a = if nodes.fixed[i] {
+            [0.0; 3]
+        } else {
+            nodes.acceleration(i, force[i], v[i])
+        };
     }
 }
 
-/// `a + s b`, node by node; fixed nodes keep `a`.
-fn offset(a: &[Vec3], s: f64, b: &[Vec3], fixed: &[bool]) -> Vec<Vec3> {
-    a.iter()
-        .zip(b)
-        .zip(fixed)
-        .map(|((a, b), &f)| {
-            if f {
-                *a
-            } else {
-                [0, 1, 2].map(|c| a[c] + s * b[c])
-            }
-        })
-        .collect()
+/// `out = a + s b`, node by node; fixed nodes keep `a`.
+fn offset(out: &mut [Vec3], a: &[Vec3], s: f64, b: &[Vec3], fixed: &[bool]) {
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = if fixed[i] {
+            a[i]
+        } else {
+            [0, 1, 2].map(|c| a[i][c] + s * b[i][c])
+        };
+    }
 }
 
 impl TimeIntegrator for RungeKutta4 {
@@ -67,22 +69,28 @@ impl TimeIntegrator for RungeKutta4 {
     }
 
     fn step(&mut self, forces: &dyn ForceModel, nodes: &Nodes, h: f64, state: &mut NodeState) {
-        let fixed = nodes.fixed;
-        let (x, v) = (state.x.clone(), state.v.clone());
-        let (x, v) = (&x, &v);
-        let a1 = self.accelerations(forces, nodes, x, v);
-        let (x2, v2) = (offset(x, h / 2.0, v, fixed), offset(v, h / 2.0, &a1, fixed));
-        let a2 = self.accelerations(forces, nodes, &x2, &v2);
-        let (x3, v3) = (
-            offset(x, h / 2.0, &v2, fixed),
-            offset(v, h / 2.0, &a2, fixed),
-        );
-        let a3 = self.accelerations(forces, nodes, &x3, &v3);
-        let (x4, v4) = (offset(x, h, &v3, fixed), offset(v, h, &a3, fixed));
-        let a4 = self.accelerations(forces, nodes, &x4, &v4);
-        for i in (0..state.x.len()).filter(|&i| !fixed[i]) {
+        let (fixed, n) = (nodes.fixed, state.x.len());
+        let Self { force, a, v, x } = self;
+        for buffer in a.iter_mut().chain(v.iter_mut()).chain([&mut *x]) {
+            buffer.resize(n, [0.0; 3]);
+        }
+        let [a1, a2, a3, a4] = a;
+        let [v2, v3, v4] = v;
+        let (x0, v0) = (&state.x, &state.v);
+        accelerations(force, forces, nodes, x0, v0, a1);
+        offset(x, x0, h / 2.0, v0, fixed);
+        offset(v2, v0, h / 2.0, a1, fixed);
+        accelerations(force, forces, nodes, x, v2, a2);
+        offset(x, x0, h / 2.0, v2, fixed);
+        offset(v3, v0, h / 2.0, a2, fixed);
+        accelerations(force, forces, nodes, x, v3, a3);
+        offset(x, x0, h, v3, fixed);
+        offset(v4, v0, h, a3, fixed);
+        accelerations(force, forces, nodes, x, v4, a4);
+        for i in (0..n).filter(|&i| !fixed[i]) {
             for c in 0..3 {
-                state.x[i][c] += h / 6.0 * (v[i][c] + 2.0 * v2[i][c] + 2.0 * v3[i][c] + v4[i][c]);
+                state.x[i][c] +=
+                    h / 6.0 * (state.v[i][c] + 2.0 * v2[i][c] + 2.0 * v3[i][c] + v4[i][c]);
                 state.v[i][c] += h / 6.0 * (a1[i][c] + 2.0 * a2[i][c] + 2.0 * a3[i][c] + a4[i][c]);
             }
         }

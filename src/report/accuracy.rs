@@ -276,8 +276,57 @@ struct Run {
 }
 
 impl Run {
+    fn new(engine: String, samples: usize) -> Self {
+        Run {
+            engine,
+            states: Vec::with_capacity(samples),
+            stepping_s: 0.0,
+            simulated_s: 0.0,
+            diverged: None,
+        }
+    }
+
     fn wall_per_sim_s(&self) -> f64 {
         self.stepping_s / self.simulated_s
+    }
+
+    /// Step `state` to each of `counts` steps of `dt`, in batches of at most `batch`: `step`
+    /// advances (the only part timed), `failure` may end the run after each batch, `sample`
+    /// reads the positions at each count (or says why they are unusable, which ends the run).
+    #[allow(clippy::too_many_arguments)]
+    fn through<S>(
+        mut self,
+        state: &mut S,
+        counts: &[u64],
+        batch: u64,
+        dt: f64,
+        step: impl Fn(&mut S, u32),
+        failure: impl Fn(&S, u64) -> Option<String>,
+        sample: impl Fn(&S, u64) -> std::result::Result<Vec<[f64; 3]>, String>,
+    ) -> Self {
+        let mut done = 0u64;
+        for &target in counts {
+            while done < target {
+                let n = batch.max(1).min(target - done).min(u32::MAX as u64);
+                let t = Instant::now();
+                step(state, n as u32);
+                self.stepping_s += t.elapsed().as_secs_f64();
+                done += n;
+                self.simulated_s = done as f64 * dt;
+                if let Some(why) = failure(state, done) {
+                    self.diverged = Some(why);
+                    return self;
+                }
+            }
+            match sample(state, done) {
+                Ok(x) => self.states.push(x),
+                Err(why) => {
+                    self.diverged = Some(why);
+                    return self;
+                }
+            }
+        }
+        self
     }
 }
 
@@ -294,46 +343,27 @@ fn run_to(
     let mut sim = Simulation::with_gpu(model.clone(), kind, config, gpu)?;
     let engine = sim.engine_name();
     sim.step_unchecked(opts.warmup_steps);
-    let zero;
-    let v0 = match &opts.initial_velocity {
-        Some(v) => v,
-        None => {
-            zero = vec![[0.0; 3]; model.node_count()];
-            &zero
-        }
-    };
-    sim.set_state(&model.rest, v0)?;
-    let mut run = Run {
-        engine,
-        states: Vec::with_capacity(counts.len()),
-        stepping_s: 0.0,
-        simulated_s: 0.0,
-        diverged: None,
-    };
-    let mut done = 0u64;
-    for &target in counts {
-        while done < target {
-            let n = opts.batch.max(1).min(target - done).min(u32::MAX as u64);
-            let t = Instant::now();
-            sim.step_unchecked(n as u32);
-            run.stepping_s += t.elapsed().as_secs_f64();
-            done += n;
-            run.simulated_s = done as f64 * config.dt;
-            if let Err(e) = sim.check() {
-                // `step_unchecked` counted the warm-up too; report the step of this run.
-                run.diverged = Some(match e {
-                    Error::Diverged { node, reason, .. } => format!(
-                        "diverged by step {done} (t = {:.4e} s), node {node}: {reason}",
-                        done as f64 * config.dt
-                    ),
-                    e => e.to_string(),
-                });
-                return Ok(run);
-            }
-        }
-        run.states.push(sim.positions());
-    }
-    Ok(run)
+    let zero = vec![[0.0; 3]; model.node_count()];
+    sim.set_state(&model.rest, opts.initial_velocity.as_ref().unwrap_or(&zero))?;
+    let dt = config.dt;
+    Ok(Run::new(engine, counts.len()).through(
+        &mut sim,
+        counts,
+        opts.batch,
+        dt,
+        |sim, n| sim.step_unchecked(n),
+        |sim, done| {
+            // `step_unchecked` counted the warm-up too; report the step of this run.
+            sim.check().err().map(|e| match e {
+                Error::Diverged { node, reason, .. } => format!(
+                    "diverged by step {done} (t = {:.4e} s), node {node}: {reason}",
+                    done as f64 * dt
+                ),
+                e => e.to_string(),
+            })
+        },
+        |sim, _| Ok(sim.positions()),
+    ))
 }
 
 /// The GPU series: one per layout, and for the edge layout one per accumulation variant
@@ -379,31 +409,22 @@ fn run_reference(
     let mut engine = ReferenceEngine::with_integrator(model, dt, Box::new(RungeKutta4::new()));
     let zero = vec![[0.0; 3]; model.node_count()];
     engine.set_state(&model.rest, opts.initial_velocity.as_ref().unwrap_or(&zero));
-    let mut run = Run {
-        engine: format!("{} ({})", engine.name(), engine.integrator_name()),
-        states: Vec::with_capacity(counts.len()),
-        stepping_s: 0.0,
-        simulated_s: 0.0,
-        diverged: None,
-    };
-    let mut done = 0u64;
-    for &target in counts {
-        while done < target {
-            let n = opts.batch.max(1).min(target - done).min(u32::MAX as u64);
-            let t = Instant::now();
-            engine.step(n as u32);
-            run.stepping_s += t.elapsed().as_secs_f64();
-            done += n;
-            run.simulated_s = done as f64 * dt;
-        }
-        let x = engine.positions();
-        if let Some(i) = x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            run.diverged = Some(format!("node {i} is not finite by step {done}"));
-            return Ok(run);
-        }
-        run.states.push(x);
-    }
-    Ok(run)
+    let name = format!("{} ({})", engine.name(), engine.integrator_name());
+    Ok(Run::new(name, counts.len()).through(
+        &mut engine,
+        counts,
+        opts.batch,
+        dt,
+        |engine, n| engine.step(n),
+        |_, _| None,
+        |engine, done| {
+            let x = engine.positions();
+            match x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                Some(i) => Err(format!("node {i} is not finite by step {done}")),
+                None => Ok(x),
+            }
+        },
+    ))
 }
 
 /// Errors of `states` against the reference states at the sample times.

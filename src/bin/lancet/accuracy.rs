@@ -108,15 +108,7 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
     for s in &r.skipped {
         println!("note: {s}");
     }
-    let mut devices: Vec<&str> = r
-        .rows
-        .iter()
-        .filter_map(|r| r.engine.split_once(" on ").map(|(_, d)| d))
-        .collect();
-    devices.dedup();
-    for d in devices {
-        println!("gpu device: {d}");
-    }
+    print_gpu_devices(r.rows.iter().map(|row| row.engine.as_str()));
     print!(
         "{:<18} {:>8} {:>10} {:>8} {:>11}",
         "series", "dt/bound", "dt (s)", "steps", "wall s/sim s"

@@ -241,14 +241,7 @@ pub(crate) fn bench(
             d.device
         );
     }
-    let mut devices: Vec<&str> = rows
-        .iter()
-        .filter_map(|r| r.engine.split_once(" on ").map(|(_, d)| d))
-        .collect();
-    devices.dedup();
-    for d in devices {
-        println!("gpu device: {d}");
-    }
+    print_gpu_devices(rows.iter().map(|r| r.engine.as_str()));
     println!(
         "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9} {:>6} {:>9} {:>8} {:>10} {:>8} {:>7} {:>9}",
         "mesh",

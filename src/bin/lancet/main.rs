@@ -353,6 +353,18 @@ impl From<MethodArg> for lancet::cut::CutMethod {
     }
 }
 
+/// One `gpu device:` line per device the rows ran on (engine names read `<engine> on <device>`),
+/// in the order they first appear.
+fn print_gpu_devices<'a>(engines: impl Iterator<Item = &'a str>) {
+    let mut devices: Vec<&str> = engines
+        .filter_map(|e| e.split_once(" on ").map(|(_, d)| d))
+        .collect();
+    devices.dedup();
+    for d in devices {
+        println!("gpu device: {d}");
+    }
+}
+
 /// Let a closed pipe end the process as it ends other Unix tools (`lancet run --json | head`),
 /// instead of a panic at the next print: Rust ignores SIGPIPE, so a write to a closed pipe
 /// fails, and `println!` panics on the failure.
