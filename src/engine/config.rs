@@ -12,6 +12,9 @@ pub struct SimConfig {
     /// Integration scheme.
     #[serde(default)]
     pub integrator: Integrator,
+    /// How [`Integrator::BackwardEuler`] solves each step (ignored by the explicit schemes).
+    #[serde(default)]
+    pub solver: crate::physics::SolverSettings,
     /// Run even when `dt` is above the stable bound (divergence is still detected).
     #[serde(default)]
     pub allow_unstable: bool,
@@ -124,6 +127,7 @@ impl SimConfig {
         SimConfig {
             dt,
             integrator: Integrator::Verlet,
+            solver: crate::physics::SolverSettings::default(),
             allow_unstable: false,
             allow_inverted: false,
             check_every: default_check_every(),

@@ -77,6 +77,10 @@ pub trait Engine: Send {
     fn set_time_step(&mut self, dt: f64) -> Result<PatchCost>;
     /// The engine's name, with its device where it has one.
     fn name(&self) -> String;
+    /// What the implicit integrator's solver did so far (`None` for an explicit scheme).
+    fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
+        None
+    }
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
     /// writes, once): the numerator of the memory-bandwidth floor.
     fn memory(&self) -> EngineMemory;

@@ -3,7 +3,7 @@
 
 use super::{Engine, SimConfig};
 use crate::model::PackedModel;
-use crate::physics::{Explicit, NodeState, Nodes, SpringForces, TimeIntegrator};
+use crate::physics::{integrator_for, NodeState, Nodes, SolverStats, SpringForces, TimeIntegrator};
 
 type V3 = [f64; 3];
 
@@ -19,7 +19,11 @@ pub struct ReferenceEngine {
 impl ReferenceEngine {
     /// Start at rest at the rest positions.
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
-        Self::with_integrator(model, config.dt, Box::new(Explicit::new(config.integrator)))
+        Self::with_integrator(
+            model,
+            config.dt,
+            integrator_for(config.integrator, config.solver),
+        )
     }
 
     /// Start at rest at the rest positions, stepping with `integrator` at `dt` (s): how an
@@ -67,6 +71,10 @@ impl Engine for ReferenceEngine {
 
     fn velocities(&self) -> Vec<V3> {
         self.state.v.clone()
+    }
+
+    fn solver_stats(&self) -> Option<SolverStats> {
+        self.integrator.solver_stats()
     }
 
     fn name(&self) -> String {

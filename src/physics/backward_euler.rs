@@ -24,8 +24,10 @@ use super::force_model::{dot, ForceModel, Linearization, Mat3, Vec3};
 use super::time_integrator::{NodeState, Nodes, TimeIntegrator};
 use nalgebra::Matrix3;
 
-/// How the implicit step solves its system.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// How the implicit step solves its system: a scene's `solver: (tolerance: 1e-5,
+/// max_iterations: 100)`; every field may be left out for its default.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SolverSettings {
     /// Stop when the residual's norm is below this fraction of the right-hand side's.
     pub tolerance: f64,
@@ -65,6 +67,17 @@ pub struct SolverStats {
     pub capped: u64,
     /// Relative residual at the end of the last solve.
     pub last_residual: f64,
+}
+
+impl SolverStats {
+    /// Mean conjugate-gradient iterations per solve (0 before the first).
+    pub fn mean_iterations(&self) -> f64 {
+        if self.solves == 0 {
+            0.0
+        } else {
+            self.iterations as f64 / self.solves as f64
+        }
+    }
 }
 
 /// The backward Euler integrator: its settings and statistics.
@@ -234,6 +247,10 @@ fn total_force(forces: &dyn ForceModel, nodes: &Nodes, x: &[Vec3], v: &[Vec3]) -
 impl TimeIntegrator for BackwardEuler {
     fn name(&self) -> &'static str {
         "backward-euler"
+    }
+
+    fn solver_stats(&self) -> Option<SolverStats> {
+        Some(self.stats)
     }
 
     fn step(&mut self, forces: &dyn ForceModel, nodes: &Nodes, h: f64, state: &mut NodeState) {

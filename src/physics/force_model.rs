@@ -19,7 +19,7 @@ pub type Vec3 = [f64; 3];
 pub type Mat3 = [[f64; 3]; 3];
 
 /// Which stiffness matrix [`ForceModel::add_stiffness_product`] applies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Linearization {
     /// The exact derivative of the elastic force with respect to positions. For springs it is
     /// indefinite where a spring is compressed (the transverse term `k (1 - L/l)` is negative

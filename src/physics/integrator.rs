@@ -14,6 +14,25 @@ pub enum Integrator {
     /// Symplectic (semi-implicit) Euler in velocity form: `v+ = v + h a(x, v)`, `x+ = x + h v+`
     /// (what Warp, Newton and Taichi use).
     SymplecticEuler,
+    /// Linearised backward Euler solved by matrix-free conjugate gradients
+    /// ([`crate::physics::BackwardEuler`], settings in [`crate::engine::SimConfig::solver`]):
+    /// stable at any step, so the stable bound does not limit it. Its state is the position and
+    /// velocity, as symplectic Euler's. The reference engine runs it; the float32 engines refuse
+    /// it until they have it.
+    BackwardEuler,
+}
+
+impl Integrator {
+    /// Whether the scheme solves a system each step (and so is not limited by the stable bound).
+    pub fn is_implicit(self) -> bool {
+        self == Integrator::BackwardEuler
+    }
+
+    /// Whether the state keeps the velocity (symplectic and backward Euler) rather than the
+    /// previous position (Verlet).
+    pub fn keeps_velocity(self) -> bool {
+        self != Integrator::Verlet
+    }
 }
 
 /// Constants of one step, as the shaders see them.
@@ -81,7 +100,7 @@ pub fn integrate(
 pub fn state_buffers(n: u64, integrator: Integrator) -> Vec<(String, u64)> {
     match integrator {
         Integrator::Verlet => vec![("displacements (3 x vec4)".to_string(), 3 * n * 16)],
-        Integrator::SymplecticEuler => vec![
+        Integrator::SymplecticEuler | Integrator::BackwardEuler => vec![
             ("displacements (2 x vec4)".to_string(), 2 * n * 16),
             ("velocities (2 x vec4)".to_string(), 2 * n * 16),
         ],
@@ -92,7 +111,7 @@ pub fn state_buffers(n: u64, integrator: Integrator) -> Vec<(String, u64)> {
 pub fn state_traffic(n: u64, integrator: Integrator) -> u64 {
     match integrator {
         Integrator::Verlet => 3 * n * 16,
-        Integrator::SymplecticEuler => 4 * n * 16,
+        Integrator::SymplecticEuler | Integrator::BackwardEuler => 4 * n * 16,
     }
 }
 

@@ -42,4 +42,4 @@ pub use integrator::{
 };
 pub use runge_kutta::RungeKutta4;
 pub use springs::{spring_force, spring_stiffness_block, SpringForces};
-pub use time_integrator::{Explicit, NodeState, Nodes, TimeIntegrator};
+pub use time_integrator::{integrator_for, Explicit, NodeState, Nodes, TimeIntegrator};

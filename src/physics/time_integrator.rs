@@ -12,6 +12,7 @@
 //! difference `(x - x-) / h`, so `x- = x - h v` and position Verlet
 //! `x+ = x + (x - x-) + h^2 a` is `x+ = x + h v + h^2 a` with `v+ = (x+ - x) / h`.
 
+use super::backward_euler::{BackwardEuler, SolverSettings, SolverStats};
 use super::force_model::{ForceModel, Vec3};
 use super::Integrator;
 
@@ -52,6 +53,19 @@ pub trait TimeIntegrator: Send {
     fn name(&self) -> &'static str;
     /// Advance `state` by one step of `h` seconds; fixed nodes keep their state.
     fn step(&mut self, forces: &dyn ForceModel, nodes: &Nodes, h: f64, state: &mut NodeState);
+    /// What an iterative solver did so far (`None` for a scheme that solves nothing).
+    fn solver_stats(&self) -> Option<SolverStats> {
+        None
+    }
+}
+
+/// The float64 integrator a run's settings name: [`Explicit`] for Verlet and symplectic
+/// Euler, [`BackwardEuler`] with `solver` for backward Euler.
+pub fn integrator_for(scheme: Integrator, solver: SolverSettings) -> Box<dyn TimeIntegrator> {
+    match scheme {
+        Integrator::BackwardEuler => Box::new(BackwardEuler::new(solver)),
+        explicit => Box::new(Explicit::new(explicit)),
+    }
 }
 
 /// The explicit schemes of [`Integrator`] in float64: the force is read once per step at the
@@ -64,7 +78,15 @@ pub struct Explicit {
 
 impl Explicit {
     /// The float64 form of `scheme`.
+    ///
+    /// # Panics
+    /// If `scheme` is [`Integrator::BackwardEuler`], which is not explicit (build it with
+    /// [`integrator_for`]): a programming error, never a user's input.
     pub fn new(scheme: Integrator) -> Self {
+        assert!(
+            !scheme.is_implicit(),
+            "Explicit::new takes an explicit scheme; use integrator_for"
+        );
         Explicit {
             scheme,
             force: Vec::new(),
@@ -77,6 +99,7 @@ impl TimeIntegrator for Explicit {
         match self.scheme {
             Integrator::Verlet => "verlet",
             Integrator::SymplecticEuler => "symplectic-euler",
+            Integrator::BackwardEuler => unreachable!("refused by Explicit::new"),
         }
     }
 
@@ -96,7 +119,7 @@ impl TimeIntegrator for Explicit {
                     state.v[i] = [0, 1, 2].map(|c| (next[c] - x[c]) / h);
                     state.x[i] = next;
                 }
-                Integrator::SymplecticEuler => {
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => {
                     let v = [0, 1, 2].map(|c| v[c] + h * a[c]);
                     state.x[i] = [0, 1, 2].map(|c| x[c] + h * v[c]);
                     state.v[i] = v;

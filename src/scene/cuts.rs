@@ -388,7 +388,9 @@ impl CutStage {
         // positions that agree. Then the simulation's bound says whether the step must change.
         let cost = sim.apply_at(diff, true, positions)?;
         let (bound, node) = (sim.bound().dt, sim.bound().node);
-        if dt <= bound {
+        // The stable-bound policies are for explicit schemes: an implicit step is stable at
+        // any step, so a cut never changes it.
+        if dt <= bound || sim.config().integrator.is_implicit() {
             return Ok(Applied {
                 cost,
                 time_step_bytes: 0,

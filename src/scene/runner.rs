@@ -35,6 +35,43 @@ pub struct RunOptions {
     pub check: bool,
 }
 
+/// What the implicit integrator's conjugate-gradient solver did over a run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// Linear solves (steps times Newton iterations).
+    pub solves: u64,
+    /// Mean conjugate-gradient iterations per solve.
+    pub mean_iterations: f64,
+    /// The most iterations one solve took.
+    pub max_iterations: u32,
+    /// Relative residual at the end of the last solve.
+    pub final_residual: f64,
+    /// Solves that stopped above the tolerance (at the iteration cap).
+    pub capped: u64,
+    /// The tolerance asked for.
+    pub tolerance: f64,
+    /// The iteration cap asked for.
+    pub iteration_cap: u32,
+}
+
+impl SolverReport {
+    /// The report of `stats` under `settings`.
+    pub fn new(
+        stats: crate::physics::SolverStats,
+        settings: crate::physics::SolverSettings,
+    ) -> Self {
+        SolverReport {
+            solves: stats.solves,
+            mean_iterations: stats.mean_iterations(),
+            max_iterations: stats.max_iterations,
+            final_residual: stats.last_residual,
+            capped: stats.capped,
+            tolerance: settings.tolerance,
+            iteration_cap: settings.max_iterations,
+        }
+    }
+}
+
 /// What a run did, for humans and for `--json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSummary {
@@ -69,6 +106,8 @@ pub struct RunSummary {
     pub engine_note: Option<String>,
     /// Integration scheme.
     pub integrator: String,
+    /// What the implicit integrator's solver did (`integrator: BackwardEuler`).
+    pub solver: Option<SolverReport>,
     /// Wall time of the stepping, s.
     pub wall_s: f64,
     /// Steps per second of wall time.
@@ -209,6 +248,7 @@ pub fn run_scene(
     let config = SimConfig {
         dt,
         integrator: scene.integrator,
+        solver: scene.solver,
         allow_unstable: scene.allow_unstable,
         allow_inverted: scene.allow_inverted,
         ..SimConfig::new(dt)
@@ -235,6 +275,7 @@ pub fn run_scene(
         engine: engine.to_string(),
         engine_note: None,
         integrator: format!("{:?}", scene.integrator),
+        solver: None,
         wall_s: 0.0,
         steps_per_s: 0.0,
         max_displacement: 0.0,
@@ -352,6 +393,9 @@ pub fn run_scene(
     summary.dt_bound_final = sim.bound().dt;
     summary.dt_bound_node_final = sim.bound().node;
     summary.steps_per_s = summary.steps as f64 / summary.wall_s.max(1e-12);
+    summary.solver = sim
+        .solver_stats()
+        .map(|stats| SolverReport::new(stats, scene.solver));
     if let Some((w, _)) = frames.as_mut() {
         w.finish()?;
         summary.frames_written = w.frames();

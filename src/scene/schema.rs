@@ -286,6 +286,11 @@ pub struct Scene {
     /// Integration scheme.
     #[serde(default)]
     pub integrator: Integrator,
+    /// How `integrator: BackwardEuler` solves each step: `solver: (tolerance: 1e-5,
+    /// max_iterations: 100)` (the defaults; `newton_iterations: 1`, `linearization: Definite`
+    /// may be given too). Ignored by the explicit schemes.
+    #[serde(default)]
+    pub solver: crate::physics::SolverSettings,
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,

@@ -76,7 +76,7 @@ where
         let (next, s) = step(p, &cur, &second);
         second = match p.integrator {
             Integrator::Verlet => std::mem::replace(&mut cur, next),
-            Integrator::SymplecticEuler => {
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => {
                 cur = next;
                 s
             }

@@ -53,7 +53,7 @@ fn to_layout(
             cur[new][c] = u as f32;
             second[new][c] = match config.integrator {
                 Integrator::Verlet => (u - v[old][c] * config.dt) as f32,
-                Integrator::SymplecticEuler => v[old][c] as f32,
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => v[old][c] as f32,
             };
         }
     }
@@ -347,7 +347,7 @@ fn memory_stats_sum_their_buffers_for_every_variant() {
     for integrator in [Integrator::Verlet, Integrator::SymplecticEuler] {
         let state = match integrator {
             Integrator::Verlet => 3 * 16 * n,
-            Integrator::SymplecticEuler => 4 * 16 * n,
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => 4 * 16 * n,
         };
         for acc in [
             Accumulation::Gather,

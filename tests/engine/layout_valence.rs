@@ -168,7 +168,7 @@ fn memory_stats_sum_to_the_buffers_they_list(
             assert_eq!(get("displacements"), 3 * n * 16);
             3 * n * 16
         }
-        Integrator::SymplecticEuler => {
+        Integrator::SymplecticEuler | Integrator::BackwardEuler => {
             assert_eq!(get("displacements"), 2 * n * 16);
             assert_eq!(get("velocities"), 2 * n * 16);
             4 * n * 16
@@ -228,7 +228,7 @@ fn the_cpu_twin_over_the_valence_layout_equals_the_fast_engine_after_many_steps(
             u[new][c] = d as f32;
             s[new][c] = match integrator {
                 Integrator::Verlet => (d - v0[old][c] * h) as f32,
-                Integrator::SymplecticEuler => v0[old][c] as f32,
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => v0[old][c] as f32,
             };
         }
     }

@@ -108,7 +108,9 @@ fn layout_pass_equals_its_cpu_twin_on_random_inputs(
             for c in 0..3 {
                 v[old as usize][c] = match integrator {
                     Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / dt,
-                    Integrator::SymplecticEuler => second[new][c] as f64,
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => {
+                        second[new][c] as f64
+                    }
                 };
             }
         }

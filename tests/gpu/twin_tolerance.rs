@@ -56,7 +56,7 @@ fn a_dropped_spring_moves_the_twin_past_the_tolerance(
             raw.0[at][c] = u as f32;
             raw.1[at][c] = match integrator {
                 Integrator::Verlet => (u - v[i][c] * config.dt) as f32,
-                Integrator::SymplecticEuler => v[i][c] as f32,
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => v[i][c] as f32,
             };
         }
     }

@@ -92,3 +92,98 @@ fn undamped_stiff_springs_lose_energy_monotonically_at_a_hundred_times_the_bound
     let blew_up = !e.is_finite() || e.abs() > 1e3 * energy.abs();
     assert!(blew_up, "explicit energy {e:e} J stayed bounded");
 }
+
+/// A small clamped box scene stepping with backward Euler at 1 ms (far above its explicit
+/// bound), with `extra` fields appended.
+fn implicit_scene(extra: &str) -> lancet::scene::Scene {
+    let text = format!(
+        r#"Scene(
+    name: "implicit box",
+    mesh: Box((size: (0.02, 0.01, 0.01), cells: (4, 2, 2))),
+    material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.3), mass: Density(1000.0)),
+    gravity: (0.0, 0.0, -9.81),
+    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (1.0, 0.0, 0.0), tolerance: 1e-9)],
+    dt: Seconds(1e-3),
+    steps: 20,
+    engine: Reference,
+    integrator: BackwardEuler,
+    {extra}
+)"#
+    );
+    lancet::scene::Scene::from_ron(&text, std::path::Path::new("implicit.ron")).unwrap()
+}
+
+fn run_scene(scene: &lancet::scene::Scene) -> lancet::Result<lancet::scene::RunSummary> {
+    let opts = lancet::scene::RunOptions {
+        no_output: true,
+        ..Default::default()
+    };
+    lancet::scene::run_scene(
+        scene,
+        std::path::Path::new("implicit.ron"),
+        &opts,
+        |_, _| {},
+    )
+}
+
+#[test]
+fn a_scene_runs_backward_euler_above_the_explicit_bound_and_reports_its_solver() {
+    let scene = implicit_scene("solver: (tolerance: 1e-7, max_iterations: 200),");
+    let summary = run_scene(&scene).unwrap();
+    assert!(!summary.refused, "{:?}", summary.message);
+    assert!(summary.dt > 4.0 * summary.dt_bound, "{summary:?}");
+    assert_eq!(summary.steps, 20);
+    let solver = summary.solver.expect("backward Euler reports its solver");
+    assert_eq!(solver.solves, 20);
+    assert_eq!(solver.tolerance, 1e-7);
+    assert_eq!(solver.capped, 0, "{solver:?}");
+    assert!(solver.final_residual <= 1e-7, "{solver:?}");
+    assert!(solver.mean_iterations >= 1.0 && solver.max_iterations >= 1);
+    assert!(summary.max_displacement > 0.0);
+}
+
+#[test]
+fn an_iteration_cap_below_what_the_tolerance_needs_is_counted() {
+    let scene = implicit_scene("solver: (tolerance: 1e-12, max_iterations: 2),");
+    let solver = run_scene(&scene).unwrap().solver.unwrap();
+    assert_eq!(solver.max_iterations, 2, "{solver:?}");
+    assert_eq!(solver.capped, solver.solves, "{solver:?}");
+    assert!(solver.final_residual > 1e-12);
+}
+
+#[test]
+fn explicit_schemes_report_no_solver_and_unknown_solver_fields_are_refused() {
+    let scene = implicit_scene("");
+    let mut explicit = scene.clone();
+    explicit.integrator = Integrator::SymplecticEuler;
+    explicit.dt = lancet::scene::TimeStep::BoundFraction(0.5);
+    assert!(run_scene(&explicit).unwrap().solver.is_none());
+    let bad = r#"Scene(name: "x", mesh: Box((size: (0.02, 0.01, 0.01), cells: (2, 1, 1))),
+           material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.3), mass: Density(1000.0)),
+           steps: 1, integrator: BackwardEuler, solver: (tolerence: 1e-5))"#;
+    let err = lancet::scene::Scene::from_ron(bad, std::path::Path::new("bad.ron")).unwrap_err();
+    assert!(err.to_string().contains("tolerence"), "{err}");
+}
+
+#[test]
+fn float32_engines_refuse_backward_euler_with_a_clear_error_until_they_have_it() {
+    let model = cantilever(100.0);
+    let mut config = SimConfig::new(1e-3);
+    config.integrator = Integrator::BackwardEuler;
+    for kind in [EngineKind::Fast, EngineKind::Gpu, EngineKind::Auto] {
+        match Simulation::new(model.clone(), kind, config) {
+            Err(lancet::Error::Unsupported(m)) => assert!(m.contains("reference"), "{m}"),
+            Err(e) => panic!("{kind}: {e}"),
+            Ok(_) => panic!("{kind} accepted backward Euler"),
+        }
+    }
+    // The reference engine takes it, at a step the explicit schemes would refuse.
+    let mut sim = Simulation::new(model.clone(), EngineKind::Reference, config).unwrap();
+    sim.run(5).unwrap();
+    assert_eq!(sim.solver_stats().unwrap().solves, 5);
+    config.integrator = Integrator::Verlet;
+    assert!(matches!(
+        Simulation::new(model, EngineKind::Reference, config),
+        Err(lancet::Error::UnstableTimeStep { .. })
+    ));
+}

@@ -212,6 +212,20 @@ pub(crate) fn print_summary(s: &RunSummary) {
     if let Some(line) = time_step_change(s) {
         println!("{line}");
     }
+    if let Some(r) = &s.solver {
+        println!(
+            "solver: {:.1} conjugate-gradient iterations per solve (max {}), final relative \
+             residual {:.2e} (tolerance {:.0e})",
+            r.mean_iterations, r.max_iterations, r.final_residual, r.tolerance
+        );
+        if r.capped > 0 {
+            println!(
+                "warning: {} of {} solves stopped at the iteration cap ({}) above the \
+                 tolerance: raise solver.max_iterations or the tolerance, or lower dt",
+                r.capped, r.solves, r.iteration_cap
+            );
+        }
+    }
     if let Some(n) = &s.engine_note {
         println!("note: {n}");
     }

@@ -336,7 +336,7 @@ impl FastEngine {
                     (x[2] - p[2]) * inv_h,
                 ]
             }
-            Integrator::SymplecticEuler => to_f64(self.second[i]),
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => to_f64(self.second[i]),
         }
     }
 
@@ -394,7 +394,7 @@ impl Engine for FastEngine {
                 "velocities (symplectic euler, 2 buffers)".to_string(),
                 match self.integrator {
                     Integrator::Verlet => 0,
-                    Integrator::SymplecticEuler => 2 * n * p,
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => 2 * n * p,
                 },
             ),
         ];
@@ -402,7 +402,7 @@ impl Engine for FastEngine {
         // the next; neighbours' state is re-read from cache, not memory, when the order is local.
         let state = match self.integrator {
             Integrator::Verlet => 3 * n * p,
-            Integrator::SymplecticEuler => 4 * n * p,
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => 4 * n * p,
         };
         let bytes_per_step = slots * entry + n * 8 + n * 5 + state;
         super::EngineMemory {
@@ -431,7 +431,7 @@ impl Engine for FastEngine {
         for _ in 0..steps {
             match self.integrator {
                 Integrator::Verlet => self.step_verlet(),
-                Integrator::SymplecticEuler => self.step_euler(),
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => self.step_euler(),
             }
         }
         // The read the cut after this step will make, while the state is in cache and the
@@ -494,7 +494,7 @@ impl Engine for FastEngine {
             }
             let r = self.rest[o as usize];
             let u = [p[0] - r[0], p[1] - r[1], p[2] - r[2]];
-            if self.integrator == Integrator::SymplecticEuler {
+            if self.integrator.keeps_velocity() {
                 let old = to_f64(self.x[i]);
                 let v = to_f64(self.second[i]);
                 self.second[i] = to_p([0, 1, 2].map(|c| v[c] + (u[c] - old[c]) * inv_h));
@@ -533,7 +533,7 @@ impl Engine for FastEngine {
             self.x[i] = to_p(u);
             self.second[i] = match self.integrator {
                 Integrator::Verlet => to_p([u[0] - v[0] * h, u[1] - v[1] * h, u[2] - v[2] * h]),
-                Integrator::SymplecticEuler => to_p(v),
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => to_p(v),
             };
         }
     }

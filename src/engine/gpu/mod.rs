@@ -45,7 +45,7 @@ use super::{
     SimConfig,
 };
 use crate::collide::broad::ToolBox;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::layout::edges::{Accumulation, FixedPoint};
 use crate::layout::patch::{Dirty, LayoutArray};
 use crate::layout::{NodeOrder, PackedLayout};
@@ -201,6 +201,13 @@ impl GpuEngine {
         config: SimConfig,
         options: impl Into<GpuOptions>,
     ) -> Result<Self> {
+        if config.integrator.is_implicit() {
+            return Err(Error::Unsupported(
+                "the GPU engine has no implicit integrator yet: run BackwardEuler on the \
+                 reference engine"
+                    .into(),
+            ));
+        }
         let options = options.into();
         let packed = PackedLayout::pack(model, options.layout, config.node_order.order(model))?;
         Self::with_layout(ctx, model, config, packed, options.accumulation)
@@ -225,7 +232,7 @@ impl GpuEngine {
             inv_h: 1.0 / params.h,
             alpha: params.alpha,
             gravity: params.gravity,
-            integrator: (config.integrator == Integrator::SymplecticEuler) as u32,
+            integrator: (config.integrator.keeps_velocity()) as u32,
             n: 0,
             width: 0,
             damped: params.damped as u32,
@@ -268,7 +275,7 @@ impl GpuEngine {
         let mover = move_state::MovePass::new(&ctx)?;
         let rescale = match config.integrator {
             Integrator::Verlet => Some(time_step::RescalePass::new(&ctx)?),
-            Integrator::SymplecticEuler => None,
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => None,
         };
         Ok(GpuEngine {
             rescale,

@@ -48,7 +48,7 @@ impl StateBuffers {
         };
         let (nx, nv, vbytes) = match integrator {
             Integrator::Verlet => (3, 1, 16),
-            Integrator::SymplecticEuler => (2, 2, bytes),
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => (2, 2, bytes),
         };
         Ok(StateBuffers {
             integrator,
@@ -66,7 +66,9 @@ impl StateBuffers {
     pub(super) fn buffers(&self) -> Vec<&wgpu::Buffer> {
         match self.integrator {
             Integrator::Verlet => self.x.iter().collect(),
-            Integrator::SymplecticEuler => self.x.iter().chain(&self.v).collect(),
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => {
+                self.x.iter().chain(&self.v).collect()
+            }
         }
     }
 
@@ -99,7 +101,7 @@ impl StateBuffers {
                 next: &self.x[(phase + 2) % 3],
                 second_out: &self.v[0],
             },
-            Integrator::SymplecticEuler => PhaseBindings {
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => PhaseBindings {
                 second_in: &self.v[phase],
                 cur: &self.x[phase],
                 next: &self.x[1 - phase],
@@ -170,7 +172,9 @@ impl GpuEngine {
                 x[old][c] = self.rest[old][c] + cur[new][c] as f64;
                 v[old][c] = match self.state.integrator {
                     Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / dt,
-                    Integrator::SymplecticEuler => second[new][c] as f64,
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => {
+                        second[new][c] as f64
+                    }
                 };
             }
             if self.fixed[old] {

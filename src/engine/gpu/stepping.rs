@@ -114,7 +114,9 @@ impl Engine for GpuEngine {
                 cur[new][c] = u as f32;
                 second[new][c] = match self.state.integrator {
                     Integrator::Verlet => (u - velocities[old][c] * dt) as f32,
-                    Integrator::SymplecticEuler => velocities[old][c] as f32,
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => {
+                        velocities[old][c] as f32
+                    }
                 };
             }
         }
@@ -179,7 +181,7 @@ impl Engine for GpuEngine {
         // Verlet keeps the previous displacements: the start of the step, read as they are.
         // Symplectic Euler: the current displacement less dt times the velocity.
         let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
-        let euler = self.state.integrator == Integrator::SymplecticEuler;
+        let euler = self.state.integrator.keeps_velocity();
         let cur = if euler {
             buffers::read_entries(&self.ctx, b.cur, &idx)?
         } else {
@@ -219,7 +221,7 @@ impl Engine for GpuEngine {
         let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
         let cur = match self.state.integrator {
             Integrator::Verlet => buffers::read_entries(&self.ctx, b.cur, &idx)?,
-            Integrator::SymplecticEuler => Vec::new(),
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => Vec::new(),
         };
         let dt = self.config.dt;
         Ok(nodes
@@ -231,7 +233,7 @@ impl Engine for GpuEngine {
                 }
                 [0, 1, 2].map(|c| match self.state.integrator {
                     Integrator::Verlet => (cur[k][c] as f64 - second[k][c] as f64) / dt,
-                    Integrator::SymplecticEuler => second[k][c] as f64,
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => second[k][c] as f64,
                 })
             })
             .collect())
@@ -250,7 +252,7 @@ impl Engine for GpuEngine {
             .map(|(&i, &p)| (i, p))
             .collect();
         let idx: Vec<u32> = moving.iter().map(|&(i, _)| rank[i as usize]).collect();
-        let euler = self.config.integrator == Integrator::SymplecticEuler;
+        let euler = self.config.integrator.keeps_velocity();
         let (old, vel) = if euler {
             (
                 buffers::read_entries(&self.ctx, b.cur, &idx)?,

@@ -59,7 +59,10 @@ impl Simulation {
         // Everything below touches only what the diff names, so that a local cut costs the
         // same on a large mesh as on a small one.
         let undo = self.bound.update(&self.model, diff);
-        if self.config.dt > self.bound.dt && !allow_unstable {
+        if self.config.dt > self.bound.dt
+            && !allow_unstable
+            && !self.config.integrator.is_implicit()
+        {
             let err = Error::UnstableTimeStep {
                 dt: self.config.dt,
                 bound: self.bound.dt,
@@ -245,8 +248,8 @@ impl Simulation {
     /// Change the time step between steps, keeping the state (positions and velocities): a
     /// parameter of the step, so only the step parameters are written ([`Engine::set_time_step`]:
     /// no pipeline is rebuilt and no layout uploaded; Verlet's previous positions are moved
-    /// where the state lives so that its velocity is kept). A step above the bound is refused
-    /// unless `allow_unstable`, with nothing changed. Returns what it cost: the bytes of the
+    /// where the state lives so that its velocity is kept). For an explicit integrator a step
+    /// above the bound is refused unless `allow_unstable`, with nothing changed. Returns what it cost: the bytes of the
     /// engine's step parameters.
     pub fn set_time_step(&mut self, dt: f64) -> Result<PatchCost> {
         if !(dt.is_finite() && dt > 0.0) {
@@ -256,7 +259,10 @@ impl Simulation {
                 requirement: "be finite and positive".into(),
             });
         }
-        if dt > self.bound.dt && !self.config.allow_unstable {
+        if dt > self.bound.dt
+            && !self.config.allow_unstable
+            && !self.config.integrator.is_implicit()
+        {
             return Err(Error::UnstableTimeStep {
                 dt,
                 bound: self.bound.dt,

@@ -57,6 +57,12 @@ fn make_engine(
     config: SimConfig,
     gpu: GpuOptions,
 ) -> Result<Made> {
+    if config.integrator.is_implicit() && kind != EngineKind::Reference {
+        return Err(Error::Unsupported(format!(
+            "engine {kind} has no implicit integrator yet: run BackwardEuler on the reference \
+             engine (engine: Reference, --engine reference)"
+        )));
+    }
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(reference::ReferenceEngine::new(model, config)),
@@ -209,8 +215,8 @@ impl NodeSprings {
 }
 
 impl Simulation {
-    /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or is above the
-    /// stable bound (unless `config.allow_unstable`). A GPU engine (`Gpu`, or `Auto` finding an
+    /// Set up a run of `model` on engine `kind`. Fails if `dt` is not positive or, for an
+    /// explicit integrator, is above the stable bound (unless `config.allow_unstable`). A GPU engine (`Gpu`, or `Auto` finding an
     /// adapter) takes the default [`GpuOptions`]; [`Simulation::with_gpu`] chooses them.
     pub fn new(model: PackedModel, kind: EngineKind, config: SimConfig) -> Result<Self> {
         Self::with_gpu(model, kind, config, GpuOptions::default())
@@ -246,7 +252,8 @@ impl Simulation {
             });
         }
         let bound = stable_time_step(&model);
-        if config.dt > bound.dt && !config.allow_unstable {
+        // The stable bound limits the explicit schemes; backward Euler is stable at any step.
+        if config.dt > bound.dt && !config.allow_unstable && !config.integrator.is_implicit() {
             return Err(Error::UnstableTimeStep {
                 dt: config.dt,
                 bound: bound.dt,
@@ -403,6 +410,11 @@ impl Simulation {
     /// measure it (the GPU engine on an adapter with timestamp queries).
     pub fn last_device_seconds(&self) -> Option<f64> {
         self.engine.device()?.last_device_seconds()
+    }
+
+    /// What the implicit integrator's solver did so far (`None` for an explicit scheme).
+    pub fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
+        self.engine.solver_stats()
     }
 
     /// The engine's name as reported in summaries (with its device for the GPU).
