@@ -12,9 +12,11 @@ use crate::engine::{EngineKind, GpuOptions, Integrator, NodeOrdering, SimConfig,
 use crate::error::{Error, Result};
 use crate::layout::edges::Accumulation;
 use crate::layout::LayoutKind;
-use crate::mesh::generate::BoxGrid;
+use crate::mesh::generate::{BoxGrid, TetSplit};
 use crate::mesh::TetMesh;
-use crate::model::{stable_time_step, FixedSelector, Material, ModelConfig, PackedModel};
+use crate::model::{
+    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringDamping,
+};
 
 /// A mesh to benchmark on.
 #[derive(Debug, Clone, PartialEq)]
@@ -23,6 +25,16 @@ pub enum BenchMesh {
     Cube(usize),
     /// A mesh file.
     File(PathBuf),
+    /// A box of `cells` cells of edge `cell` m, split as `split` (the peers' benchmark grid:
+    /// [`Preset`]).
+    Grid {
+        /// Cells along x, y, z.
+        cells: [usize; 3],
+        /// Cell edge, m.
+        cell: f64,
+        /// How each cell is split into tets.
+        split: TetSplit,
+    },
 }
 
 impl BenchMesh {
@@ -31,6 +43,23 @@ impl BenchMesh {
             BenchMesh::Cube(n) => (
                 format!("cube {n}^3"),
                 BoxGrid::cube_cells([*n; 3], 0.01).build()?,
+            ),
+            BenchMesh::Grid { cells, cell, split } => (
+                format!(
+                    "{}x{}x{}-{}tet",
+                    cells[0],
+                    cells[1],
+                    cells[2],
+                    match split {
+                        TetSplit::Five => 5,
+                        TetSplit::Six => 6,
+                    }
+                ),
+                BoxGrid {
+                    split: *split,
+                    ..BoxGrid::cube_cells(*cells, *cell)
+                }
+                .build()?,
             ),
             #[cfg(feature = "formats")]
             BenchMesh::File(p) => (p.display().to_string(), crate::mesh::io::read(p)?.mesh),
@@ -63,6 +92,67 @@ pub struct BenchOptions {
     pub chunk: u64,
     /// Integration scheme.
     pub integrator: Integrator,
+    /// The model every engine runs: the tissue of [`bench_model`] (`None`) or a preset's.
+    pub preset: Option<Preset>,
+}
+
+/// The mass-spring benchmark that users of NVIDIA Warp, Newton and Taichi know (a box of
+/// five-tet cells like `warp.sim`'s `add_soft_grid`), so that `benches/peers/` can run the same
+/// configuration in those frameworks beside lancet: cells of 5 cm, a spring on every unique tet
+/// edge of stiffness 5e4 N/m, 0.125 kg per node, the face x = 0 fixed, gravity, a step of
+/// 2e-4 s, symplectic Euler.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Preset {
+    /// Damping 5 N s/m along each spring.
+    Damped,
+    /// No damping.
+    Undamped,
+}
+
+impl Preset {
+    /// Cell edge, m.
+    pub const CELL: f64 = 0.05;
+    /// Spring stiffness, N/m.
+    pub const STIFFNESS: f64 = 5e4;
+    /// Damping along each spring (the damped preset), N s/m.
+    pub const DAMPING: f64 = 5.0;
+    /// Mass per node, kg.
+    pub const MASS: f64 = 0.125;
+    /// Time step, s.
+    pub const DT: f64 = 2e-4;
+    /// The two sizes of the comparison: 18,081 nodes and 102,080 springs; 99,937 nodes and
+    /// 579,456 springs.
+    pub const GRIDS: [[usize; 3]; 2] = [[40, 20, 20], [72, 36, 36]];
+
+    /// The preset's meshes, split as `split`.
+    pub fn meshes(split: TetSplit) -> Vec<BenchMesh> {
+        Self::GRIDS
+            .iter()
+            .map(|&cells| BenchMesh::Grid {
+                cells,
+                cell: Self::CELL,
+                split,
+            })
+            .collect()
+    }
+
+    /// The preset's model on `mesh`.
+    pub fn model(self, mesh: &TetMesh) -> Result<PackedModel> {
+        let xmin = mesh.bounds().map_or(0.0, |(lo, _)| lo.x);
+        let damping = match self {
+            Preset::Damped => SpringDamping::Absolute(Self::DAMPING),
+            Preset::Undamped => SpringDamping::None,
+        };
+        let mut config =
+            ModelConfig::new(Material::springs(Self::STIFFNESS, Self::MASS).with_damping(damping));
+        config.gravity = [0.0, 0.0, -9.81];
+        config.fixed.push(FixedSelector::HalfSpace {
+            point: [xmin, 0.0, 0.0],
+            normal: [1.0, 0.0, 0.0],
+            tolerance: 1e-9,
+        });
+        crate::model::SpringModel::build(mesh, &config)?.pack(mesh)
+    }
 }
 
 impl Default for BenchOptions {
@@ -75,6 +165,7 @@ impl Default for BenchOptions {
             steps: 200,
             chunk: 20,
             integrator: Integrator::Verlet,
+            preset: None,
         }
     }
 }
@@ -237,8 +328,15 @@ pub fn run_bench(
     let mut gpu_state: Option<std::result::Result<(), String>> = None;
     for m in meshes {
         let (name, mesh) = m.build()?;
-        let model = bench_model(&mesh)?;
-        let dt = 0.9 * stable_time_step(&model).dt;
+        let (model, dt) = match opts.preset {
+            // The peers' step: refused (with the bound) if a mesh makes it unstable.
+            Some(preset) => (preset.model(&mesh)?, Preset::DT),
+            None => {
+                let model = bench_model(&mesh)?;
+                let dt = 0.9 * stable_time_step(&model).dt;
+                (model, dt)
+            }
+        };
         let base = SimConfig {
             integrator: opts.integrator,
             ..SimConfig::new(dt)

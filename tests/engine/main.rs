@@ -10,6 +10,7 @@ mod models;
 #[path = "../common/read_ahead.rs"]
 mod read_ahead;
 
+mod bench_preset;
 mod engine_agreement;
 mod engine_api;
 mod engine_correction;

@@ -196,17 +196,19 @@ pub(crate) fn bench(
     cubes: &[usize],
     files: &[PathBuf],
     opts: &lancet::report::bench::BenchOptions,
+    split: lancet::mesh::generate::TetSplit,
     json: bool,
 ) -> lancet::Result<ExitCode> {
     use lancet::report::{bandwidth, bench};
-    // With no mesh named, the two default cubes (about 1,300 and 20,000 nodes).
-    let cubes = if cubes.is_empty() && files.is_empty() {
-        &[10, 26][..]
+    let named = !(cubes.is_empty() && files.is_empty());
+    let mut meshes: Vec<bench::BenchMesh> = if named {
+        cubes.iter().map(|&n| bench::BenchMesh::Cube(n)).collect()
+    } else if opts.preset.is_some() {
+        bench::Preset::meshes(split)
     } else {
-        cubes
+        // With no mesh named, the two default cubes (about 1,300 and 20,000 nodes).
+        vec![bench::BenchMesh::Cube(10), bench::BenchMesh::Cube(26)]
     };
-    let mut meshes: Vec<bench::BenchMesh> =
-        cubes.iter().map(|&n| bench::BenchMesh::Cube(n)).collect();
     meshes.extend(files.iter().cloned().map(bench::BenchMesh::File));
     // 2^24 doubles per array (128 MiB): far beyond any cache, as STREAM requires.
     let bw = bandwidth::stream_triad(1 << 24, 5);

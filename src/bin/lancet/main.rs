@@ -161,9 +161,19 @@ enum Command {
         /// Steps timed per engine.
         #[arg(long, default_value_t = 200)]
         steps: u64,
-        /// Integration scheme of every run.
-        #[arg(long, value_enum, default_value = "verlet")]
-        integrator: IntegratorArg,
+        /// Integration scheme of every run (default: verlet; symplectic-euler with --preset).
+        #[arg(long, value_enum)]
+        integrator: Option<IntegratorArg>,
+        /// Run the mass-spring benchmark of NVIDIA Warp, Newton and Taichi users instead of the
+        /// tissue model: boxes of 40x20x20 and 72x36x36 five-tet cells of 5 cm, springs of
+        /// 5e4 N/m on the tet edges, 0.125 kg per node, the face x = 0 fixed, gravity, dt
+        /// 2e-4 s, symplectic Euler (`benches/peers/` runs the same in Taichi and Warp).
+        /// With --cube or --mesh, the preset's model on those meshes.
+        #[arg(long, value_enum)]
+        preset: Option<PresetArg>,
+        /// How the preset's box cells are split into tets (with --preset).
+        #[arg(long, value_enum, default_value = "five")]
+        split: SplitArg,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -284,6 +294,40 @@ impl From<AccumulationArg> for Accumulation {
             AccumulationArg::Gather => Accumulation::Gather,
             AccumulationArg::AtomicFixed => Accumulation::AtomicFixed,
             AccumulationArg::AtomicFloat => Accumulation::AtomicFloat,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum PresetArg {
+    /// Damping of 5 N s/m along each spring.
+    Damped,
+    /// No damping.
+    Undamped,
+}
+
+impl From<PresetArg> for lancet::report::bench::Preset {
+    fn from(p: PresetArg) -> Self {
+        match p {
+            PresetArg::Damped => lancet::report::bench::Preset::Damped,
+            PresetArg::Undamped => lancet::report::bench::Preset::Undamped,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SplitArg {
+    /// Five tets per cell, alternating with cell parity (as Warp's add_soft_grid).
+    Five,
+    /// Six tets per cell around the main diagonal.
+    Six,
+}
+
+impl From<SplitArg> for lancet::mesh::generate::TetSplit {
+    fn from(s: SplitArg) -> Self {
+        match s {
+            SplitArg::Five => lancet::mesh::generate::TetSplit::Five,
+            SplitArg::Six => lancet::mesh::generate::TetSplit::Six,
         }
     }
 }
@@ -504,10 +548,17 @@ fn main() -> ExitCode {
             order,
             steps,
             integrator,
+            preset,
+            split,
             json,
         } => {
+            let default_integrator = match preset {
+                Some(_) => lancet::Integrator::SymplecticEuler,
+                None => lancet::Integrator::Verlet,
+            };
             let opts = lancet::report::bench::BenchOptions {
-                integrator: integrator.into(),
+                integrator: integrator.map_or(default_integrator, Into::into),
+                preset: preset.map(Into::into),
                 engines: engine.iter().map(|&e| e.into()).collect(),
                 layouts: layout.iter().map(|&l| l.into()).collect(),
                 accumulations: accumulation.iter().map(|&a| a.into()).collect(),
@@ -515,7 +566,7 @@ fn main() -> ExitCode {
                 steps,
                 ..Default::default()
             };
-            bench(&cubes, &mesh, &opts, json)
+            bench(&cubes, &mesh, &opts, split.into(), json)
         }
     };
     match result {
