@@ -41,6 +41,17 @@ use crate::physics::RungeKutta4;
 /// The default ladder of time steps, as fractions of the stable bound.
 pub const DEFAULT_LADDER: [f64; 5] = [1.0, 0.5, 0.25, 0.125, 0.0625];
 
+/// The default ladder of the implicit series ([`Integrator::BackwardEuler`]), as multiples of
+/// the explicit stable bound: the implicit step is stable above it, and what it buys is read
+/// there. A rung at the bound itself (`1`) costs a conjugate-gradient solve per explicit step
+/// (on the default scene 64 s of wall per simulated second on the reference engine, against
+/// 2.8 for explicit Verlet there), so it is left to be asked for.
+pub const DEFAULT_IMPLICIT_LADDER: [f64; 3] = [4.0, 16.0, 64.0];
+
+/// The default error that "time to error" compares the series at: the least wall time per
+/// simulated second among a series' rows whose worst relative L2 error is at or below it.
+pub const DEFAULT_TARGET_ERROR: f64 = 1e-3;
+
 /// The default step of the converged reference (fourth-order Runge–Kutta), as a fraction of
 /// the stable bound.
 pub const DEFAULT_REFERENCE_FRACTION: f64 = 1.0 / 4.0;
@@ -59,6 +70,13 @@ pub struct AccuracyOptions {
     pub accumulations: Vec<Accumulation>,
     /// Time steps as fractions of the stable bound, each in (0, 1].
     pub ladder: Vec<f64>,
+    /// Time steps of the implicit series (backward Euler on each engine that has it) as
+    /// multiples of the stable bound, each finite and positive; empty for no implicit series.
+    /// An engine without an implicit integrator is listed in [`AccuracyReport::skipped`].
+    pub implicit_ladder: Vec<f64>,
+    /// The error the report's time-to-error summary compares the series at
+    /// ([`AccuracyReport::time_to_error`]).
+    pub target_error: f64,
     /// Simulated times at which errors are measured, s; empty for a quarter, a half and all of
     /// the run's duration.
     pub times: Vec<f64>,
@@ -88,6 +106,8 @@ impl Default for AccuracyOptions {
             ],
             accumulations: vec![Accumulation::Gather],
             ladder: DEFAULT_LADDER.to_vec(),
+            implicit_ladder: DEFAULT_IMPLICIT_LADDER.to_vec(),
+            target_error: DEFAULT_TARGET_ERROR,
             times: Vec::new(),
             reference_fraction: DEFAULT_REFERENCE_FRACTION,
             warmup_steps: 20,
@@ -112,11 +132,13 @@ pub struct SampleError {
 #[derive(Debug, Clone, Serialize)]
 pub struct AccuracyRow {
     /// Engine and layout without the device, e.g. `cpu-fast-f32` or `gpu-valence`: the series
-    /// name in tables and plots.
+    /// name in tables and plots; implicit series end in `-backward-euler`.
     pub series: String,
+    /// The integration scheme of the row.
+    pub integrator: String,
     /// The engine's full name (with its device for the GPU).
     pub engine: String,
-    /// The ladder fraction asked for.
+    /// The ladder fraction asked for (a multiple of the bound for implicit rows).
     pub fraction: f64,
     /// The step used, s (at or below `fraction` times the bound, dividing the sample times).
     pub dt: f64,
@@ -194,6 +216,25 @@ impl AccuracyReport {
             }
         }
         out
+    }
+
+    /// For each series, the least wall time per simulated second among its rows whose worst
+    /// relative L2 error is at or below `target` (`None` when no row reaches it): what the
+    /// series costs to reach that accuracy.
+    pub fn time_to_error(&self, target: f64) -> Vec<(String, Option<f64>)> {
+        self.series()
+            .into_iter()
+            .map(|name| {
+                let best = self
+                    .rows
+                    .iter()
+                    .filter(|r| r.series == name && r.diverged.is_none())
+                    .filter(|r| r.worst_relative_l2() <= target)
+                    .map(|r| r.wall_s_per_sim_s)
+                    .min_by(f64::total_cmp);
+                (name, best)
+            })
+            .collect()
     }
 
     /// The largest self-check error of the reference over the sample times.
@@ -492,6 +533,15 @@ pub fn model_accuracy(
             "time-step fraction {f} must be in (0, 1]: steps above the stable bound are refused"
         )));
     }
+    if let Some(m) = opts
+        .implicit_ladder
+        .iter()
+        .find(|m| !(m.is_finite() && **m > 0.0))
+    {
+        return Err(Error::Options(format!(
+            "implicit time-step multiple {m} of the bound must be finite and positive"
+        )));
+    }
     let times = if opts.times.is_empty() {
         if !(duration.is_finite() && duration > 0.0) {
             return Err(Error::Options(format!(
@@ -570,20 +620,50 @@ pub fn model_accuracy(
         }
     }
 
+    // Each engine's explicit series, then its implicit one (when the scene's scheme is
+    // explicit: an implicit scene's own ladder is already implicit).
+    let implicit_ladder: &[f64] = if integrator.is_implicit() {
+        &[]
+    } else {
+        &opts.implicit_ladder
+    };
+    let mut runs: Vec<(EngineKind, GpuOptions, String, Integrator, &[f64])> = Vec::new();
+    for (kind, gpu, name) in &series {
+        runs.push((*kind, *gpu, name.clone(), integrator, &opts.ladder));
+    }
+    if !implicit_ladder.is_empty() {
+        for (kind, gpu, name) in &series {
+            let implicit = Integrator::BackwardEuler;
+            let name = format!("{name}-backward-euler");
+            runs.push((*kind, *gpu, name, implicit, implicit_ladder));
+        }
+    }
     let mut rows = Vec::new();
-    'series: for (kind, gpu, name) in &series {
-        for &fraction in &opts.ladder {
+    'series: for (kind, gpu, name, integrator, ladder) in &runs {
+        for &fraction in ladder.iter() {
             let (dt, counts) = step_for_times(&times, fraction * bound.dt)?;
+            let of = if integrator.is_implicit() {
+                format!("{fraction} times the bound")
+            } else {
+                format!("{fraction} of the bound")
+            };
             progress(&format!(
-                "{name} at dt {dt:.3e} s ({fraction} of the bound, {} steps)",
+                "{name} at dt {dt:.3e} s ({of}, {} steps)",
                 last(&counts)
             ));
-            let config = SimConfig { dt, ..base };
+            let config = SimConfig {
+                dt,
+                integrator: *integrator,
+                ..base
+            };
             let run = match run_to(model, (*kind, *gpu), config, &counts, opts) {
                 Ok(run) => run,
-                // A variant the adapter lacks a feature for (float atomics) is skipped with the
-                // reason; the other series still run.
-                Err(Error::Unsupported(why)) if *kind == EngineKind::Gpu => {
+                // A variant the adapter lacks a feature for (float atomics), or an engine
+                // without the implicit integrator, is skipped with the reason; the other
+                // series still run.
+                Err(Error::Unsupported(why))
+                    if *kind == EngineKind::Gpu || integrator.is_implicit() =>
+                {
                     skipped.push(format!("{name} skipped: {why}"));
                     continue 'series;
                 }
@@ -592,6 +672,7 @@ pub fn model_accuracy(
             let wall_s_per_sim_s = run.wall_per_sim_s();
             rows.push(AccuracyRow {
                 series: name.clone(),
+                integrator: format!("{integrator:?}"),
                 engine: run.engine,
                 fraction,
                 dt,

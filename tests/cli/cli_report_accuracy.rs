@@ -40,6 +40,7 @@ fn accuracy_json_has_a_row_per_engine_and_dt_and_writes_both_plots() {
         "reference,fast",
         "--ladder",
         "1,0.5,0.25",
+        "--no-implicit",
         "--json",
         "--plot",
         plots.to_str().unwrap(),
@@ -85,6 +86,7 @@ fn accuracy_prints_a_table_naming_each_series_at_the_given_time() {
         "0.5,0.25",
         "--time",
         "0.05",
+        "--no-implicit",
         "--no-plot",
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -127,4 +129,52 @@ fn accuracy_refuses_a_step_above_the_bound_with_exit_2() {
     );
     let out = lancet(&["report", "accuracy", &scene, "--ladder", "abc"]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+/// The implicit series stand beside the explicit ones, above the bound, and the summary says
+/// what each series needs to reach the target error.
+#[test]
+fn accuracy_puts_backward_euler_above_the_bound_beside_the_explicit_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let out = lancet(&[
+        "report",
+        "accuracy",
+        &scene,
+        "--engine",
+        "reference",
+        "--ladder",
+        "1,0.5",
+        "--implicit-ladder",
+        "2,8",
+        "--target-error",
+        "10",
+        "--no-plot",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let implicit: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("cpu-reference-f64-backward-euler "))
+        .collect();
+    assert_eq!(implicit.len(), 2, "{stdout}");
+    // dt/bound of each implicit row: at or just below 2 and 8 (steps divide the sample times).
+    let over: Vec<f64> = implicit
+        .iter()
+        .map(|l| l.split_whitespace().nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert!(
+        over[0] > 1.0 && over[0] <= 2.0 && over[1] > 4.0 && over[1] <= 8.0,
+        "{over:?}"
+    );
+    // A target every row meets: each series has a time, and the comparison line is printed.
+    assert!(stdout.contains("time to relL2 <= 1e1"), "{stdout}");
+    assert!(
+        stdout.contains("best implicit (cpu-reference-f64-backward-euler)"),
+        "{stdout}"
+    );
 }

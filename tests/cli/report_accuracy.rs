@@ -38,6 +38,7 @@ fn cpu_options(ladder: &[f64]) -> AccuracyOptions {
     AccuracyOptions {
         engines: vec![EngineKind::Reference, EngineKind::Fast],
         ladder: ladder.to_vec(),
+        implicit_ladder: Vec::new(),
         ..Default::default()
     }
 }
@@ -387,4 +388,45 @@ mod plots {
         let svg = std::fs::read_to_string(&files.svg).unwrap();
         assert!(svg.contains("cpu-fast-f32"));
     }
+}
+
+/// Backward Euler converges at first order: its error grows about fourfold from 2 to 8 times
+/// the bound, and at each step it is no better than the explicit engine's at the bound (its
+/// numerical damping is the price of its stability).
+#[test]
+fn implicit_series_run_above_the_bound_and_converge_at_first_order() {
+    let opts = AccuracyOptions {
+        engines: vec![EngineKind::Reference],
+        implicit_ladder: vec![2.0, 8.0],
+        ..cpu_options(&[1.0])
+    };
+    // Damped, as tissue is: undamped, backward Euler's numerical damping takes the motion
+    // away entirely at these steps, and its error is the whole oscillation.
+    let report = run(&tiny_box(60.0), &opts);
+    let implicit = rows(&report, "cpu-reference-f64-backward-euler");
+    assert_eq!(implicit.len(), 2, "{:?}", report.series());
+    for r in &implicit {
+        assert_eq!(r.integrator, "BackwardEuler");
+        assert!(r.diverged.is_none(), "{:?}", r.diverged);
+        assert!(r.dt_over_bound > 0.5 * r.fraction && r.dt_over_bound <= r.fraction);
+    }
+    let (e2, e8) = (
+        implicit[0].worst_relative_l2(),
+        implicit[1].worst_relative_l2(),
+    );
+    let ratio = e8 / e2 * (implicit[0].dt / implicit[1].dt) * 4.0;
+    assert!(
+        (2.0..8.0).contains(&ratio),
+        "{e2:e} at 2x, {e8:e} at 8x: {ratio}"
+    );
+    let explicit = rows(&report, "cpu-reference-f64")[0].worst_relative_l2();
+    assert!(e2 > explicit, "{e2:e} vs explicit {explicit:e}");
+    // Time to error: a target every row meets gives each series a time; one no row meets, none.
+    let all = report.time_to_error(f64::INFINITY);
+    assert!(
+        all.iter().all(|(_, t)| t.is_some_and(|t| t > 0.0)),
+        "{all:?}"
+    );
+    let none = report.time_to_error(0.0);
+    assert!(none.iter().all(|(_, t)| t.is_none()), "{none:?}");
 }

@@ -39,6 +39,7 @@ pub(crate) fn accuracy(
         return Ok(ExitCode::SUCCESS);
     }
     print_accuracy(&report);
+    print_time_to_error(&report, opts.target_error);
     if let Some(p) = plots {
         for f in ["svg", "png"] {
             if let Some(path) = p.get(f).and_then(|v| v.as_str()) {
@@ -110,7 +111,7 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
     }
     print_gpu_devices(r.rows.iter().map(|row| row.engine.as_str()));
     print!(
-        "{:<18} {:>8} {:>10} {:>8} {:>11}",
+        "{:<32} {:>8} {:>10} {:>8} {:>11}",
         "series", "dt/bound", "dt (s)", "steps", "wall s/sim s"
     );
     for k in 1..=r.sample_times.len() {
@@ -119,7 +120,7 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
     println!();
     for row in &r.rows {
         print!(
-            "{:<18} {:>8.4} {:>10.3e} {:>8} {:>11.3e}",
+            "{:<32} {:>8.4} {:>10.3e} {:>8} {:>11.3e}",
             row.series, row.dt_over_bound, row.dt, row.steps, row.wall_s_per_sim_s
         );
         for e in &row.errors {
@@ -134,6 +135,35 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
         "relL2: |x - x_ref| / |x_ref - x_rest| over all nodes; maxm: largest nodal error, m; \
          wall s/sim s: stepping time per simulated second"
     );
+}
+
+/// Each series' least run time to `target` error, and how much sooner the best implicit series
+/// gets there than the best explicit one.
+fn print_time_to_error(r: &lancet::report::accuracy::AccuracyReport, target: f64) {
+    let times = r.time_to_error(target);
+    if times.is_empty() {
+        return;
+    }
+    println!("time to relL2 <= {target:.0e} (least wall s per simulated s among the rows that reach it):");
+    for (series, t) in &times {
+        match t {
+            Some(t) => println!("  {series:<34} {t:.3e}"),
+            None => println!("  {series:<34} not reached"),
+        }
+    }
+    let best = |implicit: bool| {
+        times
+            .iter()
+            .filter(|(s, _)| s.ends_with("-backward-euler") == implicit)
+            .filter_map(|(s, t)| t.map(|t| (s, t)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    };
+    if let (Some((es, et)), Some((is, it))) = (best(false), best(true)) {
+        println!(
+            "  best implicit ({is}) reaches it {:.1}x sooner than the best explicit ({es})",
+            et / it
+        );
+    }
 }
 
 /// Where `lancet report accuracy` writes its plots.

@@ -215,6 +215,17 @@ enum ReportCommand {
         /// Time steps as fractions of the stable bound, comma-separated, each in (0, 1].
         #[arg(long, value_delimiter = ',', default_values = ["1", "0.5", "0.25", "0.125", "0.0625"])]
         ladder: Vec<f64>,
+        /// Time steps of the implicit (backward Euler) series as multiples of the stable
+        /// bound, comma-separated; engines without the implicit integrator are skipped with
+        /// the reason.
+        #[arg(long, value_delimiter = ',', default_values = ["4", "16", "64"])]
+        implicit_ladder: Vec<f64>,
+        /// No implicit series.
+        #[arg(long, conflicts_with = "implicit_ladder")]
+        no_implicit: bool,
+        /// The relative L2 error at which the series' run times are compared ("time to error").
+        #[arg(long, default_value_t = lancet::report::accuracy::DEFAULT_TARGET_ERROR)]
+        target_error: f64,
         /// Simulated times to measure the error at, s, comma-separated (default: a quarter, a
         /// half and all of the scene's duration).
         #[arg(long, value_delimiter = ',')]
@@ -478,6 +489,9 @@ fn main() -> ExitCode {
                     layout,
                     accumulation,
                     ladder,
+                    implicit_ladder,
+                    no_implicit,
+                    target_error,
                     time,
                     reference,
                     json,
@@ -490,6 +504,12 @@ fn main() -> ExitCode {
                 layouts: layout.iter().map(|&l| l.into()).collect(),
                 accumulations: accumulation.iter().map(|&a| a.into()).collect(),
                 ladder,
+                implicit_ladder: if no_implicit {
+                    Vec::new()
+                } else {
+                    implicit_ladder
+                },
+                target_error,
                 times: time,
                 reference_fraction: reference,
                 ..Default::default()
