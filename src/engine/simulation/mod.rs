@@ -57,12 +57,6 @@ fn make_engine(
     config: SimConfig,
     gpu: GpuOptions,
 ) -> Result<Made> {
-    if config.integrator.is_implicit() && kind != EngineKind::Reference {
-        return Err(Error::Unsupported(format!(
-            "engine {kind} has no implicit integrator yet: run BackwardEuler on the reference \
-             engine (engine: Reference, --engine reference)"
-        )));
-    }
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(reference::ReferenceEngine::new(model, config)),
