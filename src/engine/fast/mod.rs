@@ -387,6 +387,10 @@ impl Engine for FastEngine {
         self.implicit_stats()
     }
 
+    fn bytes_per_solver_iteration(&self) -> Option<u64> {
+        self.bytes_per_cg_iteration()
+    }
+
     fn differences_from_rebuild(&self, model: &PackedModel) -> crate::Result<Vec<String>> {
         Ok(self.graph_differences(model))
     }

@@ -411,6 +411,12 @@ impl Simulation {
         self.engine.solver_stats()
     }
 
+    /// The bytes one iteration of the implicit integrator's solver moves at least (`None` for
+    /// an explicit scheme or an engine that does not count them).
+    pub fn bytes_per_solver_iteration(&self) -> Option<u64> {
+        self.engine.bytes_per_solver_iteration()
+    }
+
     /// The engine's name as reported in summaries (with its device for the GPU).
     pub fn engine_name(&self) -> String {
         self.engine.name()
