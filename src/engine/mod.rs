@@ -81,6 +81,12 @@ pub trait Engine: Send {
     fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
         None
     }
+    /// The bytes one iteration of the implicit integrator's solver must move at least (`None`
+    /// for an explicit scheme, or where the engine does not count them): beside
+    /// [`EngineMemory::bytes_per_step`], which counts an explicit step's.
+    fn bytes_per_solver_iteration(&self) -> Option<u64> {
+        None
+    }
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
     /// writes, once): the numerator of the memory-bandwidth floor.
     fn memory(&self) -> EngineMemory;

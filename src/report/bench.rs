@@ -212,7 +212,19 @@ pub struct BenchRow {
     pub floor_ratio: f64,
     /// Relative L2 displacement error against the float64 reference after the same steps.
     pub error_vs_reference: f64,
+    /// Implicit integrators: conjugate-gradient iterations per step over the timed steps.
+    pub cg_iterations_per_step: Option<f64>,
+    /// Implicit integrators: the median time per step over the iterations a step took, ms
+    /// (the step's assembly of its system, about one explicit step's work, included).
+    pub ms_per_cg_iteration: Option<f64>,
+    /// Implicit integrators: the bytes one iteration moves at least, where the engine counts
+    /// them (then the bandwidth columns are per iteration, not per step).
+    pub bytes_per_cg_iteration: Option<u64>,
 }
+
+/// The time step implicit integrators are benchmarked at, s: a haptic loop's 1 ms, far above
+/// the explicit bound of every bench mesh (explicit schemes run at 0.9 of it).
+pub const IMPLICIT_BENCH_DT: f64 = 1e-3;
 
 /// The model every engine runs: tissue of E = 100 kPa, nu = 1/4, 1000 kg/m^3, the bottom
 /// fixed, gravity, light damping, at 0.9 of the stable bound. Stiff enough that a tall mesh
@@ -333,7 +345,11 @@ pub fn run_bench(
             Some(preset) => (preset.model(&mesh)?, Preset::DT),
             None => {
                 let model = bench_model(&mesh)?;
-                let dt = 0.9 * stable_time_step(&model).dt;
+                let dt = if opts.integrator.is_implicit() {
+                    IMPLICIT_BENCH_DT
+                } else {
+                    0.9 * stable_time_step(&model).dt
+                };
                 (model, dt)
             }
         };
@@ -349,6 +365,16 @@ pub fn run_bench(
         for v in variants(opts) {
             // Without a usable adapter the GPU rows are skipped with the reason, once, and the
             // CPU rows still run, as `lancet report accuracy` does.
+            if v.engine == EngineKind::Gpu && opts.integrator.is_implicit() {
+                let msg = format!(
+                    "gpu rows skipped: the GPU engine has no {:?} yet",
+                    opts.integrator
+                );
+                if !report.skipped.contains(&msg) {
+                    report.skipped.push(msg);
+                }
+                continue;
+            }
             if v.engine == EngineKind::Gpu {
                 if let Err(why) = gpu_state.get_or_insert_with(super::gpu_usable) {
                     let msg = format!("gpu rows skipped: {why}");
@@ -385,6 +411,7 @@ pub fn run_bench(
             // Warm-up: first touches of memory, thread pools, shader compilation.
             sim.step_unchecked(opts.chunk.min(10) as u32);
             sim.set_state(&model.rest, &vec![[0.0; 3]; model.node_count()])?;
+            let iterations_before = sim.solver_stats().map(|s| s.iterations);
             let mut times = Vec::new();
             let mut device_times = Vec::new();
             let mut done = 0;
@@ -408,7 +435,15 @@ pub fn run_bench(
             times.sort_by(f64::total_cmp);
             let per_step = times[times.len() / 2];
             let memory = sim.memory();
-            let achieved = memory.bytes_per_step as f64 / per_step;
+            let cg_per_step = iterations_before
+                .zip(sim.solver_stats())
+                .map(|(before, s)| (s.iterations - before) as f64 / total as f64);
+            let per_iteration = cg_per_step.filter(|&i| i > 0.0).map(|i| per_step / i);
+            let bytes_per_iteration = sim.bytes_per_solver_iteration();
+            let achieved = match (per_iteration, bytes_per_iteration) {
+                (Some(t), Some(b)) => b as f64 / t,
+                _ => memory.bytes_per_step as f64 / per_step,
+            };
             report.rows.push(BenchRow {
                 mesh: name.clone(),
                 nodes: model.node_count(),
@@ -433,6 +468,9 @@ pub fn run_bench(
                 bandwidth_bytes_per_s: bandwidth.bytes_per_s,
                 floor_ratio: achieved / bandwidth.bytes_per_s,
                 error_vs_reference: relative_l2(&model.rest, &sim.positions(), &x_ref),
+                cg_iterations_per_step: cg_per_step,
+                ms_per_cg_iteration: per_iteration.map(|t| t * 1e3),
+                bytes_per_cg_iteration: bytes_per_iteration,
             });
         }
     }

@@ -313,6 +313,65 @@ fn run_with_output_writes_a_pvd_series_of_frames_that_read_back() {
     assert!(lowest(&last.mesh) < lowest(&first.mesh) - 1e-5);
 }
 
+/// `--integrator backward-euler` benchmarks the implicit step at 1 ms on the CPU engines: each
+/// row gives the conjugate-gradient iterations per step and the time of one, the fast engine
+/// the bytes one moves too (its bandwidth columns are then per iteration), and the GPU rows are
+/// skipped with the reason.
+#[test]
+fn bench_with_backward_euler_reports_time_and_bytes_per_cg_iteration() {
+    let out = lancet(&[
+        "bench",
+        "--cube",
+        "4",
+        "--steps",
+        "20",
+        "--engine",
+        "reference,fast,gpu",
+        "--integrator",
+        "backward-euler",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json_of(&out);
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{v}");
+    for r in rows {
+        let iterations = r["cg_iterations_per_step"].as_f64().unwrap();
+        let per_iteration = r["ms_per_cg_iteration"].as_f64().unwrap();
+        let per_step = r["ms_per_step"].as_f64().unwrap();
+        assert!(iterations >= 1.0, "{r}");
+        assert!(
+            (per_iteration * iterations - per_step).abs() <= 1e-9 * per_step,
+            "{r}"
+        );
+    }
+    let fast = rows
+        .iter()
+        .find(|r| r["engine"].as_str().unwrap().starts_with("cpu-fast"))
+        .unwrap();
+    let bytes = fast["bytes_per_cg_iteration"].as_u64().unwrap();
+    // At least the spring blocks: 28 bytes for each end of each spring.
+    let springs = fast["springs"].as_u64().unwrap();
+    assert!(bytes >= 2 * springs * 28, "{fast}");
+    let achieved = fast["achieved_bytes_per_s"].as_f64().unwrap();
+    let seconds = fast["ms_per_cg_iteration"].as_f64().unwrap() * 1e-3;
+    assert!(
+        (achieved - bytes as f64 / seconds).abs() <= 1e-6 * achieved,
+        "{fast}"
+    );
+    let skipped = v["skipped"].as_array().unwrap();
+    assert!(
+        skipped
+            .iter()
+            .any(|s| s.as_str().unwrap().contains("no BackwardEuler")),
+        "{v}"
+    );
+}
+
 #[test]
 fn bench_reports_every_engine_and_layout_with_bandwidth_and_error() {
     let has_gpu = common::gpu().is_some();

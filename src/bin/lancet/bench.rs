@@ -290,6 +290,20 @@ pub(crate) fn bench(
             r.error_vs_reference
         );
     }
+    // Implicit rows: the solver's iterations, and the time and bytes of one (GB/s above is then
+    // per iteration where the bytes are counted).
+    for r in rows.iter().filter(|r| r.cg_iterations_per_step.is_some()) {
+        let mesh = r.mesh.rsplit('/').next().unwrap_or(&r.mesh);
+        println!(
+            "{mesh} {}: {:.1} CG iterations per step, {} ms per iteration, {} MB per iteration",
+            r.engine,
+            r.cg_iterations_per_step.unwrap_or(0.0),
+            r.ms_per_cg_iteration
+                .map_or("-".into(), |t| format!("{t:.4}")),
+            r.bytes_per_cg_iteration
+                .map_or("-".into(), |b| format!("{:.3}", b as f64 / 1e6)),
+        );
+    }
     for s in &report.skipped {
         println!("skipped: {s}");
     }

@@ -278,6 +278,9 @@ enum IntegratorArg {
     /// Symplectic Euler (the same trajectory in exact arithmetic; keeps float32 precision
     /// far below the stable bound).
     SymplecticEuler,
+    /// Linearised backward Euler with conjugate gradients, at 1 ms (the CPU engines; the GPU
+    /// rows are skipped): the table adds iterations per step and time and bytes per iteration.
+    BackwardEuler,
 }
 
 impl From<IntegratorArg> for lancet::Integrator {
@@ -285,6 +288,7 @@ impl From<IntegratorArg> for lancet::Integrator {
         match i {
             IntegratorArg::Verlet => lancet::Integrator::Verlet,
             IntegratorArg::SymplecticEuler => lancet::Integrator::SymplecticEuler,
+            IntegratorArg::BackwardEuler => lancet::Integrator::BackwardEuler,
         }
     }
 }

@@ -22,9 +22,12 @@
 //! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
 //! precision of each edge).
 
+mod implicit;
 mod kernels;
 use kernels::*;
 mod patch;
+mod threads;
+pub use threads::on_threads;
 
 use super::{Engine, Integrator, SimConfig};
 use crate::model::room::{copy_with_room, spare};
@@ -115,6 +118,8 @@ pub struct FastEngine {
     read_ahead: Option<ReadAhead>,
     /// How reads of the nodes near a blade were served.
     near_reads: super::NearReads,
+    /// Backward Euler's solver and its scratch (`None` for the explicit schemes).
+    implicit: Option<implicit::Implicit>,
 }
 
 /// Nodes found in a box after a step, in node order, with their positions.
@@ -172,7 +177,15 @@ impl FastEngine {
             near_ahead: None,
             read_ahead: None,
             near_reads: Default::default(),
+            implicit: None,
         };
+        if config.integrator.is_implicit() {
+            engine.implicit = Some(implicit::Implicit::new(
+                config.solver,
+                n,
+                engine.graph.adj.len(),
+            ));
+        }
         engine.order.reserve(spare(n));
         engine.rank.reserve(spare(n));
         engine.rest_inner.reserve(spare(n));
@@ -370,6 +383,14 @@ impl Engine for FastEngine {
         "cpu-fast-f32".into()
     }
 
+    fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
+        self.implicit_stats()
+    }
+
+    fn bytes_per_solver_iteration(&self) -> Option<u64> {
+        self.bytes_per_cg_iteration()
+    }
+
     fn differences_from_rebuild(&self, model: &PackedModel) -> crate::Result<Vec<String>> {
         Ok(self.graph_differences(model))
     }
@@ -379,7 +400,7 @@ impl Engine for FastEngine {
         let slots = self.graph.adj.len() as u64;
         let entry = std::mem::size_of::<Entry>() as u64;
         let p = std::mem::size_of::<P>() as u64;
-        let buffers = vec![
+        let mut buffers = vec![
             ("adjacency".to_string(), slots * entry),
             (
                 "adjacency damping".to_string(),
@@ -398,6 +419,9 @@ impl Engine for FastEngine {
                 },
             ),
         ];
+        if let Some(imp) = &self.implicit {
+            buffers.extend(imp.buffers());
+        }
         // A step streams the adjacency once, reads the current and previous state and writes
         // the next; neighbours' state is re-read from cache, not memory, when the order is local.
         let state = match self.integrator {
@@ -431,7 +455,8 @@ impl Engine for FastEngine {
         for _ in 0..steps {
             match self.integrator {
                 Integrator::Verlet => self.step_verlet(),
-                Integrator::SymplecticEuler | Integrator::BackwardEuler => self.step_euler(),
+                Integrator::SymplecticEuler => self.step_euler(),
+                Integrator::BackwardEuler => self.step_backward_euler(),
             }
         }
         // The read the cut after this step will make, while the state is in cache and the

@@ -57,12 +57,6 @@ fn make_engine(
     config: SimConfig,
     gpu: GpuOptions,
 ) -> Result<Made> {
-    if config.integrator.is_implicit() && kind != EngineKind::Reference {
-        return Err(Error::Unsupported(format!(
-            "engine {kind} has no implicit integrator yet: run BackwardEuler on the reference \
-             engine (engine: Reference, --engine reference)"
-        )));
-    }
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(reference::ReferenceEngine::new(model, config)),
@@ -415,6 +409,12 @@ impl Simulation {
     /// What the implicit integrator's solver did so far (`None` for an explicit scheme).
     pub fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
         self.engine.solver_stats()
+    }
+
+    /// The bytes one iteration of the implicit integrator's solver moves at least (`None` for
+    /// an explicit scheme or an engine that does not count them).
+    pub fn bytes_per_solver_iteration(&self) -> Option<u64> {
+        self.engine.bytes_per_solver_iteration()
     }
 
     /// The engine's name as reported in summaries (with its device for the GPU).

@@ -1,0 +1,150 @@
+//! Backward Euler on the fast float32 engine: it follows the float64 reference implicit
+//! engine far above the explicit bound, gives the same bits on one thread and on two, and
+//! allocates nothing of its own per step.
+//!
+//! Tolerance against the reference: both solve each step's system to a relative residual of
+//! 1e-7, so what is left is float32 rounding: about 6e-8 of each value per operation, summed
+//! over ~14 springs per node and amplified by the system's conditioning (the product and the
+//! force are differences of nearly equal spring terms at 20-50 times the explicit bound). Over
+//! a few steps that stays far below 1e-4 of the motion; a wrong term of the system (a missing
+//! damping block, gravity, a sign) is of the order of the motion itself.
+
+use crate::models::{random_model, random_state, Rng};
+use lancet::engine::Integrator;
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::{stable_time_step, FixedSelector, SpringDamping};
+use lancet::physics::SolverSettings;
+use lancet::report::bench::relative_l2;
+use lancet::{EngineKind, Material, ModelConfig, PackedModel, SimConfig, Simulation, SpringModel};
+use rstest::rstest;
+
+fn implicit_config(dt: f64) -> SimConfig {
+    let mut config = SimConfig::new(dt);
+    config.integrator = Integrator::BackwardEuler;
+    config.solver = SolverSettings {
+        tolerance: 1e-7,
+        max_iterations: 500,
+        ..SolverSettings::default()
+    };
+    config
+}
+
+/// Positions and the solver's statistics after `steps` implicit steps from `state`.
+fn run(
+    model: &PackedModel,
+    kind: EngineKind,
+    config: SimConfig,
+    state: &(Vec<[f64; 3]>, Vec<[f64; 3]>),
+    steps: u64,
+) -> (Vec<[f64; 3]>, lancet::physics::SolverStats) {
+    let mut sim = Simulation::new(model.clone(), kind, config).unwrap();
+    sim.set_state(&state.0, &state.1).unwrap();
+    sim.run(steps).unwrap();
+    (sim.positions(), sim.solver_stats().unwrap())
+}
+
+#[rstest]
+fn fast_backward_euler_follows_the_reference_far_above_the_bound(
+    #[values(1, 2, 3)] seed: u64,
+    #[values(20.0, 50.0)] times_bound: f64,
+) {
+    // Random per-spring stiffness, damping and masses, gravity, mass damping, a fixed base and
+    // two springless nodes, from a random loaded state.
+    let model = random_model(seed, true);
+    let dt = times_bound * stable_time_step(&model).dt;
+    let state = random_state(&model, seed + 10);
+    let config = implicit_config(dt);
+    let (reference, ref_stats) = run(&model, EngineKind::Reference, config, &state, 4);
+    let (fast, stats) = run(&model, EngineKind::Fast, config, &state, 4);
+    assert_eq!(stats.solves, 4);
+    assert_eq!(stats.capped, 0, "{stats:?}");
+    assert!(stats.last_residual <= 1e-7, "{stats:?}");
+    // The same system: about as many iterations to the same tolerance.
+    let (a, b) = (stats.iterations as f64, ref_stats.iterations as f64);
+    assert!(
+        (a - b).abs() <= 0.2 * b + 4.0,
+        "{stats:?} against {ref_stats:?}"
+    );
+    let e = relative_l2(&model.rest, &fast, &reference);
+    assert!(
+        e < 1e-4,
+        "seed {seed}, {times_bound}x the bound: {e:.2e} off the reference"
+    );
+    // And the motion is real: the state moved well beyond that tolerance.
+    let moved = relative_l2(&model.rest, &state.0, &reference);
+    assert!(moved > 1e-2, "{moved:.2e}");
+}
+
+/// A damped box of 3,003 nodes (three blocks of the engine's parallel passes), random spring
+/// stiffnesses, fixed at z = 0, under gravity.
+fn large_box() -> PackedModel {
+    let mesh = BoxGrid::cube_cells([20, 12, 10], 0.005).build().unwrap();
+    let material = Material::elastic(1e5, 0.3, 1000.0)
+        .with_damping(SpringDamping::StiffnessProportional(1e-4));
+    let mut config = ModelConfig::new(material);
+    config.gravity = [0.5, 0.0, -9.81];
+    config.mass_damping = 2.0;
+    config.fixed.push(FixedSelector::Plane {
+        point: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        tolerance: 1e-9,
+    });
+    let mut model = SpringModel::build(&mesh, &config)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let mut rng = Rng(77);
+    for s in model.springs_mut().iter_mut() {
+        let f = 0.5 + rng.next();
+        s.stiffness *= f;
+        s.damping *= f;
+    }
+    model
+}
+
+#[test]
+fn one_thread_and_two_give_the_same_bits() {
+    let model = large_box();
+    assert!(model.node_count() > 2048);
+    let config = implicit_config(30.0 * stable_time_step(&model).dt);
+    let state = random_state(&model, 5);
+    let on = |threads: usize| {
+        lancet::engine::fast::on_threads(threads, || {
+            let mut sim = Simulation::new(model.clone(), EngineKind::Fast, config).unwrap();
+            sim.set_state(&state.0, &state.1).unwrap();
+            sim.run(3).unwrap();
+            (
+                sim.positions(),
+                sim.velocities(),
+                sim.solver_stats().unwrap(),
+            )
+        })
+        .unwrap()
+    };
+    let (one, two) = (on(1), on(2));
+    assert!(one.2.iterations > 3, "{:?}", one.2);
+    assert_eq!(one.2, two.2);
+    let bits =
+        |x: &[[f64; 3]]| -> Vec<[u64; 3]> { x.iter().map(|p| p.map(f64::to_bits)).collect() };
+    assert!(
+        bits(&one.0) == bits(&two.0),
+        "positions differ between 1 and 2 threads"
+    );
+    assert!(
+        bits(&one.1) == bits(&two.1),
+        "velocities differ between 1 and 2 threads"
+    );
+}
+
+#[test]
+fn the_gpu_engine_still_refuses_backward_euler_and_auto_falls_back_to_the_fast_engine() {
+    let model = random_model(4, true);
+    let config = implicit_config(1e-3);
+    if let Ok(sim) = Simulation::new(model.clone(), EngineKind::Gpu, config) {
+        panic!("{} accepted backward Euler", sim.engine_name());
+    }
+    let mut sim = Simulation::new(model, EngineKind::Auto, config).unwrap();
+    assert_eq!(sim.kind(), EngineKind::Fast);
+    sim.run(2).unwrap();
+    assert_eq!(sim.solver_stats().unwrap().solves, 2);
+}
