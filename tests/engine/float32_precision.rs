@@ -121,11 +121,7 @@ fn float32_follows_float64_at_a_sixteenth_and_a_sixty_fourth_of_the_bound_on_eve
         .unwrap();
         // The fast engine, and on a GPU every layout and accumulation but those the adapter
         // cannot run (float atomics), which the report names.
-        let expected = if gpu {
-            6 - report.skipped.len()
-        } else {
-            1
-        };
+        let expected = if gpu { 6 - report.skipped.len() } else { 1 };
         let checked = assert_float32_follows_float64(&report, &format!("{integrator:?}"));
         assert_eq!(checked, expected * ladder.len(), "{:?}", report.skipped);
     }

@@ -195,20 +195,26 @@ impl FastEngine {
         let (g, p) = (&self.graph, self.params);
         let (x, d) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
-        for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, dout| {
-            match (damped, wide) {
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-                (true, true) => unsafe { wide::verlet_block::<true>(g, p, x, d, start, xo, dout) },
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: as above.
-                (false, true) => unsafe {
-                    wide::verlet_block::<false>(g, p, x, d, start, xo, dout)
-                },
-                (true, _) => verlet_block::<true>(g, p, x, d, start, xo, dout),
-                (false, _) => verlet_block::<false>(g, p, x, d, start, xo, dout),
-            }
-        });
+        for_block_pairs(
+            &mut self.x_next,
+            &mut self.second_next,
+            |start, xo, dout| {
+                match (damped, wide) {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
+                    (true, true) => unsafe {
+                        wide::verlet_block::<true>(g, p, x, d, start, xo, dout)
+                    },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: as above.
+                    (false, true) => unsafe {
+                        wide::verlet_block::<false>(g, p, x, d, start, xo, dout)
+                    },
+                    (true, _) => verlet_block::<true>(g, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false>(g, p, x, d, start, xo, dout),
+                }
+            },
+        );
         std::mem::swap(&mut self.x, &mut self.x_next);
         std::mem::swap(&mut self.second, &mut self.second_next);
     }

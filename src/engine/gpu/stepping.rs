@@ -255,7 +255,8 @@ impl Engine for GpuEngine {
             self.ctx
                 .queue
                 .write_buffer(b.cur, at, bytemuck::bytes_of(&cur));
-            let v = [0, 1, 2].map(|c| (vel[k][c] as f64 + (u[c] - old[k][c] as f64) * inv_h) as f32);
+            let v =
+                [0, 1, 2].map(|c| (vel[k][c] as f64 + (u[c] - old[k][c] as f64) * inv_h) as f32);
             let v = [v[0], v[1], v[2], 0.0];
             self.ctx
                 .queue
