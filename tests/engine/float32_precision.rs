@@ -1,10 +1,9 @@
 //! Float32 and small steps. Far below the stable bound a step moves a displacement by a few
-//! float32 ulps: Verlet kept as two displacements loses most of its velocity to their rounded
-//! difference, and `u + step` rounds away what is less than half an ulp. The float32 engines
-//! keep Verlet's step instead of the previous displacement and carry the rounding of `u + step`
-//! to the next step (`physics::Compensation`), so every float32 engine follows its float64 twin
-//! down to 1/64 of the bound, and in a stiffness contrast whose soft part runs far below its
-//! own bound.
+//! float32 ulps: Verlet kept as two displacements lost most of its velocity to their rounded
+//! difference. The float32 engines keep Verlet's step `u - u_prev` instead of the previous
+//! displacement (the fast engine also carries the rounding of `u + step` to the next step,
+//! `physics::Compensation`), so every float32 engine follows float64 down to 1/64 of the bound,
+//! and in a stiffness contrast whose soft part runs far below its own bound.
 
 use lancet::engine::{EngineKind, Integrator, SimConfig, Simulation, FLOAT32_NODE_FRACTION};
 use lancet::layout::edges::Accumulation;

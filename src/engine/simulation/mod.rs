@@ -90,8 +90,8 @@ fn gpu_engine(_: &PackedModel, _: SimConfig, _: GpuOptions) -> Result<Box<dyn En
 
 /// Below this fraction of a node's own stable bound (the per-node Gershgorin bound of
 /// `model::stability`), a float32 engine's step is so small against the node's displacement
-/// that even the compensated update (`physics::Compensation`, which carries the rounding of
-/// `u + step` to about 1/4096 of an ulp) may round away a measurable part of it.
+/// that rounding `u + step` may lose a measurable part of it (not measured below 1/64 of the
+/// bound: this threshold is a conservative guess, not a measured edge).
 pub const FLOAT32_NODE_FRACTION: f64 = 1.0 / 4096.0;
 
 /// Advice for a float32 engine running some node far below its own stable bound. Each node is
