@@ -34,11 +34,11 @@ const EMPTY: u32 = 0xffffffffu;
 const CONTINUE: u32 = 0xfffffffeu;
 const VERLET: u32 = 0u;
 
-// Velocity of node j: backward difference for Verlet (second = previous displacement),
-// stored velocity for symplectic Euler (second = velocity).
+// Velocity of node j: the stored step over h for Verlet (second = u - u_prev), the stored
+// velocity for symplectic Euler (second = velocity).
 fn velocity(p: Params, cur: vec3<f32>, second: vec3<f32>) -> vec3<f32> {
     if (p.integrator == VERLET) {
-        return (cur - second) * p.inv_h;
+        return second * p.inv_h;
     }
     return second;
 }
@@ -57,19 +57,21 @@ fn slot_force(p: Params, s: Slot, d: vec3<f32>, dv: vec3<f32>) -> vec3<f32> {
     return mag * dir;
 }
 
-// The next state of a free node from its spring force `f`; twin of
-// `layout::connectivity::integrate`.
+// The next state of a free node from its spring force `f`; twin of `physics::integrate`.
+// Verlet keeps the step d = u - u_prev (d+ = d + h^2 a, u+ = u + d+), symplectic Euler the
+// velocity, so the step is never recovered from two rounded displacements.
 struct Integrated {
-    u: vec3<f32>,   // next displacement
-    v: vec3<f32>,   // next velocity (symplectic Euler only)
+    u: vec4<f32>,        // next displacement
+    second: vec4<f32>,   // next step (Verlet) or velocity
 }
 
-fn integrate(p: Params, ui: vec3<f32>, second_i: vec3<f32>, vi: vec3<f32>, f: vec3<f32>, m_inv: f32) -> Integrated {
+fn integrate(p: Params, ui4: vec4<f32>, second4: vec4<f32>, vi: vec3<f32>, f: vec3<f32>, m_inv: f32) -> Integrated {
     let a = f * m_inv + p.gravity - p.alpha * vi;
+    let ui = ui4.xyz;
     if (p.integrator == VERLET) {
-        return Integrated(ui + (ui - second_i) + p.h2 * a, vec3<f32>(0.0));
+        let d = second4.xyz + p.h2 * a;
+        return Integrated(vec4<f32>(ui + d, 0.0), vec4<f32>(d, 0.0));
     }
     let v = vi + p.h * a;
-    return Integrated(ui + p.h * v, v);
+    return Integrated(vec4<f32>(ui + p.h * v, 0.0), vec4<f32>(v, 0.0));
 }
-

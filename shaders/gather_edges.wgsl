@@ -27,9 +27,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m_inv = inv_mass[i];
     if (m_inv == 0.0) {
         next[i] = vec4<f32>(0.0);
-        if (p.integrator != VERLET) {
-            second_out[i] = vec4<f32>(0.0);
-        }
+        second_out[i] = vec4<f32>(0.0);
         return;
     }
     var f = vec3<f32>(0.0);
@@ -48,9 +46,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let ui = cur[i].xyz;
     let vi = velocity(p, ui, second_in[i].xyz);
-    let r = integrate(p, ui, second_in[i].xyz, vi, f, m_inv);
-    next[i] = vec4<f32>(r.u, 0.0);
-    if (p.integrator != VERLET) {
-        second_out[i] = vec4<f32>(r.v, 0.0);
-    }
+    let r = integrate(p, cur[i], second_in[i], vi, f, m_inv);
+    next[i] = r.u;
+    second_out[i] = r.second;
 }

@@ -5,7 +5,7 @@
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> slots: array<Slot>;
 @group(0) @binding(2) var<storage, read> inv_mass: array<f32>;
-// Verlet: previous displacements. Symplectic Euler: velocities.
+// Verlet: last steps u - u_prev. Symplectic Euler: velocities.
 @group(0) @binding(3) var<storage, read> second_in: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> cur: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> next: array<vec4<f32>>;
@@ -20,9 +20,7 @@ fn update_node(i: u32, first: u32, width: u32) {
     if (m_inv == 0.0) {
         // Fixed node: stays at rest.
         next[i] = vec4<f32>(0.0);
-        if (p.integrator != VERLET) {
-            second_out[i] = vec4<f32>(0.0);
-        }
+        second_out[i] = vec4<f32>(0.0);
         return;
     }
     let ui = cur[i].xyz;
@@ -58,9 +56,7 @@ fn update_node(i: u32, first: u32, width: u32) {
         }
         f = f + slot_force(p, slot, slot.edge + (uj - ui), dv);
     }
-    let r = integrate(p, ui, second_in[i].xyz, vi, f, m_inv);
-    next[i] = vec4<f32>(r.u, 0.0);
-    if (p.integrator != VERLET) {
-        second_out[i] = vec4<f32>(r.v, 0.0);
-    }
+    let r = integrate(p, cur[i], second_in[i], vi, f, m_inv);
+    next[i] = r.u;
+    second_out[i] = r.second;
 }

@@ -19,8 +19,8 @@ use serde::{Deserialize, Serialize};
 pub use crate::physics::Integrator;
 pub use config::{GpuOptions, NodeOrdering, SimConfig};
 pub use simulation::{
-    Energy, Simulation, ENERGY_GROWTH_LIMIT, EXACT_CHECK_EVERY, INVERSION_CHECK_EVERY,
-    VERLET_F32_FRACTION,
+    Energy, Simulation, ENERGY_GROWTH_LIMIT, EXACT_CHECK_EVERY, FLOAT32_NODE_FRACTION,
+    INVERSION_CHECK_EVERY,
 };
 
 use crate::error::{Error, Result};

@@ -38,7 +38,8 @@ mod force_model_tests;
 pub use backward_euler::{BackwardEuler, SolverSettings, SolverStats};
 pub use force_model::{ForceModel, Linearization, Mat3, Vec3};
 pub use integrator::{
-    integrate, rescale_previous, state_buffers, state_traffic, velocity, Integrator, StepParams,
+    integrate, rescale_previous, state_buffers, state_traffic, velocity, Compensation, Integrator,
+    StepParams,
 };
 pub use runge_kutta::RungeKutta4;
 pub use springs::{spring_force, spring_stiffness_block, SpringForces};

@@ -57,30 +57,24 @@ pub mod time_step;
 
 use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};
 use crate::layout::PackedLayout;
-use crate::physics::{Integrator, StepParams};
+use crate::physics::StepParams;
 
 /// A node state in layout order: the current displacements and the second state (the
-/// previous displacements for Verlet, the velocities for symplectic Euler).
+/// last steps for Verlet, the velocities for symplectic Euler).
 pub type State = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
-/// `n` steps of a twin `step` from `state`, the state rotating as the device's buffers do:
-/// Verlet's current displacements become the previous ones, symplectic Euler keeps the new
-/// velocities. `step` takes the step parameters, the current displacements and the second
-/// state, and returns the next of each (Verlet's second output is ignored).
+/// `n` steps of a twin `step` from `state`, the state swapping as the device's buffers do:
+/// the next displacements and second state (Verlet's last step, symplectic Euler's velocity)
+/// become the current ones. `step` takes the step parameters, the current displacements and
+/// the second state, and returns the next of each.
 pub fn steps<F>(p: &StepParams, state: State, n: usize, mut step: F) -> State
 where
     F: FnMut(&StepParams, &[[f32; 4]], &[[f32; 4]]) -> State,
 {
+    let _ = p;
     let (mut cur, mut second) = state;
     for _ in 0..n {
-        let (next, s) = step(p, &cur, &second);
-        second = match p.integrator {
-            Integrator::Verlet => std::mem::replace(&mut cur, next),
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => {
-                cur = next;
-                s
-            }
-        };
+        (cur, second) = step(p, &cur, &second);
     }
     (cur, second)
 }

@@ -7,7 +7,7 @@ use crate::physics::StepParams;
 
 impl ConnectivityLayout {
     /// One step on the CPU, exactly as `shaders/springs_connectivity.wgsl` does it: the twin the
-    /// GPU pass is tested against. `second` is the previous displacement (Verlet) or the
+    /// GPU pass is tested against. `second` is the last step (Verlet) or the
     /// velocity (symplectic Euler); returns the next displacement and the next second state.
     pub fn step_cpu(
         &self,

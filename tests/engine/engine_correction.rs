@@ -1,6 +1,6 @@
 //! Position correction, the contact response's way of moving nodes: every engine reads back
 //! exactly the nodes asked for, moves them where told, turns the move into velocity (Verlet
-//! through its previous positions, symplectic Euler by adding move / dt), leaves fixed nodes
+//! by adding the move to its step, symplectic Euler by adding move / dt), leaves fixed nodes
 //! alone, and after the correction all engines still agree with the float64 reference.
 
 use crate::{common, models};

@@ -247,7 +247,7 @@ fn step_parameter_bytes(kind: EngineKind) -> u64 {
 /// and nothing else (no layout uploaded, no state moved, nothing rebuilt), and the run goes on
 /// as a simulation built at the new step from the same positions and velocities does, step for
 /// step: bit for bit on the CPU engines, within float32 rounding on the GPU, which moves
-/// Verlet's previous positions on the device (its pass against its twin:
+/// Verlet's last steps on the device (its pass against its twin:
 /// `tests/gpu_patch.rs`). Before this, a change rebuilt the engine and uploaded all of it.
 #[rstest]
 fn a_time_step_change_writes_only_the_step_parameters_and_goes_on_as_a_fresh_run(
@@ -300,7 +300,7 @@ fn a_time_step_change_writes_only_the_step_parameters_and_goes_on_as_a_fresh_run
             fresh.run(1).unwrap();
             let (got, want) = (sim.positions(), fresh.positions());
             if kind == EngineKind::Gpu {
-                // The rescaled previous positions differ from a fresh upload's by float32
+                // The rescaled last steps differ from a fresh upload's by float32
                 // rounding (a few ulps of the displacement), which the steps carry along.
                 let moved = (0..rest.len())
                     .map(|i| dist(want[i], rest[i]))

@@ -91,7 +91,7 @@ fn edge_variant_step_equals_its_cpu_twin_on_random_inputs(
             let d = x[old][c] - model.rest[old][c];
             u[new][c] = d as f32;
             s[new][c] = match integrator {
-                Integrator::Verlet => (d - v[old][c] * dt) as f32,
+                Integrator::Verlet => (v[old][c] * dt) as f32,
                 Integrator::SymplecticEuler | Integrator::BackwardEuler => v[old][c] as f32,
             };
         }

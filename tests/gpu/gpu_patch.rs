@@ -621,7 +621,7 @@ fn buffers_outgrown_by_a_patch_grow_alone_and_the_passes_are_kept(
 }
 
 /// A change of time step on the device: the step parameters change and, under Verlet, the
-/// previous displacements become `cur - (cur - prev) h'/h` (the velocity kept), bit for bit as
+/// last steps become `d h'/h` (the velocity kept), bit for bit as
 /// the pass's CPU twin computes it where the device rounds like the CPU; the current
 /// displacements and symplectic Euler's state do not change. Afterwards the engine steps like
 /// its twin and bit for bit like an engine built at the new step from the same raw state: the

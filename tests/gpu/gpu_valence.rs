@@ -63,7 +63,7 @@ fn valence_pass_equals_its_cpu_twin_on_an_irregular_model(
             let d = x0[old][c] - model.rest[old][c];
             u[new][c] = d as f32;
             s[new][c] = match integrator {
-                Integrator::Verlet => (d - v0[old][c] * dt) as f32,
+                Integrator::Verlet => (v0[old][c] * dt) as f32,
                 Integrator::SymplecticEuler | Integrator::BackwardEuler => v0[old][c] as f32,
             };
         }

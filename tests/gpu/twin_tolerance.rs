@@ -41,7 +41,7 @@ fn a_dropped_spring_moves_the_twin_past_the_tolerance(
         NodeOrder::locality(&model),
     )
     .unwrap();
-    // A random state in layout order: displacements, and the previous displacements (Verlet)
+    // A random state in layout order: displacements, and the last steps (Verlet)
     // or the velocities (symplectic Euler).
     let (x, v) = random_state(&model, 41);
     let rank = &layout.order().rank;
@@ -55,7 +55,7 @@ fn a_dropped_spring_moves_the_twin_past_the_tolerance(
             let u = x[i][c] - r[c];
             raw.0[at][c] = u as f32;
             raw.1[at][c] = match integrator {
-                Integrator::Verlet => (u - v[i][c] * config.dt) as f32,
+                Integrator::Verlet => (v[i][c] * config.dt) as f32,
                 Integrator::SymplecticEuler | Integrator::BackwardEuler => v[i][c] as f32,
             };
         }

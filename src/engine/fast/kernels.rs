@@ -4,13 +4,11 @@
 
 use super::*;
 
-/// `h` times the velocity of node `j` (or the velocity, for `DAMPED_VELOCITY`).
+/// The stored velocity of node `j` (symplectic Euler) or its last step, `h` times it (Verlet).
 #[inline(always)]
 pub(super) fn w_of<const DAMP: u8>(a: &[P], b: &[P], j: usize) -> [f32; 3] {
-    match DAMP {
-        DAMPED_VERLET => [a[j][0] - b[j][0], a[j][1] - b[j][1], a[j][2] - b[j][2]],
-        _ => [a[j][0], a[j][1], a[j][2]],
-    }
+    let _ = b;
+    [a[j][0], a[j][1], a[j][2]]
 }
 
 /// Total spring force on node `i` at displacements `x`: elastic `k (l - L) u` plus, when
@@ -91,12 +89,13 @@ pub(super) mod wide {
     pub(in crate::engine::fast) fn verlet_block<const DAMPED: bool>(
         g: &Graph,
         p: Params,
-        cur: &[P],
-        prev: &[P],
+        x: &[P],
+        d: &[P],
         start: usize,
-        out: &mut [P],
+        xo: &mut [P],
+        dout: &mut [P],
     ) {
-        super::verlet_block::<DAMPED>(g, p, cur, prev, start, out)
+        super::verlet_block::<DAMPED>(g, p, x, d, start, xo, dout)
     }
 
     #[target_feature(enable = "avx2,fma")]
@@ -113,41 +112,45 @@ pub(super) mod wide {
     }
 }
 
-/// Verlet for nodes `start..start + out.len()`: `out = u + (u - prev) + h^2 a` on displacements.
+/// Verlet for nodes `start..`, on displacements `x` and last steps `d = x - x_prev`:
+/// `d+ = d + h^2 a(x, d / h)`, `x+ = x + d+` (compensated, [`advance`]).
 #[inline(always)]
 pub(super) fn verlet_block<const DAMPED: bool>(
     g: &Graph,
     p: Params,
-    cur: &[P],
-    prev: &[P],
+    x: &[P],
+    d: &[P],
     start: usize,
-    out: &mut [P],
+    xo: &mut [P],
+    dout: &mut [P],
 ) {
-    for (o, i) in out.iter_mut().zip(start..) {
-        let xi = cur[i];
+    for ((xo, dout), i) in xo.iter_mut().zip(dout.iter_mut()).zip(start..) {
+        let (xi, di) = (x[i], d[i]);
         if g.fixed[i] {
-            *o = xi;
+            *xo = xi;
+            *dout = [0.0; 4];
             continue;
         }
-        // Spring damping needs each neighbour's velocity `(x - prev) / h`, hence a kernel of
-        // its own; without damping the plain one reads positions only.
+        // Spring damping reads each neighbour's velocity `d / h`: a kernel of its own; without
+        // damping the plain one reads displacements only.
         let f = if DAMPED {
-            spring_force::<DAMPED_VERLET>(g, cur, cur, prev, i, p.inv_h)
+            spring_force::<DAMPED_VELOCITY>(g, x, d, d, i, p.inv_h)
         } else {
-            spring_force::<UNDAMPED>(g, cur, cur, cur, i, 0.0)
+            spring_force::<UNDAMPED>(g, x, d, d, i, 0.0)
         };
         let m = g.inv_mass[i];
-        let dx = [xi[0] - prev[i][0], xi[1] - prev[i][1], xi[2] - prev[i][2]];
-        let mut next = [0.0f32; 4];
+        let mut step = [0.0f32; 3];
         for c in 0..3 {
-            let a = f[c] * m + p.gravity[c] - p.alpha * dx[c] * p.inv_h;
-            next[c] = xi[c] + dx[c] + p.h2 * a;
+            let a = f[c] * m + p.gravity[c] - p.alpha * di[c] * p.inv_h;
+            dout[c] = di[c] + p.h2 * a;
+            step[c] = dout[c];
         }
-        *o = next;
+        advance(xi, di, step, xo, dout);
     }
 }
 
-/// Symplectic Euler for nodes `start..`: `v+ = v + h a(u, v)`, `u+ = u + h v+`.
+/// Symplectic Euler for nodes `start..`: `v+ = v + h a(u, v)`, `u+ = u + h v+` (compensated,
+/// [`advance`]).
 #[inline(always)]
 pub(super) fn euler_block<const DAMPED: bool>(
     g: &Graph,
@@ -171,30 +174,35 @@ pub(super) fn euler_block<const DAMPED: bool>(
             spring_force::<UNDAMPED>(g, x, v, v, i, 1.0)
         };
         let m = g.inv_mass[i];
+        let mut step = [0.0f32; 3];
         for c in 0..3 {
             let a = f[c] * m + p.gravity[c] - p.alpha * vi[c];
             vo[c] = vi[c] + p.h * a;
-            xo[c] = xi[c] + p.h * vo[c];
+            step[c] = p.h * vo[c];
         }
+        advance(xi, vi, step, xo, vo);
     }
 }
 
-/// Run `f(first node, block)` over blocks of `out`, in parallel with the `parallel` feature.
-pub(super) fn for_blocks(out: &mut [P], f: impl Fn(usize, &mut [P]) + Sync + Send) {
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        out.par_chunks_mut(BLOCK)
-            .enumerate()
-            .for_each(|(b, chunk)| f(b * BLOCK, chunk));
+/// `xo = x + step` plus what rounding lost at the last step, and what it loses now, kept in
+/// the `w` lanes of `xo` and `so` (the next second state), as `physics::integrate` does.
+#[inline(always)]
+fn advance(x: P, second: P, step: [f32; 3], xo: &mut P, so: &mut P) {
+    use crate::physics::Compensation;
+    let carried = Compensation::decode(x, second);
+    let mut lost = [0.0f32; 3];
+    for c in 0..3 {
+        let t = step[c] + carried[c];
+        let s = x[c] + t;
+        let bb = s - x[c];
+        xo[c] = s;
+        lost[c] = (x[c] - (s - bb)) + (t - bb);
     }
-    #[cfg(not(feature = "parallel"))]
-    for (b, chunk) in out.chunks_mut(BLOCK).enumerate() {
-        f(b * BLOCK, chunk);
-    }
+    (xo[3], so[3]) = Compensation::encode(*xo, lost);
 }
 
-/// Like [`for_blocks`] over two output buffers of the same length.
+/// Run `f(first node, block of a, block of b)` over blocks of two output buffers of the same
+/// length, in parallel with the `parallel` feature.
 pub(super) fn for_block_pairs(
     a: &mut [P],
     b: &mut [P],

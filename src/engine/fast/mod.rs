@@ -6,8 +6,8 @@
 //! it to the end: `patch.rs`). A node sums the forces of its row and integrates itself in the same pass,
 //! so that threads write disjoint nodes and need no atomics; the price is that every spring's
 //! length is computed twice. Positions are read from buffers nobody writes during the pass:
-//! Verlet rotates three position buffers (previous, current, next), symplectic Euler writes
-//! new positions and velocities beside the old ones and swaps.
+//! both integrators write the new displacements and second states (Verlet's last step
+//! `u - u_prev`, symplectic Euler's velocity) beside the old ones and swap.
 //!
 //! Nodes are renumbered internally by reverse Cuthill–McKee so that a node's neighbours lie
 //! close to it in memory; everything the [`Engine`] trait exposes is in the packed model's
@@ -15,10 +15,11 @@
 //!
 //! The state is stored as displacements from rest, not positions: float32 keeps a value to
 //! about 6e-8 of its magnitude, and a position's magnitude is the body's size while a
-//! displacement's is the motion's. This matters most for Verlet, whose velocity is the
-//! difference of two stored states divided by `h`: from positions its noise would be
-//! `6e-8 |x| / h` (about 1e-3 m/s for a 10 cm body at `h = 1e-5 s`), from displacements it is
-//! relative to the motion. Spring vectors are `e_ij + (u_j - u_i)`, the rest edge vector `e_ij`
+//! displacement's is the motion's. Verlet keeps its last step `u - u_prev` rather than the
+//! previous displacement, so its velocity is never the difference of two rounded states, and
+//! both integrators keep what rounding `u + step` loses (`physics::Compensation`): far below
+//! the stable bound a step is a few ulps of the displacement, and without both most of it
+//! would be rounded away (see `tests/engine/float32_precision.rs`). Spring vectors are `e_ij + (u_j - u_i)`, the rest edge vector `e_ij`
 //! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
 //! precision of each edge).
 
@@ -106,9 +107,10 @@ pub struct FastEngine {
     rest_inner: Vec<P>,
     /// Current displacements from rest.
     x: Vec<P>,
-    /// Verlet: previous displacements. Symplectic Euler: velocities.
+    /// Verlet: last steps `u - u_prev`. Symplectic Euler: velocities. The `w` lanes of both
+    /// arrays hold the rounding `physics::Compensation` carries to the next step.
     second: Vec<P>,
-    /// Output buffers of the next step (Verlet uses only `x_next`).
+    /// Output buffers of the next step.
     x_next: Vec<P>,
     second_next: Vec<P>,
     /// A box whose nodes the next step finds after its last iteration
@@ -201,24 +203,33 @@ impl FastEngine {
         self.wide
     }
 
-    /// One step of position Verlet; then previous <- current <- next.
+    /// One step of position Verlet on (displacement, last step); then swap old and new.
     fn step_verlet(&mut self) {
         let (g, p) = (&self.graph, self.params);
-        let (cur, prev) = (&self.x, &self.second);
+        let (x, d) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
-        for_blocks(&mut self.x_next, |start, out| match (damped, wide) {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-            (true, true) => unsafe { wide::verlet_block::<true>(g, p, cur, prev, start, out) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            (false, true) => unsafe { wide::verlet_block::<false>(g, p, cur, prev, start, out) },
-            (true, _) => verlet_block::<true>(g, p, cur, prev, start, out),
-            (false, _) => verlet_block::<false>(g, p, cur, prev, start, out),
-        });
-        // The old previous buffer becomes the next output: three buffers rotate.
-        std::mem::swap(&mut self.second, &mut self.x);
+        for_block_pairs(
+            &mut self.x_next,
+            &mut self.second_next,
+            |start, xo, dout| {
+                match (damped, wide) {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
+                    (true, true) => unsafe {
+                        wide::verlet_block::<true>(g, p, x, d, start, xo, dout)
+                    },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: as above.
+                    (false, true) => unsafe {
+                        wide::verlet_block::<false>(g, p, x, d, start, xo, dout)
+                    },
+                    (true, _) => verlet_block::<true>(g, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false>(g, p, x, d, start, xo, dout),
+                }
+            },
+        );
         std::mem::swap(&mut self.x, &mut self.x_next);
+        std::mem::swap(&mut self.second, &mut self.second_next);
     }
 
     /// One step of symplectic Euler; then swap old and new.
@@ -342,12 +353,7 @@ impl FastEngine {
         match self.integrator {
             Integrator::Verlet => {
                 let inv_h = 1.0 / self.params.h as f64;
-                let (x, p) = (to_f64(self.x[i]), to_f64(self.second[i]));
-                [
-                    (x[0] - p[0]) * inv_h,
-                    (x[1] - p[1]) * inv_h,
-                    (x[2] - p[2]) * inv_h,
-                ]
+                to_f64(self.second[i]).map(|d| d * inv_h)
             }
             Integrator::SymplecticEuler | Integrator::BackwardEuler => to_f64(self.second[i]),
         }
@@ -410,24 +416,24 @@ impl Engine for FastEngine {
             ("order and rank".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
             ("fixed flags".to_string(), n),
-            ("displacements (3 buffers)".to_string(), 3 * n * p),
+            ("displacements (2 buffers)".to_string(), 2 * n * p),
             (
-                "velocities (symplectic euler, 2 buffers)".to_string(),
                 match self.integrator {
-                    Integrator::Verlet => 0,
-                    Integrator::SymplecticEuler | Integrator::BackwardEuler => 2 * n * p,
-                },
+                    Integrator::Verlet => "steps (2 buffers)",
+                    Integrator::SymplecticEuler | Integrator::BackwardEuler => {
+                        "velocities (2 buffers)"
+                    }
+                }
+                .to_string(),
+                2 * n * p,
             ),
         ];
         if let Some(imp) = &self.implicit {
             buffers.extend(imp.buffers());
         }
-        // A step streams the adjacency once, reads the current and previous state and writes
-        // the next; neighbours' state is re-read from cache, not memory, when the order is local.
-        let state = match self.integrator {
-            Integrator::Verlet => 3 * n * p,
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => 4 * n * p,
-        };
+        // A step streams the adjacency once, reads the current state and writes the next;
+        // neighbours' state is re-read from cache, not memory, when the order is local.
+        let state = 4 * n * p;
         let bytes_per_step = slots * entry + n * 8 + n * 5 + state;
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
@@ -519,11 +525,15 @@ impl Engine for FastEngine {
             }
             let r = self.rest[o as usize];
             let u = [p[0] - r[0], p[1] - r[1], p[2] - r[2]];
-            if self.integrator.keeps_velocity() {
-                let old = to_f64(self.x[i]);
-                let v = to_f64(self.second[i]);
-                self.second[i] = to_p([0, 1, 2].map(|c| v[c] + (u[c] - old[c]) * inv_h));
-            }
+            // The move goes into the second state as if the step had made it: the velocity
+            // gains it over h, Verlet's step gains it whole.
+            let scale = match self.integrator {
+                Integrator::SymplecticEuler | Integrator::BackwardEuler => inv_h,
+                Integrator::Verlet => 1.0,
+            };
+            let old = to_f64(self.x[i]);
+            let v = to_f64(self.second[i]);
+            self.second[i] = to_p([0, 1, 2].map(|c| v[c] + (u[c] - old[c]) * scale));
             self.x[i] = to_p(u);
         }
         Ok(())
@@ -557,7 +567,7 @@ impl Engine for FastEngine {
             };
             self.x[i] = to_p(u);
             self.second[i] = match self.integrator {
-                Integrator::Verlet => to_p([u[0] - v[0] * h, u[1] - v[1] * h, u[2] - v[2] * h]),
+                Integrator::Verlet => to_p([v[0] * h, v[1] * h, v[2] * h]),
                 Integrator::SymplecticEuler | Integrator::BackwardEuler => to_p(v),
             };
         }
@@ -667,10 +677,9 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
 
 /// No spring damping: the kernel reads displacements only.
 const UNDAMPED: u8 = 0;
-/// Spring damping with velocities stored (symplectic Euler).
+/// Spring damping with velocities stored (symplectic Euler), or steps `h v` (Verlet, which
+/// scales their difference by `1 / h`).
 const DAMPED_VELOCITY: u8 = 1;
-/// Spring damping with velocity `(u - prev) / h` (Verlet).
-const DAMPED_VERLET: u8 = 2;
 
 /// Springs are evaluated four at a time in lane arrays, so that the square roots, divisions
 /// and products compile to SIMD instructions; the gather of neighbours stays scalar.

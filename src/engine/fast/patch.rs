@@ -133,8 +133,9 @@ impl FastEngine {
             self.rank.push(i as u32);
             self.rest.push(a.rest);
             self.rest_inner.push(super::rest_f32(a.rest));
-            // `second` is the previous displacement (Verlet) or the velocity (symplectic Euler):
-            // either way a copy keeps its source's velocity.
+            // `second` is the last step (Verlet) or the velocity (symplectic Euler): either way
+            // a copy keeps its source's velocity, and a blend the blend of them (its `w`, a
+            // packed rounding residual, blends into a residual of at most half an ulp).
             let (x, second) = match a.state_from {
                 // A fixed node is held at rest: neighbours read its displacement.
                 _ if a.fixed => ([0.0; 4], [0.0; 4]),

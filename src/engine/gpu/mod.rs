@@ -3,8 +3,8 @@
 //! of the memory layouts of [`crate::layout`].
 //!
 //! A step records one dispatch per layout pass; `step(n)` records `n` steps into one compute
-//! pass and submits once. Node state rotates through fixed buffers (three displacement buffers
-//! for Verlet; two displacement and two velocity buffers for symplectic Euler), and every pass
+//! pass and submits once. Node state swaps between fixed buffers (two displacement buffers and
+//! two of the second state: Verlet's last step, symplectic Euler's velocity), and every pass
 //! holds one bind group per rotation phase, made at setup: stepping allocates nothing. Only
 //! positions (and velocities) are read back, when asked for.
 

@@ -6,24 +6,26 @@ use super::*;
 /// Node state read back from the device: current displacements and the second state.
 pub(super) type StatePair = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
-/// The node-state buffers and their rotation.
+/// The node-state buffers and their rotation: current and next displacements, current and
+/// next second state (the last step `u - u_prev` for Verlet, the velocity for symplectic
+/// Euler), swapped after each step.
 pub struct StateBuffers {
     pub(super) integrator: Integrator,
-    /// Displacements (three for Verlet, two for symplectic Euler).
+    /// Displacements (two).
     pub(super) x: Vec<wgpu::Buffer>,
-    /// Velocities (two for symplectic Euler; one unused placeholder for Verlet).
+    /// Second states (two).
     pub(super) v: Vec<wgpu::Buffer>,
 }
 
 /// The buffers a pass binds in one phase of the rotation.
 pub struct PhaseBindings<'a> {
-    /// Verlet: previous displacements; symplectic Euler: velocities.
+    /// Verlet: last steps `u - u_prev`; symplectic Euler: velocities.
     pub second_in: &'a wgpu::Buffer,
     /// Current displacements.
     pub cur: &'a wgpu::Buffer,
     /// Next displacements (written).
     pub next: &'a wgpu::Buffer,
-    /// Symplectic Euler: next velocities (written); Verlet: unused.
+    /// Next second state (written).
     pub second_out: &'a wgpu::Buffer,
 }
 
@@ -46,14 +48,14 @@ impl StateBuffers {
                 mapped_at_creation: false,
             })
         };
-        let (nx, nv, vbytes) = match integrator {
-            Integrator::Verlet => (3, 1, 16),
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => (2, 2, bytes),
+        let second = match integrator {
+            Integrator::Verlet => "steps",
+            Integrator::SymplecticEuler | Integrator::BackwardEuler => "velocities",
         };
         Ok(StateBuffers {
             integrator,
-            x: (0..nx).map(|_| make("displacements", bytes)).collect(),
-            v: (0..nv).map(|_| make("velocities", vbytes)).collect(),
+            x: (0..2).map(|_| make("displacements", bytes)).collect(),
+            v: (0..2).map(|_| make(second, bytes)).collect(),
         })
     }
 
@@ -62,14 +64,9 @@ impl StateBuffers {
         (self.x[0].size() / 16) as usize
     }
 
-    /// Every buffer that holds per-node state (the Verlet velocity placeholder excluded).
+    /// Every buffer that holds per-node state.
     pub(super) fn buffers(&self) -> Vec<&wgpu::Buffer> {
-        match self.integrator {
-            Integrator::Verlet => self.x.iter().collect(),
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => {
-                self.x.iter().chain(&self.v).collect()
-            }
-        }
+        self.x.iter().chain(&self.v).collect()
     }
 
     /// New buffers with room for `n` nodes (a size class), holding this state.
@@ -94,26 +91,18 @@ impl StateBuffers {
 
     /// What a step in `phase` reads and writes.
     pub fn bindings(&self, phase: usize) -> PhaseBindings<'_> {
-        match self.integrator {
-            Integrator::Verlet => PhaseBindings {
-                second_in: &self.x[phase],
-                cur: &self.x[(phase + 1) % 3],
-                next: &self.x[(phase + 2) % 3],
-                second_out: &self.v[0],
-            },
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => PhaseBindings {
-                second_in: &self.v[phase],
-                cur: &self.x[phase],
-                next: &self.x[1 - phase],
-                second_out: &self.v[1 - phase],
-            },
+        PhaseBindings {
+            second_in: &self.v[phase],
+            cur: &self.x[phase],
+            next: &self.x[1 - phase],
+            second_out: &self.v[1 - phase],
         }
     }
 }
 
 impl GpuEngine {
     /// The raw device state in layout order (holes included): current displacements and the
-    /// second state (previous displacements for Verlet, velocities for symplectic Euler).
+    /// second state (last steps for Verlet, velocities for symplectic Euler).
     pub fn raw_state(&self) -> Result<StatePair> {
         let b = self.state.bindings(self.phase);
         let n = self.layout.node_slots();
@@ -171,7 +160,7 @@ impl GpuEngine {
             for c in 0..3 {
                 x[old][c] = self.rest[old][c] + cur[new][c] as f64;
                 v[old][c] = match self.state.integrator {
-                    Integrator::Verlet => (cur[new][c] as f64 - second[new][c] as f64) / dt,
+                    Integrator::Verlet => second[new][c] as f64 / dt,
                     Integrator::SymplecticEuler | Integrator::BackwardEuler => {
                         second[new][c] as f64
                     }

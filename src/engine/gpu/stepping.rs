@@ -113,7 +113,7 @@ impl Engine for GpuEngine {
                 let u = positions[old][c] - self.rest[old][c];
                 cur[new][c] = u as f32;
                 second[new][c] = match self.state.integrator {
-                    Integrator::Verlet => (u - velocities[old][c] * dt) as f32,
+                    Integrator::Verlet => (velocities[old][c] * dt) as f32,
                     Integrator::SymplecticEuler | Integrator::BackwardEuler => {
                         velocities[old][c] as f32
                     }
@@ -178,15 +178,11 @@ impl Engine for GpuEngine {
         let rank = &self.layout.order().rank;
         let idx: Vec<u32> = nodes.iter().map(|&i| rank[i as usize]).collect();
         let b = self.state.bindings(self.phase);
-        // Verlet keeps the previous displacements: the start of the step, read as they are.
-        // Symplectic Euler: the current displacement less dt times the velocity.
+        // The current displacement less the last step: Verlet keeps that step, symplectic
+        // Euler the velocity (times dt).
         let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
         let euler = self.state.integrator.keeps_velocity();
-        let cur = if euler {
-            buffers::read_entries(&self.ctx, b.cur, &idx)?
-        } else {
-            Vec::new()
-        };
+        let cur = buffers::read_entries(&self.ctx, b.cur, &idx)?;
         Ok(nodes
             .iter()
             .enumerate()
@@ -199,7 +195,7 @@ impl Engine for GpuEngine {
                     let u = if euler {
                         cur[k][c] as f64 - dt * second[k][c] as f64
                     } else {
-                        second[k][c] as f64
+                        cur[k][c] as f64 - second[k][c] as f64
                     };
                     r[c] + u
                 })
@@ -219,10 +215,6 @@ impl Engine for GpuEngine {
         let idx: Vec<u32> = nodes.iter().map(|&i| rank[i as usize]).collect();
         let b = self.state.bindings(self.phase);
         let second = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
-        let cur = match self.state.integrator {
-            Integrator::Verlet => buffers::read_entries(&self.ctx, b.cur, &idx)?,
-            Integrator::SymplecticEuler | Integrator::BackwardEuler => Vec::new(),
-        };
         let dt = self.config.dt;
         Ok(nodes
             .iter()
@@ -232,7 +224,7 @@ impl Engine for GpuEngine {
                     return [0.0; 3];
                 }
                 [0, 1, 2].map(|c| match self.state.integrator {
-                    Integrator::Verlet => (cur[k][c] as f64 - second[k][c] as f64) / dt,
+                    Integrator::Verlet => second[k][c] as f64 / dt,
                     Integrator::SymplecticEuler | Integrator::BackwardEuler => second[k][c] as f64,
                 })
             })
@@ -244,7 +236,8 @@ impl Engine for GpuEngine {
         crate::engine::check_correction(nodes, positions, self.rest.len())?;
         let rank = &self.layout.order().rank;
         let b = self.state.bindings(self.phase);
-        // Symplectic Euler adds the move over dt to the velocity: read the few old states.
+        // The move is added to the second state (to the velocity over dt for symplectic Euler,
+        // to the step for Verlet), as if the step had made it: read the few old states.
         let moving: Vec<(u32, [f64; 3])> = nodes
             .iter()
             .zip(positions)
@@ -253,15 +246,9 @@ impl Engine for GpuEngine {
             .collect();
         let idx: Vec<u32> = moving.iter().map(|&(i, _)| rank[i as usize]).collect();
         let euler = self.config.integrator.keeps_velocity();
-        let (old, vel) = if euler {
-            (
-                buffers::read_entries(&self.ctx, b.cur, &idx)?,
-                buffers::read_entries(&self.ctx, b.second_in, &idx)?,
-            )
-        } else {
-            (Vec::new(), Vec::new())
-        };
-        let inv_h = 1.0 / self.config.dt;
+        let old = buffers::read_entries(&self.ctx, b.cur, &idx)?;
+        let vel = buffers::read_entries(&self.ctx, b.second_in, &idx)?;
+        let inv_h = if euler { 1.0 / self.config.dt } else { 1.0 };
         for (k, &(i, p)) in moving.iter().enumerate() {
             let r = self.rest[i as usize];
             let u = [0, 1, 2].map(|c| p[c] - r[c]);
@@ -270,14 +257,12 @@ impl Engine for GpuEngine {
             self.ctx
                 .queue
                 .write_buffer(b.cur, at, bytemuck::bytes_of(&cur));
-            if euler {
-                let v = [0, 1, 2]
-                    .map(|c| (vel[k][c] as f64 + (u[c] - old[k][c] as f64) * inv_h) as f32);
-                let v = [v[0], v[1], v[2], 0.0];
-                self.ctx
-                    .queue
-                    .write_buffer(b.second_in, at, bytemuck::bytes_of(&v));
-            }
+            let v =
+                [0, 1, 2].map(|c| (vel[k][c] as f64 + (u[c] - old[k][c] as f64) * inv_h) as f32);
+            let v = [v[0], v[1], v[2], 0.0];
+            self.ctx
+                .queue
+                .write_buffer(b.second_in, at, bytemuck::bytes_of(&v));
         }
         Ok(())
     }

@@ -1,7 +1,7 @@
 //! A change of time step on the device: pairs with `shaders/time_step.wgsl`. The step
 //! parameters (h, h², 1/h) are one uniform the passes read every step, so a new step writes it
-//! and nothing else; Verlet, which keeps the previous displacements rather than a velocity,
-//! also needs them moved so that its velocity stays what it was, which this pass does in place
+//! and nothing else; Verlet, which keeps its last step `d = u - u_prev` (h times the velocity),
+//! also needs it scaled by h'/h so that its velocity stays what it was, which this pass does in place
 //! without a readback or an upload. Its twin is [`crate::twin::time_step`].
 
 use super::buffers;
@@ -28,7 +28,7 @@ impl RescalePass {
         Ok(RescalePass { pipeline, layout })
     }
 
-    /// Record the rescale of `state`'s previous displacements (`second_in`) by the uniform's
+    /// Record the rescale of `state`'s last steps (`second_in`) by the uniform's
     /// `rescale` into `enc`, over `groups` workgroups of nodes.
     pub fn record(
         &self,
