@@ -92,6 +92,7 @@ fn options(engines: Vec<EngineKind>, ladder: Vec<f64>) -> AccuracyOptions {
             Accumulation::AtomicFloat,
         ],
         ladder,
+        implicit_ladder: Vec::new(),
         warmup_steps: 0,
         ..AccuracyOptions::default()
     }
