@@ -57,10 +57,11 @@ fn make_engine(
     config: SimConfig,
     gpu: GpuOptions,
 ) -> Result<Made> {
-    if config.integrator.is_implicit() && kind != EngineKind::Reference {
+    if config.integrator.is_implicit() && !matches!(kind, EngineKind::Reference | EngineKind::Gpu) {
         return Err(Error::Unsupported(format!(
             "engine {kind} has no implicit integrator yet: run BackwardEuler on the reference \
-             engine (engine: Reference, --engine reference)"
+             engine (engine: Reference, --engine reference) or the GPU engine (engine: Gpu, \
+             --engine gpu, connectivity layout)"
         )));
     }
     Ok(match kind {
