@@ -22,6 +22,7 @@
 //! | `atomic_edges` (float) | `accumulate_float.wgsl` + `edge_spring.wgsl` | [`accumulate_float`]: `EdgeLayout::accumulate_float_cpu` | `tests/gpu/gpu_edges.rs` (within a tolerance: the order of the adds varies) |
 //! | `atomic_edges` (float) | `integrate_float.wgsl` | [`integrate_float`]: `EdgeLayout::step_float_cpu` | `tests/gpu/gpu_edges.rs` |
 //! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
+//! | `implicit` (connectivity) | `implicit_solve.wgsl` (entry points `setup`, `start`, `multiply`, `step_length`, `update`, `residual`, `direction`, `finish`) | [`implicit_solve`]: one function per entry point, [`implicit_solve::implicit_step_cpu`] the whole step | `tests/gpu/gpu_implicit.rs` |
 //! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
 //! | `broad_self` | `self_count`, `scan_blocks`, `scan_top`, `scan_apply`, `self_scatter`, `self_pairs.wgsl` over `self_grid.wgsl` | [`broad_self`]: [`broad_self::self_pairs_cpu`] (the whole chain; the CPU engines' self-contact broad phase) | `tests/gpu/gpu_self_contact.rs` |
 //! | `nodes_near` | `nodes_near.wgsl` | [`nodes_near`]: [`nodes_near::nodes_near_cpu`] | `tests/gpu/gpu_nodes_near.rs` (`device_finds_the_nodes_its_twin_finds`) |
@@ -45,6 +46,7 @@ pub mod device_copy;
 pub mod edge_spring;
 pub mod gather_edges;
 pub mod health;
+pub mod implicit_solve;
 pub mod integrate_fixed;
 pub mod integrate_float;
 pub mod move_state;

@@ -13,6 +13,7 @@ mod read_ahead;
 mod gpu_broad_phase;
 mod gpu_edges;
 mod gpu_health;
+mod gpu_implicit;
 mod gpu_layouts;
 mod gpu_limits;
 mod gpu_nodes_near;

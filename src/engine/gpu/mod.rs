@@ -14,6 +14,7 @@ pub mod broad_tool;
 pub mod buffers;
 pub mod context;
 pub mod health;
+pub mod implicit;
 pub mod layout_buffers;
 pub mod move_state;
 pub mod node_gather;
@@ -45,7 +46,7 @@ use super::{
     SimConfig,
 };
 use crate::collide::broad::ToolBox;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::layout::edges::{Accumulation, FixedPoint};
 use crate::layout::patch::{Dirty, LayoutArray};
 use crate::layout::{NodeOrder, PackedLayout};
@@ -180,6 +181,8 @@ pub struct GpuEngine {
     near_reads: NearReads,
     /// The last step's submission, which `wait` waits for.
     last_submission: Option<wgpu::SubmissionIndex>,
+    /// The implicit integrator's solver (backward Euler only).
+    implicit: Option<implicit::ImplicitSolver>,
 }
 
 impl GpuEngine {
@@ -201,13 +204,6 @@ impl GpuEngine {
         config: SimConfig,
         options: impl Into<GpuOptions>,
     ) -> Result<Self> {
-        if config.integrator.is_implicit() {
-            return Err(Error::Unsupported(
-                "the GPU engine has no implicit integrator yet: run BackwardEuler on the \
-                 reference engine"
-                    .into(),
-            ));
-        }
         let options = options.into();
         let packed = PackedLayout::pack(model, options.layout, config.node_order.order(model))?;
         Self::with_layout(ctx, model, config, packed, options.accumulation)
@@ -223,6 +219,7 @@ impl GpuEngine {
         mut layout: PackedLayout,
         accumulation: Accumulation,
     ) -> Result<Self> {
+        implicit::check_layout(config.integrator, layout.kind())?;
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
         let params = step_params(model, config);
@@ -277,7 +274,18 @@ impl GpuEngine {
             Integrator::Verlet => Some(time_step::RescalePass::new(&ctx)?),
             Integrator::SymplecticEuler | Integrator::BackwardEuler => None,
         };
-        Ok(GpuEngine {
+        let implicit = match config.integrator.is_implicit() {
+            true => Some(implicit::ImplicitSolver::new(
+                &ctx,
+                config.solver,
+                &params,
+                &state,
+                layout.kind(),
+            )?),
+            false => None,
+        };
+        let mut engine = GpuEngine {
+            implicit,
             rescale,
             timer,
             surface_sync: SurfaceSync::Current,
@@ -301,7 +309,9 @@ impl GpuEngine {
             phase: 0,
             dispatch,
             fixed_point,
-        })
+        };
+        engine.rebind_implicit()?;
+        Ok(engine)
     }
 
     /// Bytes of the device buffer holding `array` (the room it has), where the passes hold one.

@@ -147,6 +147,8 @@ impl GpuEngine {
             self.health
                 .rebind(&self.ctx, inv_mass, &self.uniform, &self.state);
         }
+        // The solver binds the slot and mass buffers and the state, any of which may be new.
+        self.rebind_implicit()?;
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         // Only the moved slots are stale, after a repack too (see `SurfaceSync`).

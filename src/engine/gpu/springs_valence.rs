@@ -116,6 +116,11 @@ impl ValencePass {
         grow
     }
 
+    /// The bucket table's buffer (the implicit solve binds it too).
+    pub fn table(&self) -> &wgpu::Buffer {
+        &self.table
+    }
+
     /// Record one step in phase `phase` of the state rotation over the node dispatch `groups`.
     pub fn record(&self, pass: &mut wgpu::ComputePass<'_>, phase: usize, groups: (u32, u32)) {
         pass.set_pipeline(&self.pipeline);

@@ -9,6 +9,10 @@ impl Engine for GpuEngine {
         // Whatever was read ahead saw the state this step replaces.
         self.forget_ahead();
         let ahead = self.near_ahead.take();
+        if self.implicit.is_some() {
+            // The solve reads its status back between batches: no read is made ahead.
+            return self.step_implicit(steps);
+        }
         // A culler behind a patch is brought up to date before the pass reads its rest
         // positions; where that fails the read is not made ahead (a direct read will report it).
         let ahead = ahead.filter(|_| self.refresh_surface().is_ok());
@@ -54,6 +58,10 @@ impl Engine for GpuEngine {
         self.last_submission = Some(submitted);
     }
 
+    fn solver_stats(&self) -> Option<crate::physics::SolverStats> {
+        self.implicit_stats()
+    }
+
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         self.near_ahead = Some((lo, hi));
     }
@@ -80,6 +88,9 @@ impl Engine for GpuEngine {
         u.rescale = (dt / self.config.dt) as f32;
         (u.h, u.h2, u.inv_h) = (h, h * h, 1.0 / h);
         self.config.dt = dt;
+        if let Some(solver) = self.implicit.as_mut() {
+            solver.set_time_step(&self.ctx, h);
+        }
         let bytes = bytemuck::bytes_of(&self.uniform_data);
         self.ctx.queue.write_buffer(&self.uniform, 0, bytes);
         if let Some(pass) = &self.rescale {

@@ -1,0 +1,616 @@
+//! Linearised backward Euler on the device: pairs with `shaders/implicit_solve.wgsl`, twin
+//! [`crate::twin::implicit_solve`]. A step records the right-hand side and preconditioner
+//! pass, then conjugate-gradient iterations in batches of [`ITERATIONS_PER_SUBMISSION`], each
+//! batch ending with the pass that writes the next state once the solve has ended; after each
+//! batch only the 32-byte scalar block (status, iterations, residual) is read back. The
+//! iteration count is the shader's own, exact, not rounded to the batch size.
+//!
+//! The product gathers over the connectivity table or the valence buckets (the layout's
+//! `row_of` joined to the shader); the edge layout has none yet and the engine refuses it with
+//! [`crate::Error::Unsupported`].
+
+use bytemuck::{Pod, Zeroable};
+
+use super::buffers;
+use super::{GpuContext, GpuEngine, Passes, StateBuffers};
+use crate::engine::Integrator;
+use crate::error::{Error, Result};
+use crate::layout::patch::LayoutArray;
+use crate::layout::{LayoutKind, PackedLayout};
+use crate::physics::{Linearization, SolverSettings, SolverStats, StepParams};
+use crate::twin::implicit_solve::{status, Scalars, SolveParams, SolveVectors};
+
+/// Conjugate-gradient iterations recorded per submission between reads of the status word.
+pub const ITERATIONS_PER_SUBMISSION: u32 = 16;
+
+/// The solve over the connectivity table (WGSL has no includes: the parts are joined).
+const CONNECTIVITY: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_connectivity.wgsl")
+);
+
+/// The solve over the valence buckets.
+const VALENCE: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_valence.wgsl")
+);
+
+/// The solver vectors held in one buffer, in this order (see the shader).
+const VECTORS: u64 = 7;
+
+/// Bytes of the scalar block before the partial sums.
+const SCALARS: u64 = std::mem::size_of::<Scalars>() as u64;
+
+/// The solve's constants; mirrors `struct Solve` in `shaders/implicit_solve.wgsl` (64 bytes).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct SolveUniform {
+    gravity: [f32; 3],
+    h: f32,
+    alpha: f32,
+    tolerance: f32,
+    n: u32,
+    width: u32,
+    row: u32,
+    damped: u32,
+    definite: u32,
+    max_iterations: u32,
+    groups: u32,
+    stride: u32,
+    pad: [u32; 2],
+}
+
+const _: () = assert!(std::mem::size_of::<SolveUniform>() == 64);
+const _: () = assert!(std::mem::size_of::<Scalars>() == 32);
+
+/// One pass of the solve, to run alone ([`ImplicitSolver::run_pass`]) in the device tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolvePass {
+    /// Right-hand side, preconditioner, first residual and direction.
+    Setup,
+    /// `|b|`, the first `r . z`, the status.
+    Start,
+    /// `A p`.
+    Multiply,
+    /// `rz / pap`.
+    StepLength,
+    /// `y`, `r`, `z`.
+    Update,
+    /// Relative residual, convergence, `beta`.
+    Residual,
+    /// `p = z + beta p`.
+    Direction,
+    /// The next state, once the solve has ended.
+    Finish,
+}
+
+impl SolvePass {
+    const ALL: [SolvePass; 8] = [
+        SolvePass::Setup,
+        SolvePass::Start,
+        SolvePass::Multiply,
+        SolvePass::StepLength,
+        SolvePass::Update,
+        SolvePass::Residual,
+        SolvePass::Direction,
+        SolvePass::Finish,
+    ];
+
+    fn entry(self) -> &'static str {
+        match self {
+            SolvePass::Setup => "setup",
+            SolvePass::Start => "start",
+            SolvePass::Multiply => "multiply",
+            SolvePass::StepLength => "step_length",
+            SolvePass::Update => "update",
+            SolvePass::Residual => "residual",
+            SolvePass::Direction => "direction",
+            SolvePass::Finish => "finish",
+        }
+    }
+
+    /// Whether the pass runs over the nodes (else in one workgroup).
+    fn over_nodes(self) -> bool {
+        !matches!(
+            self,
+            SolvePass::Start | SolvePass::StepLength | SolvePass::Residual
+        )
+    }
+}
+
+/// The device side of the implicit step: pipelines, solver buffers, bind groups per phase of
+/// the state rotation, and the statistics of the solves so far.
+pub struct ImplicitSolver {
+    settings: SolverSettings,
+    uniform_data: SolveUniform,
+    uniform: wgpu::Buffer,
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    vectors: wgpu::Buffer,
+    reduce: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    bind_groups: Vec<wgpu::BindGroup>,
+    stats: SolverStats,
+}
+
+/// Workgroups of a node dispatch over `groups` (x, y).
+fn group_count(groups: (u32, u32)) -> u32 {
+    groups.0 * groups.1
+}
+
+impl ImplicitSolver {
+    /// The pipelines and buffers of a solve with `settings` at step constants `p`.
+    pub(super) fn new(
+        ctx: &GpuContext,
+        settings: SolverSettings,
+        p: &StepParams,
+        state: &StateBuffers,
+        kind: LayoutKind,
+    ) -> Result<Self> {
+        if settings.newton_iterations > 1 {
+            return Err(Error::Unsupported(format!(
+                "the GPU engine solves one Newton iteration per step (Baraff and Witkin's \
+                 linearised step); newton_iterations: {} runs on the reference engine",
+                settings.newton_iterations
+            )));
+        }
+        let uniform_data = SolveUniform {
+            gravity: p.gravity,
+            h: p.h,
+            alpha: p.alpha,
+            tolerance: settings.tolerance as f32,
+            n: 0,
+            width: 0,
+            row: 0,
+            damped: p.damped as u32,
+            definite: (settings.linearization == Linearization::Definite) as u32,
+            max_iterations: settings.max_iterations,
+            groups: 0,
+            stride: 0,
+            pad: [0; 2],
+        };
+        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("solve constants"),
+            size: std::mem::size_of::<SolveUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // slots, masses, velocities, displacements (read); next displacements, next velocities,
+        // solver vectors, scalars and partials (written); the valence layout's bucket table.
+        let mut bindings = vec![true, true, true, true, false, false, false, false];
+        let source = match kind {
+            LayoutKind::Connectivity => CONNECTIVITY,
+            LayoutKind::Valence => {
+                let most = ctx.limits.max_storage_buffers_per_shader_stage;
+                if most < 9 {
+                    return Err(Error::Unsupported(format!(
+                        "the implicit step over the valence layout binds 9 storage buffers, \
+                         {} allows {most}: use --layout connectivity",
+                        ctx.info.name
+                    )));
+                }
+                bindings.push(true);
+                VALENCE
+            }
+            LayoutKind::Edges => return Err(edge_refusal()),
+        };
+        let layout = buffers::pass_layout(ctx, "implicit solve", &bindings);
+        let pipelines = SolvePass::ALL
+            .iter()
+            .map(|pass| {
+                buffers::compute_pipeline_at(ctx, pass.entry(), source, pass.entry(), &[&layout])
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("solve status"),
+            size: SCALARS,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (vectors, reduce) = Self::solver_buffers(ctx, state.capacity())?;
+        Ok(ImplicitSolver {
+            settings,
+            uniform_data,
+            uniform,
+            layout,
+            pipelines,
+            vectors,
+            reduce,
+            staging,
+            bind_groups: Vec::new(),
+            stats: SolverStats::default(),
+        })
+    }
+
+    /// The vector buffer and the reduction buffer for `capacity` node slots.
+    fn solver_buffers(ctx: &GpuContext, capacity: usize) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+        let cap = capacity.max(1) as u64;
+        let vectors = buffers::zeroed_storage(
+            ctx,
+            "solver vectors",
+            VECTORS * cap * 16,
+            buffers::Sizing::Exact,
+        )?;
+        // Every workgroup of a node dispatch writes one pair; the dispatch may fold into rows
+        // whose last holds up to a row of idle workgroups.
+        let (x, y) = super::dispatch_size(ctx, cap as u32);
+        let groups = (x * y) as u64 + x as u64;
+        let reduce = buffers::zeroed_storage(
+            ctx,
+            "solver scalars",
+            SCALARS + 8 * groups,
+            buffers::Sizing::Exact,
+        )?;
+        Ok((vectors, reduce))
+    }
+
+    /// Bind the layout's slot and mass buffers and the node state (again after a patch, which
+    /// may have replaced any of them), with the dispatch sizes and connectivity width of now;
+    /// the solver buffers grow with the state.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn rebind(
+        &mut self,
+        ctx: &GpuContext,
+        slots: &wgpu::Buffer,
+        inv_mass: &wgpu::Buffer,
+        table: Option<&wgpu::Buffer>,
+        state: &StateBuffers,
+        n: u32,
+        width: u32,
+        row: u32,
+        groups: (u32, u32),
+    ) -> Result<()> {
+        let capacity = state.capacity();
+        if self.vectors.size() < VECTORS * capacity as u64 * 16 {
+            (self.vectors, self.reduce) = Self::solver_buffers(ctx, capacity)?;
+        }
+        let u = &mut self.uniform_data;
+        (u.n, u.width, u.row) = (n, width, row);
+        u.groups = group_count(groups);
+        u.stride = capacity as u32;
+        self.write_uniform(ctx);
+        self.bind_groups = (0..state.phases())
+            .map(|phase| {
+                let b = state.bindings(phase);
+                let mut bound = vec![
+                    &self.uniform,
+                    slots,
+                    inv_mass,
+                    b.second_in,
+                    b.cur,
+                    b.next,
+                    b.second_out,
+                    &self.vectors,
+                    &self.reduce,
+                ];
+                bound.extend(table);
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("implicit solve"),
+                    layout: &self.layout,
+                    entries: &buffers::entries(&bound),
+                })
+            })
+            .collect();
+        Ok(())
+    }
+
+    fn write_uniform(&self, ctx: &GpuContext) {
+        ctx.queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.uniform_data));
+    }
+
+    /// A new time step (the next step's system is built with it).
+    pub(super) fn set_time_step(&mut self, ctx: &GpuContext, h: f32) {
+        self.uniform_data.h = h;
+        self.write_uniform(ctx);
+    }
+
+    /// Springs with damping turn the damping terms on.
+    pub(super) fn set_damped(&mut self, ctx: &GpuContext, damped: bool) {
+        self.uniform_data.damped = damped as u32;
+        self.write_uniform(ctx);
+    }
+
+    /// What the solves did so far.
+    pub fn stats(&self) -> SolverStats {
+        self.stats
+    }
+
+    /// The constants as the twin takes them.
+    pub fn params(&self) -> SolveParams {
+        let u = &self.uniform_data;
+        SolveParams {
+            h: u.h,
+            alpha: u.alpha,
+            gravity: u.gravity,
+            tolerance: u.tolerance,
+            max_iterations: u.max_iterations,
+            damped: u.damped != 0,
+            definite: u.definite != 0,
+        }
+    }
+
+    fn record(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        which: SolvePass,
+        phase: usize,
+        groups: (u32, u32),
+    ) {
+        let index = SolvePass::ALL.iter().position(|&p| p == which).unwrap_or(0);
+        pass.set_pipeline(&self.pipelines[index]);
+        pass.set_bind_group(0, &self.bind_groups[phase], &[]);
+        let g = if which.over_nodes() { groups } else { (1, 1) };
+        pass.dispatch_workgroups(g.0, g.1, 1);
+    }
+
+    /// Run one pass alone in `phase` over `groups` node workgroups and wait for it.
+    pub(super) fn run_pass(
+        &self,
+        ctx: &GpuContext,
+        which: SolvePass,
+        phase: usize,
+        groups: (u32, u32),
+    ) -> Result<()> {
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("solve pass"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(which.entry()),
+                timestamp_writes: None,
+            });
+            self.record(&mut pass, which, phase, groups);
+        }
+        enc.copy_buffer_to_buffer(&self.reduce, 0, &self.staging, 0, SCALARS);
+        buffers::submit_and_read(ctx, enc, &self.staging, SCALARS)?;
+        Ok(())
+    }
+
+    /// One implicit step in `phase`: the solve in batches until the device says it has ended,
+    /// the next state written into the phase's output buffers. Returns the final scalars.
+    pub(super) fn step(
+        &mut self,
+        ctx: &GpuContext,
+        phase: usize,
+        groups: (u32, u32),
+    ) -> Result<Scalars> {
+        let max = self.uniform_data.max_iterations;
+        // The cap ends the solve on the device; the bound only guards against a status word
+        // that never changes.
+        let batches = max.div_ceil(ITERATIONS_PER_SUBMISSION) + 1;
+        for batch in 0..batches {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("implicit step"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("implicit step"),
+                    timestamp_writes: None,
+                });
+                if batch == 0 {
+                    self.record(&mut pass, SolvePass::Setup, phase, groups);
+                    self.record(&mut pass, SolvePass::Start, phase, groups);
+                }
+                for _ in 0..ITERATIONS_PER_SUBMISSION.min(max) {
+                    for which in [
+                        SolvePass::Multiply,
+                        SolvePass::StepLength,
+                        SolvePass::Update,
+                        SolvePass::Residual,
+                        SolvePass::Direction,
+                    ] {
+                        self.record(&mut pass, which, phase, groups);
+                    }
+                }
+                self.record(&mut pass, SolvePass::Finish, phase, groups);
+            }
+            enc.copy_buffer_to_buffer(&self.reduce, 0, &self.staging, 0, SCALARS);
+            let bytes = buffers::submit_and_read(ctx, enc, &self.staging, SCALARS)?;
+            let s: Scalars = bytemuck::pod_read_unaligned(&bytes);
+            if s.status != status::RUNNING {
+                self.note(s);
+                return Ok(s);
+            }
+        }
+        Err(Error::Gpu(format!(
+            "the implicit solve did not end within {max} iterations: the device's status word \
+             never changed"
+        )))
+    }
+
+    fn note(&mut self, s: Scalars) {
+        let st = &mut self.stats;
+        st.solves += 1;
+        st.iterations += s.iterations as u64;
+        st.max_iterations = st.max_iterations.max(s.iterations);
+        st.last_residual = s.residual as f64;
+        if s.residual as f64 > self.settings.tolerance {
+            st.capped += 1;
+        }
+    }
+
+    /// The solver vectors and scalars as the device holds them, `n` nodes.
+    pub(super) fn read_vectors(&self, ctx: &GpuContext, n: usize) -> Result<SolveVectors> {
+        let stride = self.uniform_data.stride as usize;
+        let all = buffers::read_vec4(ctx, &self.vectors)?;
+        let part = |k: usize| all[k * stride..k * stride + n].to_vec();
+        let (a, b) = (part(5), part(6));
+        let red = buffers::read_bytes(ctx, &self.reduce, self.reduce.size())?;
+        let groups = self.uniform_data.groups as usize;
+        let partials: Vec<[f32; 2]> = bytemuck::pod_collect_to_vec(&red[SCALARS as usize..]);
+        Ok(SolveVectors {
+            y: part(0),
+            r: part(1),
+            z: part(2),
+            p: part(3),
+            ap: part(4),
+            minv: a.iter().zip(&b).map(|(a, b)| [*a, *b]).collect(),
+            scalars: bytemuck::pod_read_unaligned(&red[..SCALARS as usize]),
+            partials: partials[..groups].to_vec(),
+        })
+    }
+
+    /// Overwrite the solver vectors and scalars (`v.partials` may be shorter than the
+    /// dispatch's workgroups: the rest are zeroed).
+    pub(super) fn write_vectors(&self, ctx: &GpuContext, v: &SolveVectors) {
+        let stride = self.uniform_data.stride as u64;
+        let parts = [&v.y, &v.r, &v.z, &v.p, &v.ap];
+        for (k, part) in parts.iter().enumerate() {
+            ctx.queue.write_buffer(
+                &self.vectors,
+                k as u64 * stride * 16,
+                bytemuck::cast_slice(part),
+            );
+        }
+        let a: Vec<[f32; 4]> = v.minv.iter().map(|m| m[0]).collect();
+        let b: Vec<[f32; 4]> = v.minv.iter().map(|m| m[1]).collect();
+        ctx.queue
+            .write_buffer(&self.vectors, 5 * stride * 16, bytemuck::cast_slice(&a));
+        ctx.queue
+            .write_buffer(&self.vectors, 6 * stride * 16, bytemuck::cast_slice(&b));
+        let mut red = bytemuck::bytes_of(&v.scalars).to_vec();
+        let mut partials = v.partials.clone();
+        partials.resize(self.uniform_data.groups as usize, [0.0; 2]);
+        red.extend_from_slice(bytemuck::cast_slice(&partials));
+        ctx.queue.write_buffer(&self.reduce, 0, &red);
+    }
+}
+
+/// Refuse an implicit integrator on a layout without the product yet.
+pub(super) fn check_layout(integrator: Integrator, kind: LayoutKind) -> Result<()> {
+    if integrator.is_implicit() && kind == LayoutKind::Edges {
+        return Err(edge_refusal());
+    }
+    Ok(())
+}
+
+fn edge_refusal() -> Error {
+    Error::Unsupported(
+        "the GPU engine's implicit step (integrator BackwardEuler) runs on the connectivity and \
+         valence layouts only so far, not the edge layout: use --layout connectivity (layout: \
+         Connectivity) or --layout valence, or the reference engine"
+            .into(),
+    )
+}
+
+impl GpuEngine {
+    /// Bind the implicit solver (if any) to the buffers and sizes of now: at setup and after
+    /// every patch.
+    pub(super) fn rebind_implicit(&mut self) -> Result<()> {
+        let Some(solver) = self.implicit.as_mut() else {
+            return Ok(());
+        };
+        let (width, table) = match (&self.layout, &self.passes) {
+            (PackedLayout::Connectivity(c), _) => (c.capacity, None),
+            (PackedLayout::Valence(_), Passes::Valence(p)) => (0, Some(p.table())),
+            (other, _) => return check_layout(self.config.integrator, other.kind()),
+        };
+        let buffer = |a: LayoutArray| {
+            self.passes
+                .buffer(a)
+                .ok_or_else(|| Error::Gpu(format!("no device buffer holds the {a:?} array")))
+        };
+        solver.set_damped(&self.ctx, self.uniform_data.damped != 0);
+        solver.rebind(
+            &self.ctx,
+            buffer(LayoutArray::Slots)?,
+            buffer(LayoutArray::InvMass)?,
+            table,
+            &self.state,
+            self.layout.node_slots() as u32,
+            width,
+            self.dispatch.row,
+            self.dispatch.nodes,
+        )
+    }
+
+    /// `steps` implicit steps, each solved to its end before the next (the state rotates as
+    /// for symplectic Euler). A device failure is reported and stops the steps.
+    pub(super) fn step_implicit(&mut self, steps: u32) {
+        let Some(solver) = self.implicit.as_mut() else {
+            return;
+        };
+        for _ in 0..steps {
+            match solver.step(&self.ctx, self.phase, self.dispatch.nodes) {
+                Ok(_) => self.phase = (self.phase + 1) % self.state.phases(),
+                Err(e) => {
+                    eprintln!("lancet: the implicit step failed: {e}");
+                    return;
+                }
+            }
+        }
+    }
+
+    /// What the implicit solves did so far (`None` for an explicit integrator).
+    pub fn implicit_stats(&self) -> Option<SolverStats> {
+        self.implicit.as_ref().map(|s| s.stats())
+    }
+
+    /// The implicit solve's constants as its twin takes them (`None` for an explicit
+    /// integrator).
+    pub fn solve_params(&self) -> Option<SolveParams> {
+        self.implicit.as_ref().map(|s| s.params())
+    }
+
+    fn solver(&self) -> Result<&ImplicitSolver> {
+        self.implicit.as_ref().ok_or_else(|| {
+            Error::Unsupported("this engine runs an explicit integrator: it has no solver".into())
+        })
+    }
+
+    /// Run one pass of the implicit solve alone on the current state and solver vectors (for
+    /// comparing each pass with its twin).
+    pub fn run_solve_pass(&self, pass: SolvePass) -> Result<()> {
+        self.solver()?
+            .run_pass(&self.ctx, pass, self.phase, self.dispatch.nodes)
+    }
+
+    /// The solver vectors and scalars as the device holds them (layout order).
+    pub fn solve_vectors(&self) -> Result<SolveVectors> {
+        self.solver()?
+            .read_vectors(&self.ctx, self.layout.node_slots())
+    }
+
+    /// Overwrite the solver vectors and scalars (layout order, one entry per node slot).
+    pub fn set_solve_vectors(&self, v: &SolveVectors) -> Result<()> {
+        let n = self.layout.node_slots();
+        if [
+            v.y.len(),
+            v.r.len(),
+            v.z.len(),
+            v.p.len(),
+            v.ap.len(),
+            v.minv.len(),
+        ]
+        .iter()
+        .any(|&l| l != n)
+        {
+            return Err(Error::LengthMismatch {
+                given: v.y.len(),
+                expected: n,
+                message: format!("solver vectors for a layout of {n} node slots"),
+            });
+        }
+        self.solver()?.write_vectors(&self.ctx, v);
+        Ok(())
+    }
+
+    /// The next displacements and velocities a [`SolvePass::Finish`] wrote (the buffers the
+    /// next phase reads), layout order.
+    pub fn finished_state(&self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+        let b = self.state.bindings(self.phase);
+        let n = self.layout.node_slots();
+        let mut next = buffers::read_vec4(&self.ctx, b.next)?;
+        let mut vel = buffers::read_vec4(&self.ctx, b.second_out)?;
+        next.truncate(n);
+        vel.truncate(n);
+        Ok((next, vel))
+    }
+}
