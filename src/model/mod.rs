@@ -28,7 +28,7 @@ pub use constraints::FixedSelector;
 pub use diff::{AddedNode, ModelDiff, NodeChange, StateBlend};
 pub use journal::{ModelJournal, SpringParams};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
-pub use stability::{stable_time_step, BoundUndo, StabilityBound};
+pub use stability::{stable_time_step, stable_time_step_from_rows, BoundUndo, StabilityBound};
 pub use tets::PackedTet;
 
 new_key_type! {

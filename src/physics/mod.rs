@@ -8,7 +8,7 @@
 //!   Beside them, the finite-element models on constant-strain tets ([`linear_tet`]):
 //!   [`TensorMass`] (linear elasticity as per-node and per-edge 3x3 tensors, the springs'
 //!   connectivity, in [`tensor_mass`]) and [`Corotational`] (each tet's stiffness in its
-//!   rotated frame, in [`corotational`]);
+//!   rotated frame, in [`corotational`]); [`ForceModelKind`] chooses one ([`model_kind`]);
 //! - the **integrator** ([`TimeIntegrator`], in [`time_integrator`]; the schemes in
 //!   [`integrator`]): how a node's state advances from the force on it (Verlet and symplectic
 //!   Euler, explicit), what state it keeps, and how that state follows a change of time step.
@@ -24,8 +24,8 @@
 //! [`rescale_previous`]) are the float32 arithmetic of the GPU kernels, in the order
 //! `shaders/common.wgsl` computes it: the CPU twins of the passes (`crate::twin`) are
 //! built from them, so a twin and its pass agree bit for bit on a device that rounds like the
-//! CPU. This module imports only the model's data (`model::PackedSpring`, `model::PackedTet`):
-//! the layouts, engines and shaders depend on it, never the other
+//! CPU. This module imports only the model's data (`model::PackedSpring`, `model::PackedTet`,
+//! the stability bound's type): the layouts, engines and shaders depend on it, never the other
 //! way.
 
 pub mod backward_euler;
@@ -33,6 +33,7 @@ pub mod corotational;
 pub mod force_model;
 pub mod integrator;
 pub mod linear_tet;
+pub mod model_kind;
 pub mod runge_kutta;
 pub mod springs;
 pub mod tensor_mass;
@@ -52,6 +53,7 @@ pub use integrator::{
     integrate, rescale_previous, state_buffers, state_traffic, velocity, Integrator, StepParams,
 };
 pub use linear_tet::TetElement;
+pub use model_kind::ForceModelKind;
 pub use runge_kutta::RungeKutta4;
 pub use springs::{spring_force, spring_stiffness_block, SpringForces};
 pub use tensor_mass::{EdgeTensor, TensorMass};

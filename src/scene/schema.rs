@@ -286,6 +286,11 @@ pub struct Scene {
     /// Integration scheme.
     #[serde(default)]
     pub integrator: Integrator,
+    /// Force model: `Springs` (the default), `TensorMass` or `Corotational` (finite elements
+    /// from each region's Young's modulus and Poisson ratio, on `engine: Reference` only for
+    /// now, and without cuts).
+    #[serde(default)]
+    pub force_model: crate::physics::ForceModelKind,
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,
