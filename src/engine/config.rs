@@ -1,5 +1,5 @@
-//! How a simulation runs: the time step, the integrator, the node order the engines pack in,
-//! and how often divergence is checked ([`SimConfig`]); and, apart from it, how the GPU engine
+//! How a simulation runs: the time step, the integrator, the force model, the node order the
+//! engines pack in, and how often divergence is checked ([`SimConfig`]); and, apart from it, how the GPU engine
 //! lays out the springs ([`GpuOptions`]), given where the GPU engine is chosen.
 
 use super::*;
@@ -31,6 +31,10 @@ pub struct SimConfig {
     /// only memory locality, hence speed, changes.
     #[serde(default)]
     pub node_order: NodeOrdering,
+    /// The force model the elements exert (default: springs). The finite-element models run
+    /// on the float64 reference engine only, for now: the fast and GPU engines refuse them.
+    #[serde(default)]
+    pub force_model: ForceModelKind,
 }
 
 /// How the GPU engine lays out and sums the springs: what only the GPU engine reads, given
@@ -132,6 +136,7 @@ impl SimConfig {
             allow_inverted: false,
             check_every: default_check_every(),
             node_order: NodeOrdering::Locality,
+            force_model: ForceModelKind::Springs,
         }
     }
 }

@@ -16,7 +16,7 @@ mod surface_list;
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::physics::Integrator;
+pub use crate::physics::{ForceModelKind, Integrator};
 pub use config::{GpuOptions, NodeOrdering, SimConfig};
 pub use simulation::{
     Energy, Simulation, ENERGY_GROWTH_LIMIT, EXACT_CHECK_EVERY, FLOAT32_NODE_FRACTION,
@@ -24,7 +24,7 @@ pub use simulation::{
 };
 
 use crate::error::{Error, Result};
-use crate::model::{stable_time_step, ModelDiff, PackedModel, StabilityBound};
+use crate::model::{ModelDiff, PackedModel, StabilityBound};
 
 /// Which engine to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -182,6 +182,11 @@ pub trait Engine: Send {
     /// [`Engine::device`], mutably.
     fn device_mut(&mut self) -> Option<&mut dyn DeviceEngine> {
         None
+    }
+    /// The elastic energy of `model` at positions `x`, J, under the force model this engine
+    /// steps: the springs' ([`PackedModel::elastic_energy`]) unless it runs another.
+    fn elastic_energy(&self, model: &PackedModel, x: &[[f64; 3]]) -> f64 {
+        model.elastic_energy(x)
     }
 }
 

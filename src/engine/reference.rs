@@ -1,23 +1,30 @@
-//! The float64 reference engine: serial, one spring at a time, no tricks. Everything faster is
-//! checked against it.
+//! The float64 reference engine: serial, one spring (or tet) at a time, no tricks. Everything
+//! faster is checked against it, and it is where the finite-element force models run first.
 
 use super::{Engine, SimConfig};
 use crate::model::PackedModel;
-use crate::physics::{integrator_for, NodeState, Nodes, SolverStats, SpringForces, TimeIntegrator};
+use crate::physics::{
+    integrator_for, ForceModel, ForceModelKind, NodeState, Nodes, SolverStats, SpringForces,
+    TimeIntegrator,
+};
 
 type V3 = [f64; 3];
 
-/// Float64 serial engine: the model's [`SpringForces`] stepped by a [`TimeIntegrator`], the
-/// two seams of [`crate::physics`] with nothing in between.
+/// Float64 serial engine: the model's [`SpringForces`] (or a finite-element force model,
+/// [`ReferenceEngine::with_force_model`]) stepped by a [`TimeIntegrator`], the two seams of
+/// [`crate::physics`] with nothing in between.
 pub struct ReferenceEngine {
     model: PackedModel,
     dt: f64,
     integrator: Box<dyn TimeIntegrator>,
     state: NodeState,
+    /// The finite-element force model, if one replaces the springs.
+    elements: Option<Box<dyn ForceModel + Send>>,
 }
 
 impl ReferenceEngine {
-    /// Start at rest at the rest positions.
+    /// Start at rest at the rest positions, stepping the springs (whatever
+    /// `config.force_model` says: [`ReferenceEngine::with_force_model`] chooses another).
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
         Self::with_integrator(
             model,
@@ -41,7 +48,25 @@ impl ReferenceEngine {
                 x: model.rest.clone(),
                 v: vec![[0.0; 3]; model.node_count()],
             },
+            elements: None,
         }
+    }
+
+    /// Step with the force model `kind` of `model` (the model this engine was built on)
+    /// instead of the springs; `Springs` changes nothing. Fails where the model cannot have
+    /// that force model (no tets, a tet whose material has no Young's modulus).
+    pub fn with_force_model(
+        mut self,
+        model: &PackedModel,
+        kind: ForceModelKind,
+    ) -> crate::Result<Self> {
+        self.elements = kind.element_forces(model)?;
+        Ok(self)
+    }
+
+    /// The name of the force model it steps.
+    pub fn force_model_name(&self) -> &'static str {
+        self.elements.as_ref().map_or("springs", |e| e.name())
     }
 
     /// The integrator's name.
@@ -58,10 +83,21 @@ impl Engine for ReferenceEngine {
             gravity: self.model.gravity,
             mass_damping: self.model.mass_damping,
         };
-        let forces = SpringForces::new(self.model.springs());
+        let springs = SpringForces::new(self.model.springs());
+        let forces: &dyn ForceModel = match &self.elements {
+            Some(e) => e.as_ref(),
+            None => &springs,
+        };
         for _ in 0..steps {
             self.integrator
-                .step(&forces, &nodes, self.dt, &mut self.state);
+                .step(forces, &nodes, self.dt, &mut self.state);
+        }
+    }
+
+    fn elastic_energy(&self, model: &PackedModel, x: &[V3]) -> f64 {
+        match &self.elements {
+            Some(e) => e.potential_energy(x),
+            None => model.elastic_energy(x),
         }
     }
 

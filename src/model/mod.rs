@@ -12,6 +12,7 @@ pub mod journal;
 pub mod material;
 pub(crate) mod room;
 pub mod stability;
+mod tets;
 
 use std::collections::BTreeMap;
 
@@ -27,7 +28,8 @@ pub use constraints::FixedSelector;
 pub use diff::{AddedNode, ModelDiff, NodeChange, StateBlend};
 pub use journal::{ModelJournal, SpringParams};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
-pub use stability::{stable_time_step, BoundUndo, StabilityBound};
+pub use stability::{stable_time_step, stable_time_step_from_rows, BoundUndo, StabilityBound};
+pub use tets::PackedTet;
 
 new_key_type! {
     /// Stable identity of a spring.
@@ -584,7 +586,16 @@ impl SpringModel {
             })
             .collect();
         springs.sort_by_key(|s| s.nodes);
+        let tets = mesh
+            .tets()
+            .map(|(_, t)| PackedTet {
+                nodes: t.nodes.map(|k| dense.index[k]),
+                region: t.region,
+                material: *self.config.material_of(t.region),
+            })
+            .collect();
         Ok(PackedModel {
+            tets,
             node_keys: dense.keys,
             rest,
             mass,
@@ -629,6 +640,12 @@ pub struct PackedModel {
     pub mass_damping: f64,
     /// Where each spring is in `springs`, by end pair.
     index: diff::SpringIndex,
+    /// The tets with their region's material, in the mesh's storage order: what the
+    /// finite-element force models are built from. Packed from the mesh once; a model change
+    /// ([`PackedModel::apply`]) does not update them, which is why a simulation with a
+    /// finite-element model refuses changes (cuts) for now. Empty for a model made from springs
+    /// alone ([`PackedModel::from_springs`]).
+    pub tets: Vec<PackedTet>,
 }
 
 impl PackedModel {
@@ -686,6 +703,7 @@ impl PackedModel {
             )));
         }
         Ok(PackedModel {
+            tets: Vec::new(),
             node_keys: vec![NodeKey::default(); n],
             fixed: vec![false; n],
             rest,

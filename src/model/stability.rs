@@ -35,7 +35,8 @@ pub struct StabilityBound {
     pub omega_max: f64,
     /// The bound of each node, s (`INFINITY` for fixed nodes).
     pub per_node: Vec<f64>,
-    /// Sum of the stiffnesses of each node's springs, N/m.
+    /// Sum of the stiffnesses of each node's springs, N/m (for a finite-element model, half
+    /// its Gershgorin row sum: see [`stable_time_step_from_rows`]).
     pub k_sum: Vec<f64>,
     /// Sum of the dampings of each node's springs, N s/m.
     pub c_sum: Vec<f64>,
@@ -111,6 +112,46 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
         k_sum: with_room(k_sum),
         c_sum: with_room(c_sum),
         blocks: with_room(blocks),
+    }
+}
+
+/// The per-node block-Gershgorin bound of a model whose stiffness and damping are given as
+/// row sums: `stiffness_rows[i]` bounds `sum_j |K_ij|` over node `i`'s block row (N/m) and
+/// `damping_rows[i]` the same for the damping matrix (N s/m), so that `M^-1 K` has no
+/// eigenvalue above `max_i stiffness_rows[i] / m_i`. For springs at rest the row sum is
+/// `2 sum_j k_ij` (what [`stable_time_step`] uses); the finite-element models give theirs
+/// from their element blocks (`crate::physics::linear_tet::gershgorin_rows`). `k_sum` and
+/// `c_sum` of the result hold half the row sums, as they would for springs. Fixed nodes are
+/// left out; `mass_damping` is the model's `alpha`, 1/s.
+pub fn stable_time_step_from_rows(
+    stiffness_rows: &[f64],
+    damping_rows: &[f64],
+    mass: &[f64],
+    fixed: &[bool],
+    mass_damping: f64,
+) -> StabilityBound {
+    let n = mass.len();
+    let k_sum: Vec<f64> = (0..n).map(|i| 0.5 * stiffness_rows[i]).collect();
+    let c_sum: Vec<f64> = (0..n).map(|i| 0.5 * damping_rows[i]).collect();
+    let mut per_node = vec![f64::INFINITY; n];
+    let mut omega_max = 0.0f64;
+    for i in (0..n).filter(|&i| !fixed[i]) {
+        let (h, omega) = node_bound(k_sum[i], c_sum[i], mass[i], mass_damping);
+        per_node[i] = h;
+        omega_max = omega_max.max(omega);
+    }
+    let blocks: Vec<(f64, usize)> = (0..n.div_ceil(BLOCK))
+        .map(|b| block_min(&per_node, b))
+        .collect();
+    let (dt, node) = smallest_block(&blocks);
+    StabilityBound {
+        dt,
+        node,
+        omega_max,
+        per_node,
+        k_sum,
+        c_sum,
+        blocks,
     }
 }
 

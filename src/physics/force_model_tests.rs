@@ -1,17 +1,18 @@
 //! The spring force model against its own definitions: the force is minus the gradient of the
 //! energy, the products are the derivatives of the force (central differences), the diagonal
 //! blocks are the products' diagonal, the definite linearisation is semi-definite where the
-//! exact one is not, and the float64 law is the float32 one's reference.
+//! exact one is not, and the float64 law is the float32 one's reference. The checks of the
+//! contract are functions of any [`ForceModel`], which the finite-element models' tests reuse.
 
 use super::force_model::{dot, ForceModel, Linearization, Mat3, Vec3};
 use super::{spring_force, Integrator, SpringForces, StepParams};
 use crate::model::PackedSpring;
 
 /// A small deterministic generator (SplitMix64), so the cases are the same on every run.
-struct Rng(u64);
+pub(super) struct Rng(pub(super) u64);
 
 impl Rng {
-    fn next(&mut self) -> f64 {
+    pub(super) fn next(&mut self) -> f64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -19,10 +20,10 @@ impl Rng {
         ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
     }
     /// Uniform in `-s..s`.
-    fn signed(&mut self, s: f64) -> f64 {
+    pub(super) fn signed(&mut self, s: f64) -> f64 {
         s * (2.0 * self.next() - 1.0)
     }
-    fn vec(&mut self, s: f64) -> Vec3 {
+    pub(super) fn vec(&mut self, s: f64) -> Vec3 {
         [self.signed(s), self.signed(s), self.signed(s)]
     }
 }
@@ -50,14 +51,14 @@ fn cloud(seed: u64, n: usize, damped: bool) -> (Vec<PackedSpring>, Vec<Vec3>, Ve
     (springs, x, v)
 }
 
-fn forces(m: &dyn ForceModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
+pub(super) fn forces(m: &dyn ForceModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
     let mut f = vec![[0.0; 3]; x.len()];
     m.add_forces(x, v, &mut f);
     f
 }
 
 /// `x + s w`.
-fn moved(x: &[Vec3], s: f64, w: &[Vec3]) -> Vec<Vec3> {
+pub(super) fn moved(x: &[Vec3], s: f64, w: &[Vec3]) -> Vec<Vec3> {
     x.iter()
         .zip(w)
         .map(|(x, w)| [0, 1, 2].map(|c| x[c] + s * w[c]))
@@ -65,7 +66,7 @@ fn moved(x: &[Vec3], s: f64, w: &[Vec3]) -> Vec<Vec3> {
 }
 
 /// The largest component of `a - b` over the largest of `b`.
-fn relative_gap(a: &[Vec3], b: &[Vec3]) -> f64 {
+pub(super) fn relative_gap(a: &[Vec3], b: &[Vec3]) -> f64 {
     let scale = b.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
     let gap = a
         .iter()
@@ -75,29 +76,123 @@ fn relative_gap(a: &[Vec3], b: &[Vec3]) -> f64 {
     gap / scale
 }
 
+/// Assert that the elastic force of `model` at `x` (zero velocity; positions of centimetres:
+/// the differences step 1e-7 m) is minus the central difference of its energy, to `tolerance` of the largest force component.
+pub(super) fn assert_force_is_minus_gradient(model: &dyn ForceModel, x: &[Vec3], tolerance: f64) {
+    let f = forces(model, x, &vec![[0.0; 3]; x.len()]);
+    let scale = f.iter().flatten().fold(1e-9f64, |m, c| m.max(c.abs()));
+    let eps = 1e-7;
+    for i in 0..x.len() {
+        for c in 0..3 {
+            let (mut plus, mut minus) = (x.to_vec(), x.to_vec());
+            plus[i][c] += eps;
+            minus[i][c] -= eps;
+            let gradient =
+                (model.potential_energy(&plus) - model.potential_energy(&minus)) / (2.0 * eps);
+            assert!(
+                (f[i][c] + gradient).abs() < tolerance * scale,
+                "{}: node {i} axis {c}: force {} but -dE/dx {}",
+                model.name(),
+                f[i][c],
+                -gradient
+            );
+        }
+    }
+}
+
+/// How far `K w` (as `lin` linearises it) is from the central difference of the force along
+/// `w` at `x` (zero velocity, so the damping force and its position derivative vanish),
+/// relative to the difference's largest component.
+pub(super) fn stiffness_product_gap(
+    model: &dyn ForceModel,
+    x: &[Vec3],
+    lin: Linearization,
+    w: &[Vec3],
+) -> f64 {
+    let rest = vec![[0.0; 3]; x.len()];
+    let eps = 1e-8;
+    let (fp, fm) = (
+        forces(model, &moved(x, eps, w), &rest),
+        forces(model, &moved(x, -eps, w), &rest),
+    );
+    let difference: Vec<Vec3> = fp
+        .iter()
+        .zip(&fm)
+        .map(|(p, m)| [0, 1, 2].map(|c| (p[c] - m[c]) / (2.0 * eps)))
+        .collect();
+    let mut product = vec![[0.0; 3]; x.len()];
+    model.add_stiffness_product(x, lin, w, &mut product);
+    relative_gap(&product, &difference)
+}
+
+/// How far `D w` is from the central difference of the force along `w` in velocity at
+/// `(x, v)`, relative to the difference's largest component.
+pub(super) fn damping_product_gap(
+    model: &dyn ForceModel,
+    x: &[Vec3],
+    v: &[Vec3],
+    w: &[Vec3],
+) -> f64 {
+    let eps = 1e-6;
+    let (fp, fm) = (
+        forces(model, x, &moved(v, eps, w)),
+        forces(model, x, &moved(v, -eps, w)),
+    );
+    let difference: Vec<Vec3> = fp
+        .iter()
+        .zip(&fm)
+        .map(|(p, m)| [0, 1, 2].map(|c| (p[c] - m[c]) / (2.0 * eps)))
+        .collect();
+    let mut product = vec![[0.0; 3]; x.len()];
+    model.add_damping_product(x, w, &mut product);
+    relative_gap(&product, &difference)
+}
+
+/// Assert that the diagonal blocks of `model` at `x` are its products on unit vectors, for
+/// both linearisations, to `tolerance` of the largest stiffness and damping entry.
+pub(super) fn assert_diagonal_blocks_are_products(
+    model: &dyn ForceModel,
+    x: &[Vec3],
+    tolerance: f64,
+) {
+    for lin in [Linearization::Exact, Linearization::Definite] {
+        let mut stiffness: Vec<Mat3> = vec![[[0.0; 3]; 3]; x.len()];
+        let mut damping: Vec<Mat3> = vec![[[0.0; 3]; 3]; x.len()];
+        model.add_diagonal_blocks(x, lin, &mut stiffness, &mut damping);
+        let largest = |m: &[Mat3]| {
+            m.iter()
+                .flatten()
+                .flatten()
+                .fold(1e-300f64, |a, c| a.max(c.abs()))
+        };
+        let (ks, ds) = (largest(&stiffness), largest(&damping));
+        for i in 0..x.len() {
+            for c in 0..3 {
+                let mut e = vec![[0.0; 3]; x.len()];
+                e[i][c] = 1.0;
+                let (mut k, mut d) = (vec![[0.0; 3]; x.len()], vec![[0.0; 3]; x.len()]);
+                model.add_stiffness_product(x, lin, &e, &mut k);
+                model.add_damping_product(x, &e, &mut d);
+                for r in 0..3 {
+                    assert!(
+                        (stiffness[i][r][c] - k[i][r]).abs() <= tolerance * ks,
+                        "{}: node {i} K[{r}][{c}] {} but product {}",
+                        model.name(),
+                        stiffness[i][r][c],
+                        k[i][r]
+                    );
+                    assert!((damping[i][r][c] - d[i][r]).abs() <= tolerance * ds.max(1.0));
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn the_elastic_force_is_minus_the_gradient_of_the_energy() {
     for seed in 0..8 {
         let (springs, x, _) = cloud(seed, 9, false);
-        let model = SpringForces::new(&springs);
-        let f = forces(&model, &x, &vec![[0.0; 3]; x.len()]);
-        let eps = 1e-7;
-        for i in 0..x.len() {
-            for c in 0..3 {
-                let (mut plus, mut minus) = (x.clone(), x.clone());
-                plus[i][c] += eps;
-                minus[i][c] -= eps;
-                let gradient =
-                    (model.potential_energy(&plus) - model.potential_energy(&minus)) / (2.0 * eps);
-                let tolerance = 1e-5 * f.iter().flatten().fold(1e-9f64, |m, c| m.max(c.abs()));
-                assert!(
-                    (f[i][c] + gradient).abs() < tolerance,
-                    "seed {seed} node {i} axis {c}: force {} but -dE/dx {}",
-                    f[i][c],
-                    -gradient
-                );
-            }
-        }
+        assert_force_is_minus_gradient(&SpringForces::new(&springs), &x, 1e-5);
     }
 }
 
@@ -106,35 +201,21 @@ fn the_stiffness_product_is_the_derivative_of_the_force_along_the_direction() {
     for seed in 0..8 {
         let (springs, x, _) = cloud(seed, 10, true);
         let model = SpringForces::new(&springs);
-        let rest = vec![[0.0; 3]; x.len()];
         let w: Vec<Vec3> = {
             let mut r = Rng(seed + 100);
             (0..x.len()).map(|_| r.vec(1.0)).collect()
         };
-        let eps = 1e-8;
-        // At zero velocity the damping force and its position derivative vanish: the
-        // difference is the elastic force's alone.
-        let (fp, fm) = (
-            forces(&model, &moved(&x, eps, &w), &rest),
-            forces(&model, &moved(&x, -eps, &w), &rest),
-        );
-        let difference: Vec<Vec3> = fp
-            .iter()
-            .zip(&fm)
-            .map(|(p, m)| [0, 1, 2].map(|c| (p[c] - m[c]) / (2.0 * eps)))
-            .collect();
-        let mut product = vec![[0.0; 3]; x.len()];
-        model.add_stiffness_product(&x, Linearization::Exact, &w, &mut product);
-        let gap = relative_gap(&product, &difference);
+        let gap = stiffness_product_gap(&model, &x, Linearization::Exact, &w);
         assert!(
             gap < 1e-6,
             "seed {seed}: K w is {gap:e} from the difference"
         );
         // The definite linearisation differs where a spring is compressed, and the cloud has
         // compressed springs.
-        let mut definite = vec![[0.0; 3]; x.len()];
-        model.add_stiffness_product(&x, Linearization::Definite, &w, &mut definite);
-        assert!(relative_gap(&definite, &difference) > 1e-3, "seed {seed}");
+        assert!(
+            stiffness_product_gap(&model, &x, Linearization::Definite, &w) > 1e-3,
+            "seed {seed}"
+        );
     }
 }
 
@@ -147,19 +228,7 @@ fn the_damping_product_is_the_derivative_of_the_force_in_velocity() {
             let mut r = Rng(seed + 200);
             (0..x.len()).map(|_| r.vec(1.0)).collect()
         };
-        let eps = 1e-6;
-        let (fp, fm) = (
-            forces(&model, &x, &moved(&v, eps, &w)),
-            forces(&model, &x, &moved(&v, -eps, &w)),
-        );
-        let difference: Vec<Vec3> = fp
-            .iter()
-            .zip(&fm)
-            .map(|(p, m)| [0, 1, 2].map(|c| (p[c] - m[c]) / (2.0 * eps)))
-            .collect();
-        let mut product = vec![[0.0; 3]; x.len()];
-        model.add_damping_product(&x, &w, &mut product);
-        let gap = relative_gap(&product, &difference);
+        let gap = damping_product_gap(&model, &x, &v, &w);
         assert!(
             gap < 1e-8,
             "seed {seed}: D w is {gap:e} from the difference"
@@ -170,25 +239,7 @@ fn the_damping_product_is_the_derivative_of_the_force_in_velocity() {
 #[test]
 fn the_diagonal_blocks_are_the_products_on_unit_vectors() {
     let (springs, x, _) = cloud(3, 7, true);
-    let model = SpringForces::new(&springs);
-    for lin in [Linearization::Exact, Linearization::Definite] {
-        let mut stiffness: Vec<Mat3> = vec![[[0.0; 3]; 3]; x.len()];
-        let mut damping: Vec<Mat3> = vec![[[0.0; 3]; 3]; x.len()];
-        model.add_diagonal_blocks(&x, lin, &mut stiffness, &mut damping);
-        for i in 0..x.len() {
-            for c in 0..3 {
-                let mut e = vec![[0.0; 3]; x.len()];
-                e[i][c] = 1.0;
-                let (mut k, mut d) = (vec![[0.0; 3]; x.len()], vec![[0.0; 3]; x.len()]);
-                model.add_stiffness_product(&x, lin, &e, &mut k);
-                model.add_damping_product(&x, &e, &mut d);
-                for r in 0..3 {
-                    assert!((stiffness[i][r][c] - k[i][r]).abs() <= 1e-9 * k[i][r].abs().max(1.0));
-                    assert!((damping[i][r][c] - d[i][r]).abs() <= 1e-12);
-                }
-            }
-        }
-    }
+    assert_diagonal_blocks_are_products(&SpringForces::new(&springs), &x, 1e-9);
 }
 
 #[test]

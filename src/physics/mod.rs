@@ -4,9 +4,11 @@
 //! the fast engine and of every GPU layout are their twins, in their own precision and order:
 //! - the **force model** ([`ForceModel`], in [`force_model`]): the force of the elements on
 //!   their nodes from the current state, and its Jacobian-vector products. Springs today
-//!   ([`SpringForces`], [`springs`]): a scalar stiffness and damping along each tet edge. A
-//!   finite-element model plugs in beside it, contributing per-node and per-edge terms through
-//!   the same layouts;
+//!   ([`SpringForces`], [`springs`]): a scalar stiffness and damping along each tet edge.
+//!   Beside them, the finite-element models on constant-strain tets ([`linear_tet`]):
+//!   [`TensorMass`] (linear elasticity as per-node and per-edge 3x3 tensors, the springs'
+//!   connectivity, in [`tensor_mass`]) and [`Corotational`] (each tet's stiffness in its
+//!   rotated frame, in [`corotational`]); [`ForceModelKind`] chooses one ([`model_kind`]);
 //! - the **integrator** ([`TimeIntegrator`], in [`time_integrator`]; the schemes in
 //!   [`integrator`]): how a node's state advances from the force on it (Verlet and symplectic
 //!   Euler, explicit), what state it keeps, and how that state follows a change of time step.
@@ -22,25 +24,38 @@
 //! [`rescale_previous`]) are the float32 arithmetic of the GPU kernels, in the order
 //! `shaders/common.wgsl` computes it: the CPU twins of the passes (`crate::twin`) are
 //! built from them, so a twin and its pass agree bit for bit on a device that rounds like the
-//! CPU. This module imports only the model's data (`model::PackedSpring`): the layouts,
-//! engines and shaders depend on it, never the other way.
+//! CPU. This module imports only the model's data (`model::PackedSpring`, `model::PackedTet`,
+//! the stability bound's type): the layouts, engines and shaders depend on it, never the other
+//! way.
 
 pub mod backward_euler;
+pub mod corotational;
 pub mod force_model;
 pub mod integrator;
+pub mod linear_tet;
+pub mod model_kind;
 pub mod runge_kutta;
 pub mod springs;
+pub mod tensor_mass;
 pub mod time_integrator;
 
 #[cfg(test)]
+mod corotational_tests;
+#[cfg(test)]
 mod force_model_tests;
+#[cfg(test)]
+mod tensor_mass_tests;
 
 pub use backward_euler::{BackwardEuler, SolverSettings, SolverStats};
+pub use corotational::Corotational;
 pub use force_model::{ForceModel, Linearization, Mat3, Vec3};
 pub use integrator::{
     integrate, rescale_previous, state_buffers, state_traffic, velocity, Compensation, Integrator,
     StepParams,
 };
+pub use linear_tet::TetElement;
+pub use model_kind::ForceModelKind;
 pub use runge_kutta::RungeKutta4;
 pub use springs::{spring_force, spring_stiffness_block, SpringForces};
+pub use tensor_mass::{EdgeTensor, TensorMass};
 pub use time_integrator::{integrator_for, Explicit, NodeState, Nodes, TimeIntegrator};

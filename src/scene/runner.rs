@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::mesh::generate::{beam, BoxGrid};
 use crate::mesh::io::pvd::PvdWriter;
 use crate::mesh::TetMesh;
-use crate::model::{stable_time_step, ModelConfig, SpringModel};
+use crate::model::{ModelConfig, SpringModel};
 
 /// Overrides from the command line or the embedding program.
 #[derive(Debug, Clone, Default)]
@@ -108,6 +108,8 @@ pub struct RunSummary {
     pub integrator: String,
     /// What the implicit integrator's solver did (`integrator: BackwardEuler`).
     pub solver: Option<SolverReport>,
+    /// Force model (`springs`, `tensor-mass`, `corotational`).
+    pub force_model: String,
     /// Wall time of the stepping, s.
     pub wall_s: f64,
     /// Steps per second of wall time.
@@ -229,7 +231,10 @@ pub fn run_scene(
     let model =
         SpringModel::build(&mesh, &model_config(scene)).map_err(|e| scene_err(e.to_string()))?;
     let packed = model.pack(&mesh)?;
-    let bound = stable_time_step(&packed);
+    let bound = scene
+        .force_model
+        .stable_time_step(&packed)
+        .map_err(|e| scene_err(e.to_string()))?;
     let dt = match scene.dt {
         TimeStep::Seconds(s) => s,
         TimeStep::BoundFraction(f) if f > 0.0 && f.is_finite() && bound.dt.is_finite() => {
@@ -251,6 +256,7 @@ pub fn run_scene(
         solver: scene.solver,
         allow_unstable: scene.allow_unstable,
         allow_inverted: scene.allow_inverted,
+        force_model: scene.force_model,
         ..SimConfig::new(dt)
     };
     // The scene's `layout` and `accumulation` fields (or the options overriding them) choose
@@ -276,6 +282,7 @@ pub fn run_scene(
         engine_note: None,
         integrator: format!("{:?}", scene.integrator),
         solver: None,
+        force_model: scene.force_model.to_string(),
         wall_s: 0.0,
         steps_per_s: 0.0,
         max_displacement: 0.0,

@@ -291,6 +291,11 @@ pub struct Scene {
     /// may be given too). Ignored by the explicit schemes.
     #[serde(default)]
     pub solver: crate::physics::SolverSettings,
+    /// Force model: `Springs` (the default), `TensorMass` or `Corotational` (finite elements
+    /// from each region's Young's modulus and Poisson ratio, on `engine: Reference` only for
+    /// now, and without cuts).
+    #[serde(default)]
+    pub force_model: crate::physics::ForceModelKind,
     /// Run even if dt is above the stable bound.
     #[serde(default)]
     pub allow_unstable: bool,

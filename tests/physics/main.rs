@@ -6,6 +6,8 @@
 #[path = "../common/models.rs"]
 mod models;
 
+mod fem_simulation;
+mod fem_validation;
 mod implicit;
 mod model_springs;
 mod physics_beam;

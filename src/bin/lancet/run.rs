@@ -202,8 +202,8 @@ pub(crate) fn needs_mesh_dir(scene: &Scene) -> bool {
 pub(crate) fn print_summary(s: &RunSummary) {
     println!("scene: {}", s.scene);
     println!(
-        "model: {} nodes, {} tets, {} springs",
-        s.nodes, s.tets, s.springs
+        "model: {} nodes, {} tets, {} springs; force model: {}",
+        s.nodes, s.tets, s.springs, s.force_model
     );
     println!(
         "engine: {} ({}), dt {:.3e} s, stable bound {:.3e} s (node {})",

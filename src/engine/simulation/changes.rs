@@ -56,6 +56,14 @@ impl Simulation {
         allow_unstable: bool,
         positions: Option<&[[f64; 3]]>,
     ) -> Result<PatchCost> {
+        if self.config.force_model.is_finite_element() {
+            // The packed tets and the element shares do not follow a diff yet.
+            return Err(Error::Unsupported(format!(
+                "model changes (cuts) with the {} force model are not supported yet; run cuts \
+                 with force_model: Springs",
+                self.config.force_model
+            )));
+        }
         // Everything below touches only what the diff names, so that a local cut costs the
         // same on a large mesh as on a small one.
         let undo = self.bound.update(&self.model, diff);

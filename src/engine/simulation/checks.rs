@@ -168,7 +168,7 @@ impl Simulation {
     pub(super) fn energy_of(&self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Energy {
         Energy {
             kinetic: self.model.kinetic_energy(v),
-            elastic: self.model.elastic_energy(x),
+            elastic: self.engine.elastic_energy(&self.model, x),
             gravity: self.model.gravity_energy(x),
         }
     }

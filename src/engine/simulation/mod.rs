@@ -57,9 +57,19 @@ fn make_engine(
     config: SimConfig,
     gpu: GpuOptions,
 ) -> Result<Made> {
+    if config.force_model.is_finite_element() && kind != EngineKind::Reference {
+        return Err(Error::Unsupported(format!(
+            "the {} force model runs on the float64 reference engine only for now, not on \
+             the {kind} engine: choose engine: Reference (--engine reference)",
+            config.force_model
+        )));
+    }
     Ok(match kind {
         EngineKind::Reference => (
-            Box::new(reference::ReferenceEngine::new(model, config)),
+            Box::new(
+                reference::ReferenceEngine::new(model, config)
+                    .with_force_model(model, config.force_model)?,
+            ),
             kind,
             None,
         ),
@@ -265,7 +275,7 @@ impl Simulation {
                 requirement: "be at least 1 step".into(),
             });
         }
-        let bound = stable_time_step(&model);
+        let bound = config.force_model.stable_time_step(&model)?;
         // The stable bound limits the explicit schemes; backward Euler is stable at any step.
         if config.dt > bound.dt && !config.allow_unstable && !config.integrator.is_implicit() {
             return Err(Error::UnstableTimeStep {
