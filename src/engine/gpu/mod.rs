@@ -13,6 +13,7 @@ pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
 pub mod context;
+pub mod embed_surface;
 pub mod health;
 pub mod layout_buffers;
 pub mod move_state;
@@ -180,6 +181,8 @@ pub struct GpuEngine {
     near_reads: NearReads,
     /// The last step's submission, which `wait` waits for.
     last_submission: Option<wgpu::SubmissionIndex>,
+    /// The render surface's pass, once one is set ([`GpuEngine::set_render_surface`]).
+    render: Option<embed_surface::EmbedPass>,
 }
 
 impl GpuEngine {
@@ -280,6 +283,7 @@ impl GpuEngine {
             near_ahead: None,
             near_reads: NearReads::default(),
             last_submission: None,
+            render: None,
             ctx,
             config,
             layout,
