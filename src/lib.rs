@@ -28,6 +28,7 @@ pub mod layout;
 pub mod model;
 pub mod physics;
 pub mod report;
+pub mod surface;
 pub mod twin;
 
 pub use engine::{EngineKind, GpuOptions, Integrator, SimConfig, Simulation};

@@ -6,6 +6,7 @@ pub mod expect;
 pub mod placement;
 pub mod runner;
 pub mod schema;
+pub mod surface;
 pub mod tools;
 pub mod validate;
 

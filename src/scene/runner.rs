@@ -133,6 +133,8 @@ pub struct RunSummary {
     pub frames_written: usize,
     /// The `.pvd` series written, if any.
     pub pvd: Option<PathBuf>,
+    /// The render surface (scenes with `surface`): its size and the frames written of it.
+    pub surface: Option<super::surface::SurfaceReport>,
     /// What each tool felt (scenes with tools).
     pub tools: Vec<super::expect::ToolReport>,
     /// The cut method of this run (scenes that cut).
@@ -298,6 +300,7 @@ pub fn run_scene(
         message: None,
         frames_written: 0,
         pvd: None,
+        surface: None,
         tools: Vec::new(),
         cut_method: None,
         cuts: None,
@@ -326,16 +329,22 @@ pub fn run_scene(
         .output
         .as_ref()
         .map_or((steps / 10).max(1), |o| o.every.max(1));
-    let mut frames = match output_dir(scene, scene_path, opts) {
+    let dir = output_dir(scene, scene_path, opts);
+    let stem = series_stem(scene, opts.cut_method);
+    let mut frames = match &dir {
         Some(dir) => {
-            let stem = series_stem(scene, opts.cut_method);
-            let mut w = PvdWriter::new(&dir, &stem, Default::default())?;
+            let mut w = PvdWriter::new(dir, &stem, Default::default())?;
             w.frame(0.0, &mesh, Some(&sim.positions()))?;
             summary.pvd = Some(w.pvd_path());
             Some((w, every))
         }
         None => None,
     };
+    let mut surface =
+        super::surface::SurfaceStage::new(scene, scene_path, &mesh, dir.as_deref(), &stem)?;
+    if let Some(s) = surface.as_mut() {
+        s.frame(0.0, &sim.positions())?;
+    }
 
     let mut stage = super::tools::ToolStage::new(scene, &mesh, &mut sim)?;
     if let Some(stage) = stage.as_mut() {
@@ -390,7 +399,11 @@ pub fn run_scene(
                 .as_ref()
                 .and_then(|s| s.cut.as_ref())
                 .map_or(&mesh, |c| c.mesh());
-            w.frame(sim.time(), current, Some(&sim.positions()))?;
+            let x = sim.positions();
+            w.frame(sim.time(), current, Some(&x))?;
+            if let Some(s) = surface.as_mut() {
+                s.frame(sim.time(), &x)?;
+            }
         }
     }
     summary.wall_s = start.elapsed().as_secs_f64();
@@ -407,6 +420,7 @@ pub fn run_scene(
         w.finish()?;
         summary.frames_written = w.frames();
     }
+    summary.surface = surface.as_ref().map(super::surface::SurfaceStage::report);
     summary.energy = sim.energy();
     let x = sim.positions();
     let mut mesh = mesh;

@@ -252,6 +252,16 @@ pub struct Scene {
     /// mesh's coordinates.
     #[serde(default)]
     pub mesh_transform: super::placement::MeshTransform,
+    /// A detailed surface drawn in place of the tets (`surface: File("organ.obj")`: OBJ, STL or
+    /// PLY), placed by `mesh_transform` like the mesh and embedded in it at rest; with output
+    /// on, its deformed shape is written per frame (see [`super::surface`]).
+    #[serde(
+        default,
+        deserialize_with = "super::surface::deserialize",
+        serialize_with = "super::surface::serialize",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub surface: Option<super::surface::SurfaceSource>,
     /// Region tags to assign to generated (or file) meshes, applied in order.
     #[serde(default)]
     pub region_boxes: Vec<RegionBox>,

@@ -28,6 +28,7 @@
 //! | `nodes_near` | `nodes_near.wgsl` | [`nodes_near`]: [`nodes_near::nodes_near_cpu`] | `tests/gpu/gpu_nodes_near.rs` (`device_finds_the_nodes_its_twin_finds`) |
 //! | `move_state` | `move_state.wgsl` | [`move_state`]: [`move_state::move_state_cpu`], `StateMove::apply_to` | `tests/gpu/gpu_patch.rs` (`state_moves_on_the_device_follow_the_nodes`), `gpu_limits.rs` |
 //! | `time_step` | `time_step.wgsl` | [`time_step`]: [`time_step::rescale_previous`] (in `physics`) | `tests/gpu/gpu_patch.rs` (`a_time_step_change_rescales_like_its_twin_and_steps_like_a_rebuild`) |
+//! | `embed_surface` | `embed_surface.wgsl` | [`embed_surface`]: [`embed_surface::embed_surface_cpu`] | `tests/gpu/gpu_embed_surface.rs` (`device_surface_equals_its_twin`) |
 //! | `report::device_copy` | `device_copy.wgsl` | [`device_copy`]: [`device_copy::device_copy_cpu`] | `tests/gpu/gpu_limits.rs` (`the_device_copy_copies_every_entry_once_folded_or_not`) |
 //!
 //! `engine::gpu::surface_nodes` has no shader (an index kept on the host) and so no twin; the
@@ -44,6 +45,7 @@ pub mod broad_self;
 pub mod broad_tool;
 pub mod device_copy;
 pub mod edge_spring;
+pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
 pub mod implicit_solve;

@@ -12,6 +12,7 @@ mod read_ahead;
 
 mod gpu_broad_phase;
 mod gpu_edges;
+mod gpu_embed_surface;
 mod gpu_health;
 mod gpu_implicit;
 mod gpu_layouts;

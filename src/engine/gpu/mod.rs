@@ -13,6 +13,7 @@ pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
 pub mod context;
+pub mod embed_surface;
 pub mod health;
 pub mod implicit;
 pub mod layout_buffers;
@@ -183,6 +184,8 @@ pub struct GpuEngine {
     last_submission: Option<wgpu::SubmissionIndex>,
     /// The implicit integrator's solver (backward Euler only).
     implicit: Option<implicit::ImplicitSolver>,
+    /// The render surface's pass, once one is set ([`GpuEngine::set_render_surface`]).
+    render: Option<embed_surface::EmbedPass>,
 }
 
 impl GpuEngine {
@@ -295,6 +298,7 @@ impl GpuEngine {
             near_ahead: None,
             near_reads: NearReads::default(),
             last_submission: None,
+            render: None,
             ctx,
             config,
             layout,

@@ -1,0 +1,89 @@
+//! The render surface on the device (`shaders/embed_surface.wgsl`): on random deformed states
+//! in every layout, before and after a cut-like patch, the vertex buffer equals its CPU twin
+//! (bit for bit where the device rounds like the CPU) and the float64 evaluation from the
+//! positions a full readback gives, to float32 rounding.
+
+use crate::{common, models};
+use lancet::engine::gpu::GpuEngine;
+use lancet::engine::{Engine, SimConfig};
+use lancet::layout::LayoutKind;
+use lancet::mesh::generate::BoxGrid;
+use lancet::model::PackedModel;
+use lancet::surface::{Embedding, RenderSurface};
+use lancet::twin::embed_surface::embed_surface_cpu;
+use models::{random_box, random_diff, random_state, Rng};
+use rstest::rstest;
+
+/// Random vertices in and up to 3 mm around the 5 x 4 x 3 cm box of [`random_box`].
+fn surface_around_box(rng: &mut Rng) -> (Embedding, RenderSurface) {
+    let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
+    let positions: Vec<[f64; 3]> = (0..700)
+        .map(|_| [0.05, 0.04, 0.03].map(|hi: f64| -3e-3 + (hi + 6e-3) * rng.next()))
+        .collect();
+    let triangles = (0..700u32 / 3)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    let surface = RenderSurface::new(positions, triangles, "around the box").unwrap();
+    let e = Embedding::new(&mesh, &surface).unwrap();
+    assert!(e.outside_count() > 50 && e.outside_count() < 650);
+    (e, surface)
+}
+
+/// The device's vertices against the twin and the float64 evaluation; returns how many
+/// vertices moved off their rest position (the state must be non-trivial).
+fn check(engine: &mut GpuEngine, e: &Embedding) -> usize {
+    engine.set_render_surface(e).unwrap();
+    let got = engine.read_render_surface().unwrap();
+    let bound = engine.bound_vertices(e).unwrap();
+    let want = embed_surface_cpu(&bound, &engine.raw_state().unwrap().0);
+    assert_eq!(got.len(), e.len());
+    let exact = common::rounds_like_cpu();
+    for (v, (g, w)) in got.iter().zip(&want).enumerate() {
+        if exact {
+            assert_eq!(g.map(f32::to_bits), w.map(f32::to_bits), "vertex {v}");
+        } else {
+            for c in 0..3 {
+                assert!(
+                    (g[c] - w[c]).abs() <= 1e-6 * w[c].abs().max(1e-2),
+                    "vertex {v}"
+                );
+            }
+        }
+    }
+    let x = engine.positions();
+    let f64_want = e.evaluate(&x);
+    let mut moved = 0;
+    for (v, (g, w)) in got.iter().zip(&f64_want).enumerate() {
+        for c in 0..3 {
+            // Float32 rest positions and displacements of centimetre coordinates.
+            assert!(
+                (g[c] as f64 - w[c]).abs() < 2e-8,
+                "vertex {v}: device {g:?}, float64 {w:?}"
+            );
+        }
+        moved += (0..3).any(|c| (w[c] - e.rest[v][c]).abs() > 1e-5) as usize;
+    }
+    moved
+}
+
+#[rstest]
+fn device_surface_equals_its_twin(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let model = random_box(7, false);
+    let mut engine = GpuEngine::with_context(ctx, &model, SimConfig::new(2e-5), kind).unwrap();
+    let (x, v) = random_state(&model, 7);
+    engine.set_state(&x, &v);
+    engine.step(3);
+    let (e, _) = surface_around_box(&mut Rng(5));
+    let moved = check(&mut engine, &e);
+    assert!(moved > 300, "only {moved} vertices moved");
+    // A cut-like patch moves node slots; the surface, bound again, follows.
+    let diff = random_diff(&model, 300);
+    let mut next: PackedModel = model.clone();
+    next.apply(&diff).unwrap();
+    engine.patch(&next, &diff).unwrap();
+    engine.step(2);
+    assert!(check(&mut engine, &e) > 300);
+}

@@ -1,0 +1,12 @@
+//! Render surfaces: reading them (OBJ, STL, PLY, hostile input) and embedding them in the
+//! simulation mesh (barycentric inside, offset from the nearest boundary face outside).
+//!
+//! One test binary per area (linking each binary costs more than its tests on a 2-core
+//! machine); each module is one behaviour.
+
+#[path = "../common/splitmix.rs"]
+mod splitmix;
+
+mod surface_embed;
+mod surface_read;
+mod surface_scene;
