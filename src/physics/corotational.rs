@@ -125,12 +125,8 @@ impl Corotational {
     fn add_local_product(e: &TetElement, r: &Mat3, s: f64, local: &[Vec3; 4], out: &mut [Vec3]) {
         for a in 0..4 {
             let mut sum = [0.0; 3];
-            for b in 0..4 {
-                axpy(
-                    &mut sum,
-                    1.0,
-                    super::force_model::mat_vec(&e.stiffness[a][b], local[b]),
-                );
+            for (block, &u) in e.stiffness[a].iter().zip(local) {
+                axpy(&mut sum, 1.0, super::force_model::mat_vec(block, u));
             }
             axpy(&mut out[e.nodes[a] as usize], -s, rotate(r, sum));
         }

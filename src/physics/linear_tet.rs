@@ -64,9 +64,10 @@ pub fn element_stiffness(
     // their sum.
     let mut gradients = [[0.0; 3]; 4];
     for k in 0..3 {
-        gradients[k + 1] = [inverse[(k, 0)], inverse[(k, 1)], inverse[(k, 2)]];
-        for c in 0..3 {
-            gradients[0][c] -= gradients[k + 1][c];
+        let row = [inverse[(k, 0)], inverse[(k, 1)], inverse[(k, 2)]];
+        gradients[k + 1] = row;
+        for (g, r) in gradients[0].iter_mut().zip(row) {
+            *g -= r;
         }
     }
     let (lambda, mu) = lame(e, nu);

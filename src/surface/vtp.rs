@@ -122,23 +122,7 @@ impl VtpSeries {
         let path = self.dir.join(&name);
         write_vtp(&path, surface, positions)?;
         self.frames.push((time, name));
-        replace_file(&self.pvd_path(), false, |w| {
-            writeln!(w, "<?xml version=\"1.0\"?>")?;
-            writeln!(
-                w,
-                "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
-            )?;
-            writeln!(w, "  <Collection>")?;
-            for (time, file) in &self.frames {
-                writeln!(
-                    w,
-                    "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>",
-                    quick_xml::escape::escape(file.as_str())
-                )?;
-            }
-            writeln!(w, "  </Collection>")?;
-            writeln!(w, "</VTKFile>")
-        })?;
+        crate::mesh::io::pvd::write_collection(&self.pvd_path(), &self.frames, false)?;
         Ok(path)
     }
 

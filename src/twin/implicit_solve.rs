@@ -459,6 +459,9 @@ pub fn direction_cpu(v: &mut SolveVectors) {
     }
 }
 
+/// The next displacements and velocities, `vec4` per node, layout order.
+pub type NextState = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
 /// The `finish` pass: once the solve has ended, the next displacements and velocities
 /// (`None` while it runs: the pass writes nothing).
 pub fn finish_cpu(
@@ -467,7 +470,7 @@ pub fn finish_cpu(
     cur: &[[f32; 4]],
     vel: &[[f32; 4]],
     v: &SolveVectors,
-) -> Option<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+) -> Option<NextState> {
     if v.scalars.status == status::RUNNING {
         return None;
     }

@@ -604,7 +604,7 @@ impl GpuEngine {
 
     /// The next displacements and velocities a [`SolvePass::Finish`] wrote (the buffers the
     /// next phase reads), layout order.
-    pub fn finished_state(&self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    pub fn finished_state(&self) -> Result<crate::twin::implicit_solve::NextState> {
         let b = self.state.bindings(self.phase);
         let n = self.layout.node_slots();
         let mut next = buffers::read_vec4(&self.ctx, b.next)?;

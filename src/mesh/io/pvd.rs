@@ -128,24 +128,7 @@ impl PvdWriter {
     }
 
     fn write_collection(&self, sync: bool) -> Result<()> {
-        replace_file(&self.pvd_path(), sync, |w| {
-            writeln!(w, "<?xml version=\"1.0\"?>")?;
-            writeln!(
-                w,
-                "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
-            )?;
-            writeln!(w, "  <Collection>")?;
-            for (time, file) in &self.frames {
-                // `{}` of an f64 reads back to the same value.
-                writeln!(
-                    w,
-                    "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>",
-                    quick_xml::escape::escape(file.as_str())
-                )?;
-            }
-            writeln!(w, "  </Collection>")?;
-            writeln!(w, "</VTKFile>")
-        })
+        write_collection(&self.pvd_path(), &self.frames, sync)
     }
 }
 
@@ -199,4 +182,28 @@ fn remove_frames(dir: &Path, stem: &str) -> Result<()> {
 
 fn invalid(msg: String) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidInput, msg)
+}
+
+/// Write (atomically, as [`replace_file`] does) the `.pvd` collection at `path` listing each
+/// `(time, file)` frame; `sync` flushes it to disk. The VTU series and the render surface's VTP
+/// series both list their frames through it.
+pub fn write_collection(path: &Path, frames: &[(f64, String)], sync: bool) -> Result<()> {
+    replace_file(path, sync, |w| {
+        writeln!(w, "<?xml version=\"1.0\"?>")?;
+        writeln!(
+            w,
+            "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
+        )?;
+        writeln!(w, "  <Collection>")?;
+        for (time, file) in frames {
+            // `{}` of an f64 reads back to the same value.
+            writeln!(
+                w,
+                "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>",
+                quick_xml::escape::escape(file.as_str())
+            )?;
+        }
+        writeln!(w, "  </Collection>")?;
+        writeln!(w, "</VTKFile>")
+    })
 }
