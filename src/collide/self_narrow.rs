@@ -9,7 +9,7 @@
 //!
 //! The float64 proximity primitives ([`closest_on_triangle`], [`closest_segment_segment`],
 //! [`point_triangle`], [`edge_edge`]) are what the self-contact response
-//! ([`super::self_response`]) is built on instead of the triangle–triangle depth: see there why.
+//! (`crate::contact::self_response`) is built on instead of the triangle–triangle depth: see there why.
 
 use nalgebra::{Point3, Vector3};
 use parry3d::math::{Pose, Vector};
@@ -45,7 +45,7 @@ pub struct TriangleContact {
 /// query in scene coordinates is off by up to 2.7 mm and misses two thirds of the separated
 /// contacts within a 1 mm margin. For
 /// intersecting pairs the answer is the depth of the Minkowski difference of two triangles:
-/// right as such, but not what a response needs (see [`super::self_response`]).
+/// right as such, but not what a response needs (see `crate::contact::self_response`).
 pub fn triangle_triangle(a: &[P; 3], b: &[P; 3], margin: f64) -> Result<Option<TriangleContact>> {
     if !(margin.is_finite() && margin >= 0.0) {
         return Err(Error::Options(format!(

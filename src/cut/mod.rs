@@ -373,7 +373,7 @@ impl Cutter {
     /// The box of current positions a cut with `sweep` asks its source for
     /// ([`Cutter::cut_from`]): the sweep's bounds grown by two to three of the mesh's longest
     /// rest edges, as strained as the tissue the last cut read was (three before the first
-    /// cut; [`Cutter::reading_pad`]). `None` for an empty sweep.
+    /// cut; `Cutter::reading_pad`). `None` for an empty sweep.
     pub fn reading_box(&self, sweep: &Sweep) -> Option<([f64; 3], [f64; 3])> {
         self.reading_box_ahead(sweep, 0.0)
     }

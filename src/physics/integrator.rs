@@ -17,8 +17,9 @@ pub enum Integrator {
     /// Linearised backward Euler solved by matrix-free conjugate gradients
     /// ([`crate::physics::BackwardEuler`], settings in [`crate::engine::SimConfig::solver`]):
     /// stable at any step, so the stable bound does not limit it. Its state is the position and
-    /// velocity, as symplectic Euler's. The reference engine runs it; the float32 engines refuse
-    /// it until they have it.
+    /// velocity, as symplectic Euler's. Every engine runs it: the reference engine through this
+    /// type, the fast engine and the GPU (connectivity and valence layouts) in their own float32
+    /// solvers.
     BackwardEuler,
 }
 

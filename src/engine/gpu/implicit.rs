@@ -65,7 +65,7 @@ pub struct SolveUniform {
 const _: () = assert!(std::mem::size_of::<SolveUniform>() == 64);
 const _: () = assert!(std::mem::size_of::<Scalars>() == 32);
 
-/// One pass of the solve, to run alone ([`ImplicitSolver::run_pass`]) in the device tests.
+/// One pass of the solve, to run alone (`GpuEngine::run_solve_pass`) in the device tests.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolvePass {
     /// Right-hand side, preconditioner, first residual and direction.

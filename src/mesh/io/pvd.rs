@@ -184,7 +184,7 @@ fn invalid(msg: String) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidInput, msg)
 }
 
-/// Write (atomically, as [`replace_file`] does) the `.pvd` collection at `path` listing each
+/// Write (atomically: a temporary file renamed over the old one) the `.pvd` collection at `path` listing each
 /// `(time, file)` frame; `sync` flushes it to disk. The VTU series and the render surface's VTP
 /// series both list their frames through it.
 pub fn write_collection(path: &Path, frames: &[(f64, String)], sync: bool) -> Result<()> {
