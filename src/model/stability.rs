@@ -88,13 +88,23 @@ pub fn stable_time_step(model: &PackedModel) -> StabilityBound {
             c_sum[i as usize] += s.damping;
         }
     }
+    bound_from_sums(k_sum, c_sum, &model.mass, &model.fixed, model.mass_damping)
+}
+
+/// The bound of every free node from its half row sums `k_sum` (N/m) and `c_sum` (N s/m), its
+/// mass and the mass damping `alpha` (1/s), with room for the nodes cuts append.
+fn bound_from_sums(
+    k_sum: Vec<f64>,
+    c_sum: Vec<f64>,
+    mass: &[f64],
+    fixed: &[bool],
+    mass_damping: f64,
+) -> StabilityBound {
+    let n = mass.len();
     let mut per_node = vec![f64::INFINITY; n];
     let mut omega_max = 0.0f64;
-    for i in 0..n {
-        if model.fixed[i] {
-            continue;
-        }
-        let (h, omega) = node_bound(k_sum[i], c_sum[i], model.mass[i], model.mass_damping);
+    for i in (0..n).filter(|&i| !fixed[i]) {
+        let (h, omega) = node_bound(k_sum[i], c_sum[i], mass[i], mass_damping);
         per_node[i] = h;
         omega_max = omega_max.max(omega);
     }
@@ -130,29 +140,9 @@ pub fn stable_time_step_from_rows(
     fixed: &[bool],
     mass_damping: f64,
 ) -> StabilityBound {
-    let n = mass.len();
-    let k_sum: Vec<f64> = (0..n).map(|i| 0.5 * stiffness_rows[i]).collect();
-    let c_sum: Vec<f64> = (0..n).map(|i| 0.5 * damping_rows[i]).collect();
-    let mut per_node = vec![f64::INFINITY; n];
-    let mut omega_max = 0.0f64;
-    for i in (0..n).filter(|&i| !fixed[i]) {
-        let (h, omega) = node_bound(k_sum[i], c_sum[i], mass[i], mass_damping);
-        per_node[i] = h;
-        omega_max = omega_max.max(omega);
-    }
-    let blocks: Vec<(f64, usize)> = (0..n.div_ceil(BLOCK))
-        .map(|b| block_min(&per_node, b))
-        .collect();
-    let (dt, node) = smallest_block(&blocks);
-    StabilityBound {
-        dt,
-        node,
-        omega_max,
-        per_node,
-        k_sum,
-        c_sum,
-        blocks,
-    }
+    let k_sum = stiffness_rows.iter().map(|r| 0.5 * r).collect();
+    let c_sum = damping_rows.iter().map(|r| 0.5 * r).collect();
+    bound_from_sums(k_sum, c_sum, mass, fixed, mass_damping)
 }
 
 /// The bound of one free node and its Gershgorin frequency.

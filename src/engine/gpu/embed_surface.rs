@@ -34,6 +34,9 @@ pub struct EmbedPass {
     bound: wgpu::Buffer,
     vertices: wgpu::Buffer,
     count: u32,
+    /// Bind groups made for the displacement buffers seen so far (the state alternates between
+    /// two), so that evaluating a frame makes none; emptied when the pass's own buffers change.
+    bind_groups: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
 }
 
 impl EmbedPass {
@@ -55,6 +58,7 @@ impl EmbedPass {
             bound: bound_buf,
             vertices,
             count: 0,
+            bind_groups: Vec::new(),
         };
         pass.write(ctx, bound);
         Ok(pass)
@@ -85,6 +89,7 @@ impl EmbedPass {
     pub fn set_bound(&mut self, ctx: &GpuContext, bound: &[BoundVertex]) -> Result<()> {
         if bound.len() as u32 != self.count {
             (self.bound, self.vertices) = Self::buffers(ctx, bound)?;
+            self.bind_groups.clear();
         } else if !bound.is_empty() {
             ctx.queue
                 .write_buffer(&self.bound, 0, bytemuck::cast_slice(bound));
@@ -116,18 +121,35 @@ impl EmbedPass {
     }
 
     /// Evaluate the surface from the displacements in `disp` (layout order) and submit.
-    pub fn run(&self, ctx: &GpuContext, disp: &wgpu::Buffer) {
+    pub fn run(&mut self, ctx: &GpuContext, disp: &wgpu::Buffer) {
         if self.count == 0 {
             return;
         }
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("embed surface"),
-            layout: &self.layout,
-            entries: &buffers::entries(&[&self.params, disp, &self.bound, &self.vertices]),
-        });
+        let at = match self.bind_groups.iter().position(|(b, _)| b == disp) {
+            Some(at) => at,
+            None => {
+                // The state's two displacement buffers, and those of a state that grew: keep
+                // the two latest.
+                if self.bind_groups.len() == 2 {
+                    self.bind_groups.remove(0);
+                }
+                let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("embed surface"),
+                    layout: &self.layout,
+                    entries: &buffers::entries(&[&self.params, disp, &self.bound, &self.vertices]),
+                });
+                self.bind_groups.push((disp.clone(), group));
+                self.bind_groups.len() - 1
+            }
+        };
         let groups = dispatch_size(ctx, self.count);
-        let enc =
-            buffers::encode_dispatch(ctx, "embed surface", &self.pipeline, &bind_group, groups);
+        let enc = buffers::encode_dispatch(
+            ctx,
+            "embed surface",
+            &self.pipeline,
+            &self.bind_groups[at].1,
+            groups,
+        );
         ctx.queue.submit([enc.finish()]);
     }
 
@@ -186,7 +208,7 @@ impl GpuEngine {
     /// buffer (16 bytes per vertex: xyz, w = 1), `None` before
     /// [`GpuEngine::set_render_surface`]. Nothing is read back.
     pub fn render_surface(&mut self) -> Option<&wgpu::Buffer> {
-        let pass = self.render.as_ref()?;
+        let pass = self.render.as_mut()?;
         pass.run(&self.ctx, self.state.bindings(self.phase).cur);
         Some(pass.vertices())
     }

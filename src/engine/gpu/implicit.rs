@@ -34,6 +34,7 @@ const CONNECTIVITY: &str = concat!(
 const VALENCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/valence_buckets.wgsl"),
     include_str!("../../../shaders/implicit_valence.wgsl")
 );
 

@@ -16,6 +16,7 @@ use crate::layout::valence::{table_bytes, Bucket, ValenceLayout, TABLE_HEADER};
 const SOURCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/node_gather.wgsl"),
+    include_str!("../../../shaders/valence_buckets.wgsl"),
     include_str!("../../../shaders/springs_valence.wgsl")
 );
 
