@@ -183,6 +183,12 @@ pub trait Engine: Send {
     fn device_mut(&mut self) -> Option<&mut dyn DeviceEngine> {
         None
     }
+    /// The GPU engine itself, for what only it has (the buffers a host draws from); `None`
+    /// for the CPU engines.
+    #[cfg(feature = "gpu")]
+    fn gpu_mut(&mut self) -> Option<&mut gpu::GpuEngine> {
+        None
+    }
     /// The elastic energy of `model` at positions `x`, J, under the force model this engine
     /// steps: the springs' ([`PackedModel::elastic_energy`]) unless it runs another.
     fn elastic_energy(&self, model: &PackedModel, x: &[[f64; 3]]) -> f64 {

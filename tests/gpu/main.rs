@@ -14,6 +14,7 @@ mod gpu_broad_phase;
 mod gpu_edges;
 mod gpu_embed_surface;
 mod gpu_health;
+mod gpu_host_device;
 mod gpu_implicit;
 mod gpu_layouts;
 mod gpu_limits;

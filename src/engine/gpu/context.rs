@@ -17,6 +17,11 @@ pub struct GpuContext {
     lost: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
+/// Storage buffers the largest pass binds in one shader stage (`gather_edges.wgsl`,
+/// `implicit_solve.wgsl`, `self_pairs.wgsl`): wgpu's default limit, which every adapter
+/// lancet runs on has.
+const MIN_STORAGE_BUFFERS: u32 = 8;
+
 /// Preference among adapters: discrete GPUs first, a CPU device (lavapipe) last but one.
 fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
     let kind = match info.device_type {
@@ -57,6 +62,60 @@ impl GpuContext {
         let ctx = Self::open(|_| {})?;
         *shared = Some(ctx.clone());
         Ok(ctx)
+    }
+
+    /// A context on a device the host opened (its renderer's), so that lancet's passes and
+    /// the host's drawing share buffers with no copy between devices: give it the host's
+    /// device, queue and the adapter's info. The device's own limits are used; a device whose
+    /// limits are below what lancet's passes need is refused with the limit named.
+    ///
+    /// Requested features decide what runs: the edge layout's `AtomicFloat` accumulation needs
+    /// `SHADER_FLOAT32_ATOMIC`, device timings `TIMESTAMP_QUERY`; without them those are
+    /// refused or left out as on any adapter. lancet does not set the device's lost callback
+    /// (the host owns it): [`GpuContext::is_lost`] stays false on such a context.
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: wgpu::AdapterInfo,
+    ) -> Result<Self> {
+        let limits = device.limits();
+        let needs = [
+            (
+                "max_storage_buffers_per_shader_stage",
+                limits.max_storage_buffers_per_shader_stage,
+                MIN_STORAGE_BUFFERS,
+            ),
+            (
+                "max_compute_workgroup_size_x",
+                limits.max_compute_workgroup_size_x,
+                super::WORKGROUP,
+            ),
+            (
+                "max_compute_invocations_per_workgroup",
+                limits.max_compute_invocations_per_workgroup,
+                super::WORKGROUP,
+            ),
+            (
+                "max_compute_workgroups_per_dimension",
+                limits.max_compute_workgroups_per_dimension,
+                1,
+            ),
+        ];
+        if let Some((name, has, need)) = needs.into_iter().find(|(_, has, need)| has < need) {
+            return Err(Error::Unsupported(format!(
+                "the host's device {} has {name} = {has}, below the {need} lancet's passes \
+                 need: request the adapter's limits (adapter.limits()) or at least \
+                 wgpu::Limits::default() when opening it",
+                info.name
+            )));
+        }
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+            lost: std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+        })
     }
 
     /// A device of its own, with its limits lowered by `lower` (which may only lower them): to

@@ -197,6 +197,7 @@ impl GpuEngine {
     /// again after a patch (a cut moves node slots and adds nodes).
     pub fn set_render_surface(&mut self, embedding: &Embedding) -> Result<()> {
         let bound = self.bound_vertices(embedding)?;
+        self.host.render = Some((embedding.clone(), self.patches));
         match &mut self.render {
             Some(pass) => pass.set_bound(&self.ctx, &bound)?,
             None => self.render = Some(EmbedPass::new(&self.ctx, &bound)?),

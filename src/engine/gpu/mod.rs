@@ -15,6 +15,7 @@ pub mod buffers;
 pub mod context;
 pub mod embed_surface;
 pub mod health;
+pub mod host_buffers;
 pub mod implicit;
 pub mod layout_buffers;
 pub mod move_state;
@@ -186,6 +187,10 @@ pub struct GpuEngine {
     implicit: Option<implicit::ImplicitSolver>,
     /// The render surface's pass, once one is set ([`GpuEngine::set_render_surface`]).
     render: Option<embed_surface::EmbedPass>,
+    /// What hosts render from without readback ([`GpuEngine::node_positions`]).
+    host: host_buffers::HostBuffers,
+    /// Patches applied so far: the host buffers bind again when it moved.
+    patches: u64,
 }
 
 impl GpuEngine {
@@ -299,6 +304,8 @@ impl GpuEngine {
             near_reads: NearReads::default(),
             last_submission: None,
             render: None,
+            host: host_buffers::HostBuffers::default(),
+            patches: 0,
             ctx,
             config,
             layout,

@@ -17,6 +17,7 @@ impl GpuEngine {
     /// build a new one.
     pub fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<PatchCost> {
         self.forget_ahead();
+        self.patches += 1;
         let patch = self.layout.patch(model, diff)?;
         if patch.repacked {
             // A repack (or an edge compaction) made new arrays: room again for the next cuts.

@@ -286,6 +286,10 @@ impl Engine for GpuEngine {
         Some(self)
     }
 
+    fn gpu_mut(&mut self) -> Option<&mut GpuEngine> {
+        Some(self)
+    }
+
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
         GpuEngine::nodes_near(self, lo, hi)
     }

@@ -110,13 +110,15 @@ impl Simulation {
                 }
                 debug_assert_eq!(x.len(), before + diff.added_nodes.len());
                 let (mut engine, _, _) =
-                    make_engine(&self.model, self.kind, self.config, self.gpu)?;
+                    make_engine(&self.model, self.kind, self.config, self.gpu, &self.host)?;
                 engine.set_state(&x, &v);
                 if let (Some(t), Some(d)) = (&self.surface, engine.device_mut()) {
                     d.set_surface(t)?;
                 }
                 let memory = engine.memory();
                 self.engine = engine;
+                #[cfg(feature = "gpu")]
+                self.rebind_host()?;
                 PatchCost {
                     uploaded_bytes: memory.stats.total,
                     copied_bytes: 0,

@@ -33,6 +33,7 @@ impl Simulation {
                 .collect(),
         );
         self.surface = Some(triangles);
+        self.surface_generation += 1;
         Ok(())
     }
 
@@ -91,6 +92,7 @@ impl Simulation {
                 return Err(e);
             }
         }
+        self.surface_generation += 1;
         Ok(())
     }
 

@@ -8,7 +8,17 @@
 mod changes;
 mod checks;
 mod contact;
+#[cfg(feature = "gpu")]
+mod host_gpu;
 mod inversion;
+
+#[cfg(feature = "gpu")]
+use host_gpu::HostDevice;
+
+/// Without the GPU engine there is no host device to keep.
+#[cfg(not(feature = "gpu"))]
+#[derive(Clone, Default)]
+struct HostDevice;
 
 pub use inversion::INVERSION_CHECK_EVERY;
 
@@ -56,6 +66,7 @@ fn make_engine(
     kind: EngineKind,
     config: SimConfig,
     gpu: GpuOptions,
+    host: &HostDevice,
 ) -> Result<Made> {
     if config.force_model.is_finite_element() && kind != EngineKind::Reference {
         return Err(Error::Unsupported(format!(
@@ -74,8 +85,8 @@ fn make_engine(
             None,
         ),
         EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
-        EngineKind::Gpu => (gpu_engine(model, config, gpu)?, kind, None),
-        EngineKind::Auto => match gpu_engine(model, config, gpu) {
+        EngineKind::Gpu => (gpu_engine(model, config, gpu, host)?, kind, None),
+        EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
                 Box::new(fast::FastEngine::new(model, config)),
@@ -86,13 +97,27 @@ fn make_engine(
     })
 }
 
+/// The GPU engine, on the host's device where the simulation was given one.
 #[cfg(feature = "gpu")]
-fn gpu_engine(model: &PackedModel, config: SimConfig, gpu: GpuOptions) -> Result<Box<dyn Engine>> {
-    Ok(Box::new(gpu::GpuEngine::new(model, config, gpu)?))
+fn gpu_engine(
+    model: &PackedModel,
+    config: SimConfig,
+    gpu: GpuOptions,
+    host: &HostDevice,
+) -> Result<Box<dyn Engine>> {
+    Ok(Box::new(match &host.context {
+        Some(ctx) => gpu::GpuEngine::with_context(ctx.clone(), model, config, gpu)?,
+        None => gpu::GpuEngine::new(model, config, gpu)?,
+    }))
 }
 
 #[cfg(not(feature = "gpu"))]
-fn gpu_engine(_: &PackedModel, _: SimConfig, _: GpuOptions) -> Result<Box<dyn Engine>> {
+fn gpu_engine(
+    _: &PackedModel,
+    _: SimConfig,
+    _: GpuOptions,
+    _: &HostDevice,
+) -> Result<Box<dyn Engine>> {
     Err(Error::Unsupported(
         "this build has no GPU engine (enable the `gpu` cargo feature)".into(),
     ))
@@ -153,6 +178,11 @@ pub struct Simulation {
     steps: u64,
     /// The boundary triangles for tool culling, once given.
     surface: Option<Vec<[u32; 3]>>,
+    /// Counts changes of `surface`, so that a host's index buffer is written only after one.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+    surface_generation: u64,
+    /// The host's device and what the host bound, kept for engines built later.
+    host: HostDevice,
     /// Where each surface triangle (by its sorted corners) sits in `surface`, built with it.
     surface_slots: Option<HashMap<[u32; 3], u32>>,
     /// Simulated time and step count when the time step last changed.
@@ -249,10 +279,21 @@ impl Simulation {
     /// [`Simulation::new`] with the GPU engine's layout and accumulation `gpu` (used where
     /// `kind` is `Gpu`, or `Auto` and an adapter is found; the CPU engines ignore them).
     pub fn with_gpu(
+        model: PackedModel,
+        kind: EngineKind,
+        config: SimConfig,
+        gpu: GpuOptions,
+    ) -> Result<Self> {
+        Self::build(model, kind, config, gpu, HostDevice::default())
+    }
+
+    /// [`Simulation::with_gpu`], GPU engines made on the host's device if `host` has one.
+    fn build(
         mut model: PackedModel,
         kind: EngineKind,
         config: SimConfig,
         gpu: GpuOptions,
+        host: HostDevice,
     ) -> Result<Self> {
         // Cuts append nodes and springs: room made now (see `model::room`).
         use crate::model::room::reserve_room;
@@ -284,7 +325,7 @@ impl Simulation {
                 node: bound.node,
             });
         }
-        let (engine, kind, mut note) = make_engine(&model, kind, config, gpu)?;
+        let (engine, kind, mut note) = make_engine(&model, kind, config, gpu, &host)?;
         if let Some(precision) = float32_precision_note(kind, &config, &bound) {
             note = Some(match note {
                 Some(n) => format!("{n}; {precision}"),
@@ -310,6 +351,8 @@ impl Simulation {
             bound,
             steps: 0,
             surface: None,
+            surface_generation: 0,
+            host,
             surface_slots: None,
             time_at_dt_change: 0.0,
             steps_at_dt_change: 0,
