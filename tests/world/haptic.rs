@@ -150,10 +150,7 @@ fn press_steps() -> u64 {
 /// The step at which the probe first touches, and the largest step-to-step change of `force`
 /// from then until the device stops pressing (its own stop changes the damping force by
 /// `b dv`, which the coupling allows but is no contact).
-fn first_contact_jump(
-    trace: &[Sample],
-    force: impl Fn(&Sample) -> Vector3<f64>,
-) -> (usize, f64) {
+fn first_contact_jump(trace: &[Sample], force: impl Fn(&Sample) -> Vector3<f64>) -> (usize, f64) {
     let first = trace
         .iter()
         .position(|s| s.report.contacts > 0)
@@ -186,13 +183,21 @@ fn rendered_force_increments_stay_within_the_coupling_and_converge_to_the_tissue
         "{rendered:?} {:?}",
         held.force
     );
-    assert!(load.z < -0.05, "the probe does not press the block: {load:?}");
+    assert!(
+        load.z < -0.05,
+        "the probe does not press the block: {load:?}"
+    );
     assert!(
         (rendered + load).norm() < 0.05 * load.norm(),
         "rendered {rendered:?} against the base's load {load:?}"
     );
 
-    trace.extend(drive(&mut world, probe, true, hold_end + 1..=hold_end + 300));
+    trace.extend(drive(
+        &mut world,
+        probe,
+        true,
+        hold_end + 1..=hold_end + 300,
+    ));
     // Every step, first contact, press and drag alike: the force changes by no more than
     // the coupling allows for how far and how fast the device and the proxy moved, and the
     // proxy moves continuously (no faster than half as fast again as the device's top speed):
@@ -210,8 +215,14 @@ fn rendered_force_increments_stay_within_the_coupling_and_converge_to_the_tissue
             (p1.velocity - p0.velocity).norm(),
         );
         let df = (r1.rendered.unwrap() - r0.rendered.unwrap()).norm();
-        assert!(df <= bound * (1.0 + 1e-9) + 1e-12, "step {n}: |dF| {df:e} > {bound:e}");
-        assert!(moved <= 1.5 * top * H, "step {n}: the proxy jumped {moved:e} m");
+        assert!(
+            df <= bound * (1.0 + 1e-9) + 1e-12,
+            "step {n}: |dF| {df:e} > {bound:e}"
+        );
+        assert!(
+            moved <= 1.5 * top * H,
+            "step {n}: the proxy jumped {moved:e} m"
+        );
     }
 
     // At first contact the coupled force rises smoothly; the raw position-correction force of
