@@ -41,3 +41,4 @@ pub mod scene;
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctest;
 pub mod cut;
+pub mod world;

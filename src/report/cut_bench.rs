@@ -468,8 +468,9 @@ fn one(row: &Row) -> Result<CutRow> {
     for (x, y) in sites.iter().map(|&(x, y)| (x * h, y * h)) {
         let pose = |z: f64| Isometry3::translation(x, y, z);
         // The blade arrives moving as it goes on to cut: a tracked tool's velocity is known
-        // before it touches the tissue (the scene runner extrapolates it the same way, see
-        // `CutStage::after_step`), so an incision's first event is predicted as well.
+        // before it touches the tissue (the world's step extrapolates it the same way, see
+        // `world::cutting::Cutting::after_step`), so an incision's first event is predicted
+        // as well.
         let mut last_motion =
             Some(pose(top - 0.2 * h).translation.vector - pose(top).translation.vector);
         for k in 0..steps {

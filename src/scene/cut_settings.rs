@@ -7,21 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cut::CutMethod;
 
-/// What to do when a cut lowers the stable time step below the one in use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-pub enum TimeStepPolicy {
-    /// Stop the run with an error naming the step, the node that limits the new bound, and
-    /// the policies that go on instead.
-    #[default]
-    Stop,
-    /// Go on at the same step and record a warning (the run may then diverge, and is stopped
-    /// and reported if it does).
-    Warn,
-    /// Lower the step to `BoundFraction` of the new bound (the scene's fraction, or
-    /// [`DEFAULT_BOUND_FRACTION`](super::schema::DEFAULT_BOUND_FRACTION)) and go
-    /// on.
-    Substep,
-}
+pub use crate::world::cutting::TimeStepPolicy;
 
 /// Cutting settings of a scene.
 ///

@@ -2,12 +2,12 @@
 
 pub mod cut_settings;
 pub mod cuts;
+pub mod driver;
 pub mod expect;
 pub mod placement;
 pub mod runner;
 pub mod schema;
 pub mod surface;
-pub mod tools;
 pub mod validate;
 
 pub use expect::ExpectationResult;

@@ -5,14 +5,16 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::driver::SceneDriver;
 use super::expect::{self, ExpectationResult, FinalState};
-use super::schema::{resolve_mesh_path, MeshSource, Scene, TimeStep};
-use crate::engine::{Energy, EngineKind, SimConfig, Simulation};
+use super::schema::{resolve_mesh_path, MeshSource, Scene};
+use crate::engine::{Energy, EngineKind};
 use crate::error::{Error, Result};
 use crate::mesh::generate::{beam, BoxGrid};
 use crate::mesh::io::pvd::PvdWriter;
 use crate::mesh::TetMesh;
-use crate::model::{ModelConfig, SpringModel};
+use crate::model::ModelConfig;
+use crate::world::WorldBuilder;
 
 /// Overrides from the command line or the embedding program.
 #[derive(Debug, Clone, Default)]
@@ -225,48 +227,13 @@ pub fn run_scene(
     opts: &RunOptions,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<RunSummary> {
-    let scene_err = |message: String| Error::Scene {
-        path: scene_path.to_path_buf(),
-        message,
-    };
-    let mesh = build_mesh(scene, scene_path)?;
-    let model =
-        SpringModel::build(&mesh, &model_config(scene)).map_err(|e| scene_err(e.to_string()))?;
-    let packed = model.pack(&mesh)?;
-    let bound = scene
-        .force_model
-        .stable_time_step(&packed)
-        .map_err(|e| scene_err(e.to_string()))?;
-    let dt = match scene.dt {
-        TimeStep::Seconds(s) => s,
-        TimeStep::BoundFraction(f) if f > 0.0 && f.is_finite() && bound.dt.is_finite() => {
-            f * bound.dt
-        }
-        TimeStep::BoundFraction(f) => {
-            return Err(scene_err(format!(
-                "dt: BoundFraction({f}) needs a positive fraction of a finite bound (bound is \
-                 {:e} s); give dt: Seconds(...) instead",
-                bound.dt
-            )))
-        }
-    };
+    let builder = WorldBuilder::from_scene(scene, scene_path, opts)?;
+    let (mesh, packed) = (builder.mesh(), builder.packed());
+    let bound = builder.bound()?;
+    let config = *builder.config();
+    let dt = config.dt;
     let engine = opts.engine.unwrap_or(scene.engine);
     let steps = opts.steps.unwrap_or(scene.steps);
-    let config = SimConfig {
-        dt,
-        integrator: scene.integrator,
-        solver: scene.solver,
-        allow_unstable: scene.allow_unstable,
-        allow_inverted: scene.allow_inverted,
-        force_model: scene.force_model,
-        ..SimConfig::new(dt)
-    };
-    // The scene's `layout` and `accumulation` fields (or the options overriding them) choose
-    // how the GPU engine runs; the CPU engines ignore them.
-    let gpu = crate::engine::GpuOptions {
-        layout: opts.layout.unwrap_or(scene.layout),
-        accumulation: opts.accumulation.unwrap_or(scene.accumulation),
-    };
     let mut summary = RunSummary {
         scene: scene.name.clone(),
         nodes: packed.node_count(),
@@ -309,19 +276,19 @@ pub fn run_scene(
         expectations: Vec::new(),
         expectations_passed: false,
     };
-    let mut sim = match Simulation::with_gpu(packed.clone(), engine, config, gpu) {
+    let sim = match builder.simulation() {
         Ok(sim) => sim,
         Err(e @ Error::UnstableTimeStep { .. }) => {
             summary.refused = true;
             summary.message = Some(e.to_string());
-            finish(scene, &mesh, &packed, &packed.rest, None, &mut summary);
+            finish(scene, mesh, packed, &packed.rest, None, &mut summary);
             return Ok(summary);
         }
         Err(e) => return Err(e),
     };
     summary.engine = sim.engine_name();
     summary.engine_note = sim.engine_note().map(str::to_string);
-    sim.watch_mesh(&mesh)?;
+    let mut world = builder.build_with(sim);
 
     // `--output DIR` turns output on even for a scene without an `output` section, writing
     // about ten frames.
@@ -334,27 +301,21 @@ pub fn run_scene(
     let mut frames = match &dir {
         Some(dir) => {
             let mut w = PvdWriter::new(dir, &stem, Default::default())?;
-            w.frame(0.0, &mesh, Some(&sim.positions()))?;
+            w.frame(0.0, world.mesh(), Some(&world.positions()))?;
             summary.pvd = Some(w.pvd_path());
             Some((w, every))
         }
         None => None,
     };
     let mut surface =
-        super::surface::SurfaceStage::new(scene, scene_path, &mesh, dir.as_deref(), &stem)?;
+        super::surface::SurfaceStage::new(scene, scene_path, world.mesh(), dir.as_deref(), &stem)?;
     if let Some(s) = surface.as_mut() {
-        s.frame(0.0, &sim.positions())?;
+        s.frame(0.0, &world.positions())?;
     }
 
-    let mut stage = super::tools::ToolStage::new(scene, &mesh, &mut sim)?;
-    if let Some(stage) = stage.as_mut() {
-        let check = opts.check || scene.checks_cuts();
-        stage.cut = super::cuts::CutStage::new(scene, opts.cut_method, check, &mesh, &model)?;
-    }
-    let method = stage
-        .as_ref()
-        .and_then(|s| s.cut.as_ref())
-        .map(|c| c.method());
+    world.set_up_scene(scene, opts)?;
+    let mut driver = SceneDriver::new(scene);
+    let method = world.cutting().map(|c| c.method());
     summary.cut_method = method.map(|m| m.to_string());
     let start = Instant::now();
     let mut done = 0;
@@ -366,20 +327,18 @@ pub fn run_scene(
         // Chunks end at every frame's step, so that frames stay `every` steps apart.
         let to_frame = every - done % every;
         let n = chunk.min(to_frame).min(steps - done);
-        let result = match stage.as_mut() {
+        let result = if world.has_contacts() {
             // Tools move and touch every step: step one at a time.
-            Some(stage) => (0..n).try_for_each(|k| {
-                stage.step(&mut sim)?;
+            (0..n).try_for_each(|k| {
+                driver.step(&mut world)?;
                 progress(done + k + 1, steps);
                 Ok(())
-            }),
-            None => sim.run_with(n, |d| progress(done + d, steps)),
+            })
+        } else {
+            world.run_with(n, |d| progress(done + d, steps))
         };
-        done = sim.steps();
-        let result = result.and_then(|()| match stage.as_ref().and_then(|s| s.cut.as_ref()) {
-            Some(cut) if sim.watched_tets_touched() => sim.watch_mesh(cut.mesh()),
-            _ => Ok(()),
-        });
+        done = world.sim().steps();
+        let result = result.and_then(|()| world.rewatch());
         if let Err(e) = result {
             summary.diverged = matches!(e, Error::Diverged { .. } | Error::Inverted { .. });
             // A cut that lowered the stable bound below dt under the `Stop` policy ends the run
@@ -395,17 +354,14 @@ pub fn run_scene(
         if let Some((w, _)) = frames.as_mut().filter(|_| frame_due) {
             // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
             // still the simulation's.
-            let current = stage
-                .as_ref()
-                .and_then(|s| s.cut.as_ref())
-                .map_or(&mesh, |c| c.mesh());
-            let x = sim.positions();
-            w.frame(sim.time(), current, Some(&x))?;
+            let x = world.positions();
+            w.frame(world.sim().time(), world.mesh(), Some(&x))?;
             if let Some(s) = surface.as_mut() {
-                s.frame(sim.time(), &x)?;
+                s.frame(world.sim().time(), &x)?;
             }
         }
     }
+    let sim = world.sim();
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.steps = sim.steps();
     summary.simulated_s = sim.time();
@@ -423,19 +379,11 @@ pub fn run_scene(
     summary.surface = surface.as_ref().map(super::surface::SurfaceStage::report);
     summary.energy = sim.energy();
     let x = sim.positions();
-    let mut mesh = mesh;
-    if let Some(stage) = stage {
-        summary.tools = stage.reports;
-        summary.self_contact_steps = stage.self_contact_steps;
-        summary.self_contact_deepest = stage.self_contact_deepest;
-        if let Some(cut) = stage.cut {
-            let (cut_mesh, mut report) = cut.finish(&x);
-            report.near_reads = sim.near_reads();
-            mesh = cut_mesh;
-            summary.cuts = Some(report);
-        }
-    }
-    finish(scene, &mesh, sim.model(), &x, method, &mut summary);
+    summary.tools = driver.reports;
+    summary.self_contact_steps = driver.self_contact_steps;
+    summary.self_contact_deepest = driver.self_contact_deepest;
+    summary.cuts = world.cut_report();
+    finish(scene, world.mesh(), sim.model(), &x, method, &mut summary);
     Ok(summary)
 }
 

@@ -71,7 +71,7 @@ pub struct RegionBox {
 
 /// The fraction of the new stable bound a cut lowers the step to under `Substep` when the
 /// scene gives its step in seconds (a scene with a `BoundFraction` step uses that fraction).
-pub const DEFAULT_BOUND_FRACTION: f64 = 0.9;
+pub const DEFAULT_BOUND_FRACTION: f64 = crate::world::cutting::DEFAULT_BOUND_FRACTION;
 
 /// The time step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -8,13 +8,12 @@ use std::path::Path;
 
 use crate::models::Rng;
 use lancet::cut::CutMethod;
-use lancet::engine::{EngineKind, SimConfig, Simulation};
-use lancet::model::{stable_time_step, SpringModel};
+use lancet::engine::{EngineKind, Simulation};
+use lancet::model::stable_time_step;
 use lancet::report::bench::relative_l2;
-use lancet::scene::cuts::CutStage;
-use lancet::scene::runner::{build_mesh, model_config};
-use lancet::scene::tools::ToolStage;
-use lancet::scene::Scene;
+use lancet::scene::driver::SceneDriver;
+use lancet::scene::{RunOptions, Scene};
+use lancet::world::World;
 use rstest::rstest;
 
 const DT: f64 = 1e-3;
@@ -63,21 +62,21 @@ fn random_cuts_under_backward_euler_keep_every_invariant_and_the_patched_engine_
 ) {
     let path = Path::new("implicit_cuts.ron");
     let scene = Scene::from_ron(&scene_text(seed), path).unwrap();
-    let mesh = build_mesh(&scene, path).unwrap();
-    let model = SpringModel::build(&mesh, &model_config(&scene)).unwrap();
-    let packed = model.pack(&mesh).unwrap();
-    assert!(DT > 10.0 * stable_time_step(&packed).dt);
-    let config = SimConfig {
-        integrator: scene.integrator,
-        ..SimConfig::new(DT)
+    let opts = RunOptions {
+        engine: Some(EngineKind::Fast),
+        cut_method: Some(method),
+        check: true,
+        ..RunOptions::default()
     };
-    let mut sim = Simulation::new(packed, EngineKind::Fast, config).unwrap();
-    let mut stage = ToolStage::new(&scene, &mesh, &mut sim).unwrap().unwrap();
-    stage.cut = CutStage::new(&scene, Some(method), true, &mesh, &model).unwrap();
+    let mut world = World::from_scene(&scene, path, &opts).unwrap();
+    assert_eq!(world.sim().config().dt, DT);
+    assert!(DT > 10.0 * stable_time_step(world.model()).dt);
+    let config = *world.sim().config();
+    let mut driver = SceneDriver::new(&scene);
     for _ in 0..scene.steps {
-        stage.step(&mut sim).unwrap();
+        driver.step(&mut world).unwrap();
     }
-    let report = &stage.cut.as_ref().unwrap().report;
+    let report = &world.cutting().unwrap().report;
     assert!(
         report.cuts > 0,
         "seed {seed} {method}: the blade cut nothing"
@@ -89,22 +88,23 @@ fn random_cuts_under_backward_euler_keep_every_invariant_and_the_patched_engine_
         report.violations
     );
     // A cut lowers the explicit bound, never the implicit step.
-    assert_eq!(sim.config().dt, DT);
+    assert_eq!(world.sim().config().dt, DT);
     assert!(report.events.iter().all(|e| e.time_step_bytes == 0));
-    let stats = sim.solver_stats().unwrap();
+    let stats = world.sim().solver_stats().unwrap();
     assert_eq!(stats.solves, scene.steps, "seed {seed} {method}");
     assert_eq!(stats.capped, 0, "seed {seed} {method}: {stats:?}");
 
     // The patched engine against one built from scratch on the cut model, from the same state:
     // float32 rounding in another node order, not another model (a row left stale by a patch
     // moves its nodes by the size of the motion).
-    let (x, v) = (sim.positions(), sim.velocities());
-    let mut rebuilt = Simulation::new(sim.model().clone(), EngineKind::Fast, config).unwrap();
+    let (x, v) = (world.sim().positions(), world.sim().velocities());
+    let mut rebuilt =
+        Simulation::new(world.sim().model().clone(), EngineKind::Fast, config).unwrap();
     rebuilt.set_state(&x, &v).unwrap();
-    sim.run(20).unwrap();
+    world.sim_mut().run(20).unwrap();
     rebuilt.run(20).unwrap();
-    let rest = &sim.model().rest;
-    let e = relative_l2(rest, &sim.positions(), &rebuilt.positions());
+    let rest = &world.sim().model().rest;
+    let e = relative_l2(rest, &world.sim().positions(), &rebuilt.positions());
     assert!(
         e < 1e-4,
         "seed {seed} {method}: {e:.2e} off a rebuilt engine"

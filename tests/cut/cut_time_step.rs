@@ -14,12 +14,12 @@ use crate::common;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use lancet::engine::{EngineKind, SimConfig, Simulation};
-use lancet::model::{stable_time_step, SpringModel};
-use lancet::scene::cuts::{CutEvent, CutStage};
-use lancet::scene::runner::{build_mesh, model_config};
-use lancet::scene::tools::ToolStage;
-use lancet::scene::Scene;
+use lancet::engine::EngineKind;
+use lancet::model::stable_time_step;
+use lancet::scene::cuts::CutEvent;
+use lancet::scene::driver::SceneDriver;
+use lancet::scene::{RunOptions, Scene};
+use lancet::world::World;
 
 /// The scene's time step as a fraction of the stable bound (`dt: BoundFraction(..)`), which
 /// `Substep` also lowers the step to.
@@ -54,52 +54,48 @@ fn scene_text(policy: &str, steps: u64) -> String {
 }
 
 /// The scene under `policy`, ready to step on `engine` as `lancet run` steps it.
-fn start(policy: &str, engine: EngineKind) -> (Simulation, ToolStage) {
+fn start(policy: &str, engine: EngineKind) -> (World, SceneDriver) {
     let path = Path::new("policy.ron");
     let scene = Scene::from_ron(&scene_text(policy, 1000), path).unwrap();
-    let mesh = build_mesh(&scene, path).unwrap();
-    let model = SpringModel::build(&mesh, &model_config(&scene)).unwrap();
-    let packed = model.pack(&mesh).unwrap();
-    let dt = FRACTION * stable_time_step(&packed).dt;
-    let config = SimConfig {
-        integrator: scene.integrator,
-        ..SimConfig::new(dt)
+    let opts = RunOptions {
+        engine: Some(engine),
+        ..RunOptions::default()
     };
-    let mut sim = Simulation::new(packed, engine, config).unwrap();
-    let mut stage = ToolStage::new(&scene, &mesh, &mut sim).unwrap().unwrap();
-    stage.cut = CutStage::new(&scene, None, false, &mesh, &model).unwrap();
-    (sim, stage)
+    let world = World::from_scene(&scene, path, &opts).unwrap();
+    let dt = FRACTION * stable_time_step(world.model()).dt;
+    assert_eq!(world.sim().config().dt, dt);
+    (world, SceneDriver::new(&scene))
 }
 
 /// Step once; the cut made after the step, if any.
-fn step(sim: &mut Simulation, stage: &mut ToolStage) -> Option<CutEvent> {
-    let before = stage.cut.as_ref().unwrap().report.events.len();
-    stage.step(sim).unwrap();
-    let events = &stage.cut.as_ref().unwrap().report.events;
-    (events.len() > before).then(|| events.last().unwrap().clone())
+fn step(world: &mut World, driver: &mut SceneDriver) -> Option<CutEvent> {
+    driver.step(world).unwrap().cuts.into_iter().last()
 }
 
 #[test]
 fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
-    let (mut sim, mut stage) = start("Warn", EngineKind::Fast);
-    let dt = sim.config().dt;
+    let (mut world, mut driver) = start("Warn", EngineKind::Fast);
+    let dt = world.sim().config().dt;
     // Up to the first cut that lowers the bound below dt.
     let event = loop {
-        if let Some(e) = step(&mut sim, &mut stage) {
+        if let Some(e) = step(&mut world, &mut driver) {
             if e.time_step.is_some() {
                 break e;
             }
         }
-        assert!(sim.steps() < 1000, "no cut lowered the bound below dt");
+        assert!(
+            world.sim().steps() < 1000,
+            "no cut lowered the bound below dt"
+        );
     };
     let change = event.time_step.unwrap();
     // The bound named is the cut model's, recomputed from scratch, and below the step.
-    let bound = stable_time_step(sim.model());
+    let bound = stable_time_step(world.sim().model());
     assert_eq!((change.bound, change.node), (bound.dt, bound.node));
     assert!(change.bound < dt, "{} >= {dt}", change.bound);
     assert_eq!((change.dt_before, change.dt_after), (dt, dt));
     assert_eq!(event.time_step_bytes, 0);
-    let warning = stage.cut.as_ref().unwrap().report.time_step_events.last();
+    let warning = world.cutting().unwrap().report.time_step_events.last();
     let warning = warning.expect("a time-step event is listed").clone();
     assert!(
         warning.contains(&format!("step {}", event.step))
@@ -109,13 +105,13 @@ fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
     );
     // The run goes on at the same step: a few more steps (above the bound it must diverge in
     // the end, so not many), each of dt.
-    let (steps, time) = (sim.steps(), sim.time());
+    let (steps, time) = (world.sim().steps(), world.sim().time());
     for _ in 0..3 {
-        stage.step(&mut sim).unwrap();
+        driver.step(&mut world).unwrap();
     }
-    assert_eq!(sim.config().dt, dt);
-    assert_eq!(sim.steps(), steps + 3);
-    assert!((sim.time() - (time + 3.0 * dt)).abs() < 1e-12 * time);
+    assert_eq!(world.sim().config().dt, dt);
+    assert_eq!(world.sim().steps(), steps + 3);
+    assert!((world.sim().time() - (time + 3.0 * dt)).abs() < 1e-12 * time);
 }
 
 /// `Substep` on `engine`: at every cut that lowers the bound below the step, the new step is
@@ -123,12 +119,12 @@ fn warn_goes_on_at_the_same_step_and_names_the_lowered_bound() {
 /// and the cut's upload counts the step parameters besides the patch, never the whole engine.
 /// The simulated time is the sum of the steps taken at each step size.
 fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) {
-    let (mut sim, mut stage) = start("Substep", engine);
+    let (mut world, mut driver) = start("Substep", engine);
     let mut time = 0.0;
     let mut changes = 0;
     for _ in 0..300 {
-        time += sim.config().dt;
-        let Some(event) = step(&mut sim, &mut stage) else {
+        time += world.sim().config().dt;
+        let Some(event) = step(&mut world, &mut driver) else {
             continue;
         };
         let Some(change) = event.time_step else {
@@ -137,11 +133,11 @@ fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) 
             continue;
         };
         changes += 1;
-        let bound = stable_time_step(sim.model());
+        let bound = stable_time_step(world.sim().model());
         assert_eq!((change.bound, change.node), (bound.dt, bound.node));
         assert!(change.bound < change.dt_before);
         assert_eq!(change.dt_after, FRACTION * bound.dt);
-        assert_eq!(sim.config().dt, change.dt_after);
+        assert_eq!(world.sim().config().dt, change.dt_after);
         // The new step wrote the engine's step parameters and nothing else (a rebuild wrote
         // all of the engine's memory), besides the patch, which is part of a layout and not
         // empty: the cut changed springs.
@@ -163,11 +159,11 @@ fn substep_lowers_the_step_to_the_fraction_of_the_new_bound(engine: EngineKind) 
     }
     assert!(changes > 0, "no cut lowered the bound below dt");
     assert!(
-        (sim.time() - time).abs() < 1e-12 * time,
+        (world.sim().time() - time).abs() < 1e-12 * time,
         "{} {time}",
-        sim.time()
+        world.sim().time()
     );
-    let report = &stage.cut.as_ref().unwrap().report;
+    let report = &world.cutting().unwrap().report;
     let params: u64 = report.events.iter().map(|e| e.time_step_bytes).sum();
     assert_eq!(report.bytes_time_step, params);
     assert_eq!(
