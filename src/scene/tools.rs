@@ -84,6 +84,11 @@ impl ToolStage {
         }))
     }
 
+    /// The tools at their current poses, in the scene's order.
+    pub fn tools(&self) -> &[Tool] {
+        &self.tools
+    }
+
     /// Pose the tools for the end of the next step, step once (with the divergence check),
     /// close, hold or release the graspers by their grasp windows, and resolve the contacts
     /// of the nodes no grasper holds.
@@ -188,6 +193,11 @@ impl ToolStage {
              `collide` cargo feature)"
                 .into(),
         ))
+    }
+
+    /// Unreachable: no stage is ever made.
+    pub fn tools(&self) -> &[crate::collide::Tool] {
+        &[]
     }
 
     /// Unreachable: no stage is ever made.
