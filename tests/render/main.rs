@@ -12,3 +12,4 @@ mod common;
 mod render_cli;
 mod render_glb;
 mod render_png;
+mod render_shapes;
