@@ -27,6 +27,8 @@ pub mod engine;
 pub mod layout;
 pub mod model;
 pub mod physics;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod report;
 pub mod surface;
 pub mod twin;

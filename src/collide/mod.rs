@@ -19,6 +19,7 @@
 //!   (GPU pass `shaders/broad_tool.wgsl` with its CPU twin and a float64 brute force).
 //! - `self_broad.rs`: pairs of boundary triangles that come near each other (a spatial hash on
 //!   the GPU, `shaders/self_*.wgsl` and `shaders/scan_*.wgsl`, with its CPU twin).
+//! - `tool_mesh.rs`: the shapes as closed triangle surfaces, for pictures and per-frame output.
 //! - `narrow.rs` (feature `collide`): parry3d contact queries on the candidates, tool against
 //!   triangle or tetrahedron, computed in a local frame centred on the tool part and scaled to
 //!   unit size so that parry's float32 arithmetic stays accurate for millimetre tools in scenes
@@ -34,5 +35,6 @@ pub mod self_broad;
 #[cfg(feature = "collide")]
 pub mod self_narrow;
 pub mod tool;
+pub mod tool_mesh;
 
 pub use tool::{Aabb, Keyframe, Tool, ToolPart, ToolShape, Trajectory};

@@ -35,6 +35,8 @@ pub struct RunOptions {
     pub cut_method: Option<crate::cut::CutMethod>,
     /// Check the cut invariants after every cut.
     pub check: bool,
+    /// Steps between frames instead of the scene's `output.every` (or a tenth of the run).
+    pub frame_every: Option<u64>,
 }
 
 /// What the implicit integrator's conjugate-gradient solver did over a run.
@@ -137,6 +139,8 @@ pub struct RunSummary {
     pub pvd: Option<PathBuf>,
     /// The render surface (scenes with `surface`): its size and the frames written of it.
     pub surface: Option<super::surface::SurfaceReport>,
+    /// The `.glb` frames and the tools' VTP series written beside the VTU frames, if any.
+    pub frame_files: Option<super::frames::FrameFilesReport>,
     /// What each tool felt (scenes with tools).
     pub tools: Vec<super::expect::ToolReport>,
     /// The cut method of this run (scenes that cut).
@@ -225,7 +229,21 @@ pub fn run_scene(
     scene: &Scene,
     scene_path: &Path,
     opts: &RunOptions,
+    progress: impl FnMut(u64, u64),
+) -> Result<RunSummary> {
+    run_scene_with(scene, scene_path, opts, progress, None)
+}
+
+/// [`run_scene`], handing every frame (the rest state, then every `every` steps and the last)
+/// to `sink` as well, whether or not the run writes files. With a sink and no output folder,
+/// frames still come every `opts.frame_every` steps, else the scene's `output.every`, else a
+/// tenth of the run.
+pub fn run_scene_with(
+    scene: &Scene,
+    scene_path: &Path,
+    opts: &RunOptions,
     mut progress: impl FnMut(u64, u64),
+    sink: Option<&mut dyn super::frames::FrameSink>,
 ) -> Result<RunSummary> {
     let builder = WorldBuilder::from_scene(scene, scene_path, opts)?;
     let (mesh, packed) = (builder.mesh(), builder.packed());
@@ -268,6 +286,7 @@ pub fn run_scene(
         frames_written: 0,
         pvd: None,
         surface: None,
+        frame_files: None,
         tools: Vec::new(),
         cut_method: None,
         cuts: None,
@@ -292,10 +311,12 @@ pub fn run_scene(
 
     // `--output DIR` turns output on even for a scene without an `output` section, writing
     // about ten frames.
-    let every = scene
-        .output
-        .as_ref()
-        .map_or((steps / 10).max(1), |o| o.every.max(1));
+    let every = opts.frame_every.filter(|&e| e > 0).unwrap_or_else(|| {
+        scene
+            .output
+            .as_ref()
+            .map_or((steps / 10).max(1), |o| o.every.max(1))
+    });
     let dir = output_dir(scene, scene_path, opts);
     let stem = series_stem(scene, opts.cut_method);
     let mut frames = match &dir {
@@ -307,6 +328,11 @@ pub fn run_scene(
         }
         None => None,
     };
+    let mut outputs = super::frames::FrameOutputs::new(
+        dir.as_deref()
+            .map(|d| super::frames::FrameFiles::new(d, &stem, scene)),
+        sink,
+    );
     let mut surface =
         super::surface::SurfaceStage::new(scene, scene_path, world.mesh(), dir.as_deref(), &stem)?;
     if let Some(s) = surface.as_mut() {
@@ -317,9 +343,21 @@ pub fn run_scene(
     let mut driver = SceneDriver::new(scene);
     let method = world.cutting().map(|c| c.method());
     summary.cut_method = method.map(|m| m.to_string());
+    outputs.emit(
+        scene,
+        world.sim(),
+        world.mesh(),
+        &world.positions(),
+        surface.as_ref(),
+        world.tools(),
+    )?;
     let start = Instant::now();
     let mut done = 0;
-    let every = frames.as_ref().map_or(steps.max(1), |(_, every)| *every);
+    let every = match &frames {
+        Some((_, every)) => *every,
+        None if outputs.is_active() => every,
+        None => steps.max(1),
+    };
     // Cuts leave the tets they touched unwatched until the tets are given again, at the end
     // of a chunk: chunks no longer than the inversion checks are apart.
     let chunk = every.min(INVERSION_CHECK_EVERY);
@@ -351,14 +389,24 @@ pub fn run_scene(
             break;
         }
         let frame_due = done % every == 0 || done == steps;
-        if let Some((w, _)) = frames.as_mut().filter(|_| frame_due) {
+        if frame_due && (frames.is_some() || outputs.is_active()) {
             // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
             // still the simulation's.
             let x = world.positions();
-            w.frame(world.sim().time(), world.mesh(), Some(&x))?;
-            if let Some(s) = surface.as_mut() {
-                s.frame(world.sim().time(), &x)?;
+            if let Some((w, _)) = frames.as_mut() {
+                w.frame(world.sim().time(), world.mesh(), Some(&x))?;
+                if let Some(s) = surface.as_mut() {
+                    s.frame(world.sim().time(), &x)?;
+                }
             }
+            outputs.emit(
+                scene,
+                world.sim(),
+                world.mesh(),
+                &x,
+                surface.as_ref(),
+                world.tools(),
+            )?;
         }
     }
     let sim = world.sim();
@@ -377,6 +425,7 @@ pub fn run_scene(
         summary.frames_written = w.frames();
     }
     summary.surface = surface.as_ref().map(super::surface::SurfaceStage::report);
+    summary.frame_files = outputs.report();
     summary.energy = sim.energy();
     let x = sim.positions();
     summary.tools = driver.reports;

@@ -105,6 +105,11 @@ impl SurfaceStage {
         Ok(())
     }
 
+    /// The surface at rest (placed) and its vertices at node positions `x` (dense order).
+    pub fn deformed(&self, x: &[[f64; 3]]) -> (&RenderSurface, Vec<[f64; 3]>) {
+        (&self.surface, self.embedding.evaluate(x))
+    }
+
     /// What was done, for the run's summary.
     pub fn report(&self) -> SurfaceReport {
         SurfaceReport {

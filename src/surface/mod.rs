@@ -8,10 +8,16 @@
 //!   holds it; an offset from the nearest boundary face for a vertex outside the mesh), and the
 //!   deformed surface evaluated from the node positions on the CPU.
 //! - [`vtp`]: the deformed surface per frame as VTK PolyData for ParaView (feature `vtu`).
+//! - [`glb`]: triangle meshes per frame (the deformed surface, the tools) as binary glTF for
+//!   Blender, three.js and ParaView (feature `glb`).
+//! - [`colour`]: the displacement colour map of the pictures and the `.glb` vertex colours.
 //! - [`grid`]: the uniform grid that finds a vertex's tet and nearest boundary face without
 //!   testing every tet.
 
+pub mod colour;
 pub mod embed;
+#[cfg(feature = "glb")]
+pub mod glb;
 pub mod grid;
 #[cfg(feature = "surface-formats")]
 pub mod read;

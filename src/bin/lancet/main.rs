@@ -8,6 +8,7 @@ mod accuracy;
 mod bench;
 mod info;
 mod progress;
+mod render;
 mod run;
 
 use std::path::{Path, PathBuf};
@@ -23,6 +24,7 @@ use lancet::scene::{run_scene, RunOptions, RunSummary, Scene};
 use accuracy::*;
 use bench::*;
 use info::*;
+use render::*;
 use run::*;
 
 #[derive(Parser)]
@@ -182,6 +184,59 @@ enum Command {
     Report {
         #[command(subcommand)]
         report: ReportCommand,
+    },
+    /// Run a scene and write PNG pictures of it, drawn headless with wgpu (any adapter,
+    /// lavapipe included): the tissue's surface (the render surface, else the boundary of the
+    /// mesh as cut so far) shaded and coloured by displacement (viridis, from 0 to the colour
+    /// bar's top), the tools in grey. The camera is fitted to the tissue at rest.
+    Render {
+        /// A `.ron` scene file.
+        scene: PathBuf,
+        /// Folder for the pictures, `<series>_<frame>.png`.
+        #[arg(long, default_value = "render")]
+        output: PathBuf,
+        /// Pictures, evenly spaced through the run, the last at its end.
+        #[arg(long, default_value_t = 10)]
+        frames: u64,
+        /// Width, pixels.
+        #[arg(long, default_value_t = 800)]
+        width: u32,
+        /// Height, pixels.
+        #[arg(long, default_value_t = 600)]
+        height: u32,
+        /// Camera azimuth about the up axis, degrees (0: from +x, or +y when up is x).
+        #[arg(long, default_value_t = -60.0, allow_hyphen_values = true)]
+        azimuth: f64,
+        /// Camera elevation above the plane across up, degrees.
+        #[arg(long, default_value_t = 25.0, allow_hyphen_values = true)]
+        elevation: f64,
+        /// Zoom: above 1 moves the camera closer than the distance that fits the tissue.
+        #[arg(long, default_value_t = 1.0)]
+        zoom: f64,
+        /// Up in the picture, as `x,y,z` (default: against the scene's gravity, else +z).
+        #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+        up: Option<Vec<f64>>,
+        /// Top of the colour bar, m (default: each picture's largest displacement).
+        #[arg(long)]
+        colour_max: Option<f64>,
+        /// Leave out the colour bar.
+        #[arg(long)]
+        no_legend: bool,
+        /// Engine to use instead of the scene's.
+        #[arg(long, value_enum)]
+        engine: Option<EngineArg>,
+        /// GPU memory layout instead of the scene's.
+        #[arg(long, value_enum)]
+        layout: Option<LayoutArg>,
+        /// Number of steps instead of the scene's.
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Cut with this method (default: the scene's first).
+        #[arg(long, value_enum)]
+        method: Option<MethodArg>,
+        /// Print a JSON summary (pictures, camera, colour ranges) on stdout.
+        #[arg(long)]
+        json: bool,
     },
     /// Describe a mesh file: counts, volume, quality, components, regions.
     Info {
@@ -439,7 +494,9 @@ fn quiet_on_closed_pipe() {
 /// Whether the command asked for JSON output: its errors are then a JSON object on stdout.
 fn wants_json(command: &Command) -> bool {
     match command {
-        Command::Run { json, .. } | Command::Info { json, .. } => *json,
+        Command::Run { json, .. } | Command::Info { json, .. } | Command::Render { json, .. } => {
+            *json
+        }
         Command::Report {
             report: ReportCommand::Accuracy { json, .. },
         } => *json,
@@ -481,10 +538,54 @@ fn main() -> ExitCode {
                 no_output,
                 cut_method: method.map(Into::into),
                 check,
+                frame_every: None,
             };
             run(scene.as_deref(), json, &opts)
         }
         Command::Info { mesh, json } => info(&mesh, json),
+        Command::Render {
+            scene,
+            output,
+            frames,
+            width,
+            height,
+            azimuth,
+            elevation,
+            zoom,
+            up,
+            colour_max,
+            no_legend,
+            engine,
+            layout,
+            steps,
+            method,
+            json,
+        } => render(RenderRequest {
+            scene,
+            output,
+            frames,
+            pictures: lancet::render::frames::PictureOptions {
+                width,
+                height,
+                view: lancet::render::View {
+                    azimuth,
+                    elevation,
+                    zoom,
+                    ..Default::default()
+                },
+                up: up.map(|u| nalgebra::Vector3::new(u[0], u[1], u[2])),
+                colour_max,
+                legend: !no_legend,
+            },
+            run: RunOptions {
+                engine: engine.map(Into::into),
+                layout: layout.map(Into::into),
+                steps,
+                cut_method: method.map(Into::into),
+                ..Default::default()
+            },
+            json,
+        }),
         Command::Report {
             report:
                 ReportCommand::Accuracy {
