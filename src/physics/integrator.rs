@@ -70,8 +70,9 @@ pub fn velocity(p: &StepParams, cur: [f32; 4], second: [f32; 4]) -> [f32; 3] {
 /// Verlet keeps the step `d = u - u_prev` (`d+ = d + h^2 a`, `u+ = u + d+`) and symplectic
 /// Euler the velocity (`v+ = v + h a`, `u+ = u + h v+`): the step is never recovered as the
 /// difference of two rounded displacements, which far below the stable bound would round most
-/// of it. The fast engine also carries what rounding `u + step` loses to the next step
-/// ([`Compensation`]); this twin of the shaders rounds `u + step` plainly.
+/// of it away. What rounding `u + step` still loses is kept and added to the next step
+/// ([`Compensation`]), so a displacement creeping by less than its own ulp per step still
+/// moves, and a settling node does not stall short of equilibrium.
 pub fn integrate(
     p: &StepParams,
     ui: [f32; 4],
@@ -84,17 +85,34 @@ pub fn integrate(
     for c in 0..3 {
         a[c] = f[c] * inv_mass + p.gravity[c] - p.alpha * vi[c];
     }
-    let (mut next, mut second) = ([0.0f32; 4], [0.0f32; 4]);
+    let carried = Compensation::decode(ui, second_i);
+    let (mut step, mut second) = ([0.0f32; 3], [0.0f32; 4]);
     for c in 0..3 {
         if p.integrator == Integrator::Verlet {
             second[c] = second_i[c] + (p.h * p.h) * a[c];
-            next[c] = ui[c] + second[c];
+            step[c] = second[c] + carried[c];
         } else {
             second[c] = vi[c] + p.h * a[c];
-            next[c] = ui[c] + p.h * second[c];
+            step[c] = p.h * second[c] + carried[c];
         }
     }
+    let mut next = [0.0f32; 4];
+    let mut lost = [0.0f32; 3];
+    for c in 0..3 {
+        (next[c], lost[c]) = two_sum(ui[c], step[c]);
+    }
+    (next[3], second[3]) = Compensation::encode(next, lost);
     (next, second)
+}
+
+/// `(s, e)` with `s = fl(a + b)` and `a + b = s + e` exactly (Knuth's TwoSum: additions only,
+/// so no contraction into fused multiply-adds can change it). The shaders' `two_sum`
+/// multiplies `s` and `s - a` by a uniform 1.0 so that their compiler cannot fold the residual
+/// to zero; that changes no value, so this twin leaves it out.
+fn two_sum(a: f32, b: f32) -> (f32, f32) {
+    let s = a + b;
+    let bb = s - a;
+    (s, (a - (s - bb)) + (b - bb))
 }
 
 /// The part of each displacement component that rounding `u + step` lost, kept in the spare
@@ -104,8 +122,9 @@ pub fn integrate(
 /// node's largest displacement component, and `e_c` is stored as an integer `q_c` in units of
 /// `ulp(m) / 4096` (`|q_c| <= 2047`): `w` of the displacement holds `q_x + 4096 q_y` and `w` of
 /// the second state holds `q_z`, integers that a float32 keeps exactly. A displacement is thus
-/// carried to about 35 bits (used by the fast CPU engine). Every scale is a power of two built
-/// from the exponent bits; a lane holding
+/// carried to about 35 bits (the fast CPU engine and every GPU pass). Every scale is a power
+/// of two built from the exponent bits, so the WGSL twin (`compensation` and
+/// `compensation_lanes` in `shaders/common.wgsl`) rounds identically; a lane holding
 /// anything else (a blended copy after a cut, a state set from outside) decodes to at most
 /// half an ulp, and a zero lane to nothing.
 pub struct Compensation;

@@ -74,7 +74,10 @@ pub struct StepUniform {
     springs: u32,
     /// New h over old h at the last change of time step (read by `time_step.wgsl` only).
     rescale: f32,
-    pad: [u32; 2],
+    /// Always 1.0: the shaders' `two_sum` multiplies by it so that the compiler cannot fold
+    /// compensated summation's exact-residual arithmetic away (see `shaders/common.wgsl`).
+    one: f32,
+    pad: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<StepUniform>() == 64);
@@ -244,7 +247,8 @@ impl GpuEngine {
             row: 0,
             springs: 0,
             rescale: 1.0,
-            pad: [0; 2],
+            one: 1.0,
+            pad: 0,
         };
         let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("step constants"),
