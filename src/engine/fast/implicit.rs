@@ -541,8 +541,8 @@ fn precondition(
             }
         }
         let z = sym_mul(&nodes[i].inverse, acc);
-        for c in 0..3 {
-            out[k].z[c] += z[c];
+        for (out, z) in out[k].z.iter_mut().zip(z) {
+            *out += z;
         }
     }
 }
