@@ -1,10 +1,11 @@
 // Linearised backward Euler by block-Jacobi conjugate gradients on the device: the passes of
-// one solve over a node-centric layout's slot table, each a twin of a function of `twin::implicit_solve`
-// (the float64 specification is `physics::backward_euler`). Prepended with common.wgsl, which
-// gives the slot record and its markers, and followed by the layout's `row_of` (where a node's
-// slots start: implicit_connectivity.wgsl, implicit_valence.wgsl). Every pass reads the solve's status word first and
-// does nothing once it is set, so that the host can record many iterations per submission and
-// read back only that word.
+// one solve over a layout, each a twin of a function of `twin::implicit_solve` (the float64
+// specification is `physics::backward_euler`). Prepended with common.wgsl, which gives the slot
+// record and its markers, and followed by the layout's walk over a node's springs
+// (`cursor`, `next_slot`) and its product (`product`): implicit_slots.wgsl with the
+// connectivity table's or the valence buckets' `row_of`, or implicit_edges.wgsl. Every pass
+// reads the solve's status word first and does nothing once it is set, so that the host can
+// record many iterations per submission and read back only that word.
 //
 // The system is A w = (1 + h alpha) M w - h D w - h^2 K w over the free nodes (fixed nodes,
 // inverse mass 0, are projected out: every vector is zero there). Per spring seen from node i
@@ -27,7 +28,7 @@ struct Solve {
     max_iterations: u32,
     groups: u32,         // workgroups of a node dispatch: the per-workgroup partial sums
     stride: u32,         // entries per solver vector (the state buffers' capacity)
-    pad0: u32,
+    springs: u32,        // spring records (edge layout)
     pad1: u32,
 }
 
@@ -117,79 +118,6 @@ fn block_product(s: Slot, g: Geometry, w: vec3<f32>) -> vec3<f32> {
     return out;
 }
 
-// Where a node's slots start and how many its row holds (width 0: no slots).
-struct Row {
-    base: u32,
-    width: u32,
-}
-
-// A walk over node i's slots as `node_gather.wgsl` walks them: stopping at an empty slot, going
-// on in row `pad` (of the connectivity table's width) at a CONTINUE slot.
-struct Cursor {
-    base: u32,
-    width: u32,
-    s: u32,
-    hops: u32,
-}
-
-fn cursor(i: u32) -> Cursor {
-    let row = row_of(i);
-    return Cursor(row.base, row.width, 0u, 0u);
-}
-
-// The index of the next real slot of the walk, EMPTY at its end.
-fn advance(c: ptr<function, Cursor>) -> u32 {
-    loop {
-        if ((*c).s >= (*c).width) {
-            return EMPTY;
-        }
-        let slot = slots[(*c).base + (*c).s];
-        if (slot.other == EMPTY) {
-            return EMPTY;
-        }
-        if (slot.other == CONTINUE) {
-            (*c).hops = (*c).hops + 1u;
-            if ((*c).hops > q.n) {
-                return EMPTY;
-            }
-            // Only the connectivity layout continues rows, always in rows of its width.
-            (*c).base = slot.pad * q.width;
-            (*c).width = q.width;
-            (*c).s = 0u;
-            continue;
-        }
-        let index = (*c).base + (*c).s;
-        (*c).s = (*c).s + 1u;
-        return index;
-    }
-    return EMPTY;
-}
-
-// (A w)_i for the vector `v` of the solver vectors (zero on fixed nodes).
-fn product(i: u32, v: u32) -> vec3<f32> {
-    let m_inv = inv_mass[i];
-    if (m_inv == 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let ui = cur[i].xyz;
-    let wi = vecs[at(v, i)].xyz;
-    var sum = vec3<f32>(0.0);
-    var c = cursor(i);
-    loop {
-        let k = advance(&c);
-        if (k == EMPTY) {
-            break;
-        }
-        let s = slots[k];
-        let g = geometry(s, ui);
-        if (g.ok) {
-            sum = sum + block_product(s, g, vecs[at(v, s.other)].xyz - wi);
-        }
-    }
-    let m = (1.0 + q.h * q.alpha) / m_inv;
-    return m * wi - sum;
-}
-
 // Workgroup sum of `value` over the 64 invocations, in a fixed tree order; every invocation
 // must call it (it holds barriers). Returns the sum in invocation 0.
 fn workgroup_sum(l: u32, value: vec2<f32>) -> vec2<f32> {
@@ -260,11 +188,10 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocatio
             var db = vec2<f32>(0.0);
             var c = cursor(i);
             loop {
-                let k = advance(&c);
-                if (k == EMPTY) {
+                let s = next_slot(&c);
+                if (s.other == EMPTY) {
                     break;
                 }
-                let s = slots[k];
                 let g = geometry(s, ui);
                 if (!g.ok) {
                     continue;

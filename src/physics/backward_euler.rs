@@ -16,7 +16,8 @@
 //! linearised at the latest iterate.
 //!
 //! The solver is conjugate gradients preconditioned by the inverse 3x3 diagonal blocks of the
-//! system (block Jacobi), stopping at a relative residual or an iteration cap. With
+//! system (block Jacobi), started from the last step's velocity change
+//! ([`SolverSettings::warm_start`]), stopping at a relative residual or an iteration cap. With
 //! [`Linearization::Definite`] (the default) the system is symmetric positive definite for any
 //! `h`, which conjugate gradients need.
 
@@ -38,6 +39,30 @@ pub struct SolverSettings {
     pub newton_iterations: u32,
     /// The stiffness matrix the system is built on.
     pub linearization: Linearization,
+    /// Start each step's first solve from the last step's velocity change instead of zero
+    /// (a cut's new nodes start from zero), on the reference and fast engines; the GPU engine
+    /// starts from zero. The solution is the same to the tolerance; the residual starts
+    /// smaller wherever the motion changes slowly from step to step.
+    pub warm_start: bool,
+    /// What conjugate gradients are preconditioned with.
+    pub preconditioner: Preconditioner,
+}
+
+/// The conjugate gradients' preconditioner: all are matrix-free and need nothing but the
+/// system's own blocks, so that a cut's patched rows need no refactorisation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum Preconditioner {
+    /// The best each engine has: [`Preconditioner::SymmetricGaussSeidel`] on the fast engine,
+    /// [`Preconditioner::BlockJacobi`] on the reference and GPU engines.
+    #[default]
+    Auto,
+    /// The inverse 3x3 diagonal blocks.
+    BlockJacobi,
+    /// One symmetric Gauss-Seidel sweep (forward then backward over the nodes) within each
+    /// block of the fast engine's parallel passes, the blocks' couplings left out: symmetric
+    /// positive definite like the system, and the same bits on any number of threads. Only the
+    /// fast engine has it: the others refuse it.
+    SymmetricGaussSeidel,
 }
 
 impl Default for SolverSettings {
@@ -47,6 +72,8 @@ impl Default for SolverSettings {
             max_iterations: 100,
             newton_iterations: 1,
             linearization: Linearization::Definite,
+            warm_start: true,
+            preconditioner: Preconditioner::Auto,
         }
     }
 }
@@ -85,6 +112,9 @@ impl SolverStats {
 pub struct BackwardEuler {
     settings: SolverSettings,
     stats: SolverStats,
+    /// The last step's velocity change: the next step's first guess with
+    /// [`SolverSettings::warm_start`].
+    last_dv: Vec<Vec3>,
 }
 
 impl BackwardEuler {
@@ -93,6 +123,7 @@ impl BackwardEuler {
         BackwardEuler {
             settings,
             stats: SolverStats::default(),
+            last_dv: Vec::new(),
         }
     }
 
@@ -180,18 +211,25 @@ impl<'a> System<'a> {
         }
     }
 
-    /// Solve `A y = b` from `y = 0` by preconditioned conjugate gradients; returns the
-    /// iterations and the final relative residual.
+    /// Solve `A y = b` by preconditioned conjugate gradients from the guess in `y` (zero on
+    /// the fixed nodes); returns the iterations and the final relative residual (to `|b|`,
+    /// whatever the guess).
     fn solve(&mut self, b: &[Vec3], y: &mut [Vec3], settings: &SolverSettings) -> (u32, f64) {
         let n = b.len();
-        y.iter_mut().for_each(|v| *v = [0.0; 3]);
         let norm = |v: &[Vec3]| v.iter().map(|a| dot(*a, *a)).sum::<f64>().sqrt();
         let b_norm = norm(b);
         if b_norm == 0.0 {
+            y.iter_mut().for_each(|v| *v = [0.0; 3]);
             return (0, 0.0);
         }
-        let mut r = b.to_vec();
         let (mut z, mut ap) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        self.apply(y, &mut ap);
+        let mut r: Vec<Vec3> = (0..n)
+            .map(|i| [0, 1, 2].map(|c| b[i][c] - ap[i][c]))
+            .collect();
+        if norm(&r) <= settings.tolerance * b_norm {
+            return (0, norm(&r) / b_norm);
+        }
         self.precondition(&r, &mut z);
         let mut p = z.clone();
         let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| dot(*a, *b)).sum();
@@ -257,6 +295,14 @@ impl TimeIntegrator for BackwardEuler {
         let n = state.x.len();
         let settings = self.settings;
         let mut dv = vec![[0.0; 3]; n];
+        if settings.warm_start {
+            // The last step's change where the node was there (a cut appends nodes) and free.
+            for (i, (d, last)) in dv.iter_mut().zip(&self.last_dv).enumerate() {
+                if !nodes.fixed[i] {
+                    *d = *last;
+                }
+            }
+        }
         // The first iterate is Baraff and Witkin's: linearised at the start of the step.
         let mut rhs = total_force(forces, nodes, &state.x, &state.v);
         let mut kv = vec![[0.0; 3]; n];
@@ -269,6 +315,7 @@ impl TimeIntegrator for BackwardEuler {
         // Further Newton iterations on `g(y) = M (y - v) - h F(x + h y, y)`, `y = v + dv`.
         let mut delta = vec![[0.0; 3]; n];
         for _ in 1..settings.newton_iterations.max(1) {
+            delta.iter_mut().for_each(|d| *d = [0.0; 3]);
             let y: Vec<Vec3> = (0..n)
                 .map(|i| [0, 1, 2].map(|c| state.v[i][c] + dv[i][c]))
                 .collect();
@@ -296,6 +343,9 @@ impl TimeIntegrator for BackwardEuler {
             let v = [0, 1, 2].map(|c| state.v[i][c] + dv[i][c]);
             state.x[i] = [0, 1, 2].map(|c| state.x[i][c] + h * v[c]);
             state.v[i] = v;
+        }
+        if settings.warm_start {
+            self.last_dv = dv;
         }
     }
 }

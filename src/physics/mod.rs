@@ -46,7 +46,7 @@ mod force_model_tests;
 #[cfg(test)]
 mod tensor_mass_tests;
 
-pub use backward_euler::{BackwardEuler, SolverSettings, SolverStats};
+pub use backward_euler::{BackwardEuler, Preconditioner, SolverSettings, SolverStats};
 pub use corotational::Corotational;
 pub use force_model::{ForceModel, Linearization, Mat3, Vec3};
 pub use integrator::{

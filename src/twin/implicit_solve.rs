@@ -5,13 +5,17 @@
 //! specification is [`crate::physics::BackwardEuler`].
 //!
 //! A node's springs are given as the slots it gathers, in the order the layout walks them
-//! ([`rows`]), so the twin serves every node-centric layout.
+//! ([`rows`]), so the twin serves every layout; the edge layout's product, a spring pass and a
+//! gather (`shaders/implicit_edges.wgsl`), has its own twins ([`spring_multiply_cpu`],
+//! [`gather_multiply_cpu`], [`implicit_step_edges_cpu`]).
 
+use crate::layout::edges::{EdgeLayout, B_END};
 use crate::layout::{PackedLayout, Slot};
 
 /// Each node slot's springs in the order the device walks them: the connectivity row with its
-/// continuations, or the node's row in its valence bucket up to the first empty slot (holes and
-/// room: none). `None` for the edge layout, which has no implicit pass yet.
+/// continuations, the node's row in its valence bucket up to the first empty slot (holes and
+/// room: none), or the node's incidence row with each spring seen from the node
+/// ([`edge_rows`]). Always `Some` (kept an option for the callers).
 pub fn rows(layout: &PackedLayout) -> Option<Vec<Vec<Slot>>> {
     let n = layout.node_slots();
     match layout {
@@ -30,8 +34,37 @@ pub fn rows(layout: &PackedLayout) -> Option<Vec<Vec<Slot>>> {
             }
             Some(rows)
         }
-        PackedLayout::Edges(_) => None,
+        PackedLayout::Edges(e) => Some(edge_rows(e)),
     }
+}
+
+/// Each node's incidence row as `next_slot` in `shaders/implicit_edges.wgsl` turns it: the
+/// spring seen from the node (from its `b` end the rest vector negated and the other end `a`).
+pub fn edge_rows(layout: &EdgeLayout) -> Vec<Vec<Slot>> {
+    (0..layout.node_count())
+        .map(|i| {
+            layout
+                .row(i)
+                .iter()
+                .map(|&e| {
+                    let s = &layout.springs[(e & !B_END) as usize];
+                    let (edge, other) = if e & B_END != 0 {
+                        (s.edge.map(|x| -x), s.a)
+                    } else {
+                        (s.edge, s.b)
+                    };
+                    Slot {
+                        edge,
+                        rest: s.rest,
+                        k: s.k,
+                        c: s.c,
+                        other,
+                        pad: 0,
+                    }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// The constants of a solve, as the shader's `Solve` uniform holds them.
@@ -395,6 +428,76 @@ pub fn multiply_cpu(
     v.partials = partials(&pairs);
 }
 
+/// The edge layout's `spring_multiply` pass: per spring record, `h D_s (p_b - p_a) +
+/// h^2 K_s (p_b - p_a)` seen from its `a` end (nothing while the solve is not running: the
+/// values are then returned as `previous`).
+pub fn spring_multiply_cpu(
+    p: &SolveParams,
+    layout: &EdgeLayout,
+    cur: &[[f32; 4]],
+    v: &SolveVectors,
+    previous: &[[f32; 4]],
+) -> Vec<[f32; 4]> {
+    if v.scalars.status != status::RUNNING {
+        return previous.to_vec();
+    }
+    layout
+        .springs
+        .iter()
+        .map(|s| {
+            let seen = Slot {
+                edge: s.edge,
+                rest: s.rest,
+                k: s.k,
+                c: s.c,
+                other: s.b,
+                pad: 0,
+            };
+            let (a, b) = (s.a as usize, s.b as usize);
+            match geometry(p, &seen, cur, v3(cur[a])) {
+                Some((u, _, t)) => v4(block_product(p, &seen, u, t, sub(v3(v.p[b]), v3(v.p[a])))),
+                None => [0.0; 4],
+            }
+        })
+        .collect()
+}
+
+/// The edge layout's `multiply` pass: `A p` gathered from the spring values in incidence
+/// order (added at an `a` end, subtracted at a `b` end), and partials `(p . A p, 0)`.
+pub fn gather_multiply_cpu(
+    p: &SolveParams,
+    layout: &EdgeLayout,
+    inv_mass: &[f32],
+    spring_values: &[[f32; 4]],
+    v: &mut SolveVectors,
+) {
+    if v.scalars.status != status::RUNNING {
+        return;
+    }
+    let pairs: Vec<[f32; 2]> = (0..v.p.len())
+        .map(|i| {
+            let ap = if inv_mass[i] == 0.0 {
+                [0.0; 3]
+            } else {
+                let mut sum = [0.0f32; 3];
+                for &e in layout.row(i) {
+                    let term = v3(spring_values[(e & !B_END) as usize]);
+                    sum = if e & B_END != 0 {
+                        sub(sum, term)
+                    } else {
+                        add(sum, term)
+                    };
+                }
+                let m = (1.0 + p.h * p.alpha) / inv_mass[i];
+                sub(scale(m, v3(v.p[i])), sum)
+            };
+            v.ap[i] = v4(ap);
+            [dot3(v3(v.p[i]), ap), 0.0]
+        })
+        .collect();
+    v.partials = partials(&pairs);
+}
+
 /// The `step_length` pass.
 pub fn step_length_cpu(v: &mut SolveVectors) {
     let sum = total(&v.partials);
@@ -498,6 +601,30 @@ pub fn iteration_cpu(
     update_cpu(v);
     residual_cpu(p, v);
     direction_cpu(v);
+}
+
+/// [`implicit_step_cpu`] on the edge layout: the setup over its incidence rows
+/// ([`edge_rows`]), each iteration's product as the spring pass and the gather.
+pub fn implicit_step_edges_cpu(
+    p: &SolveParams,
+    layout: &EdgeLayout,
+    inv_mass: &[f32],
+    cur: &[[f32; 4]],
+    vel: &[[f32; 4]],
+) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Scalars) {
+    let mut v = setup_cpu(p, &edge_rows(layout), inv_mass, cur, vel);
+    start_cpu(p, &mut v);
+    let mut values = vec![[0.0f32; 4]; layout.springs.len()];
+    while v.scalars.status == status::RUNNING {
+        values = spring_multiply_cpu(p, layout, cur, &v, &values);
+        gather_multiply_cpu(p, layout, inv_mass, &values, &mut v);
+        step_length_cpu(&mut v);
+        update_cpu(&mut v);
+        residual_cpu(p, &mut v);
+        direction_cpu(&mut v);
+    }
+    let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
+    (next, vel_out, v.scalars)
 }
 
 /// One implicit step as the device takes it: `setup`, `start`, iterations until the solve

@@ -17,6 +17,7 @@ mod contact_energy_reference;
 mod contact_flat_tools;
 mod contact_friction;
 mod contact_held;
+mod contact_implicit;
 mod contact_probe;
 mod grasp_flap;
 mod scene_grasp;

@@ -9,16 +9,22 @@
 //!
 //! (`F` the springs' force with their damping, plus gravity and the mass damping
 //! `-alpha M v`; `K`, `D` the springs' stiffness and damping derivatives at `u`, with the same
-//! [`Linearization`]; fixed nodes projected out) by conjugate gradients preconditioned with the
-//! inverse 3x3 diagonal blocks (block Jacobi), with the same tolerance, cap and further Newton
-//! iterations ([`SolverSettings`]).
+//! [`Linearization`]; fixed nodes projected out) by conjugate gradients with the same tolerance,
+//! cap and further Newton iterations ([`SolverSettings`]), started from the last step's velocity
+//! change ([`SolverSettings::warm_start`]) and preconditioned by one symmetric Gauss-Seidel
+//! sweep within each block of [`BLOCK`] nodes ([`Preconditioner::SymmetricGaussSeidel`], the
+//! default here) or by the inverse 3x3 diagonal blocks (block Jacobi, as the float64 integrator).
+//! The sweep reads the spring blocks the product reads and nothing else: a cut's patched rows
+//! need no refactorisation and no recolouring, and the blocks are independent of each other, so
+//! any number of threads gives the same bits.
 //!
 //! Once per linearisation every node walks its adjacency row and forms each spring's symmetric
 //! 3x3 block `S = h c u u^T + h^2 k (u u^T + t (I - u u^T))` (the float32 twin of
 //! [`crate::physics::spring_stiffness_block`], `t = 1 - L/l` clamped at zero by
 //! [`Linearization::Definite`], plus the spring's damping), its force, `K v` and its diagonal
-//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept beside the row, at
-//! the entry's index, with the other end's index (28 bytes an entry): a product
+//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept in the row's range
+//! of the adjacency (the Gauss-Seidel sweep's lower part first), each with the other end's
+//! index (28 bytes an entry): a product
 //! `A w_i = A_ii w_i - sum_j S_ij w_j` then streams them once, nothing is assembled into a
 //! global matrix, and a cut's patched rows are simply walked again at the next step. (A
 //! product that recomputed each block from the geometry would read the 32-byte entry, its
@@ -34,7 +40,7 @@
 use super::kernels::spring_vector;
 use super::{FastEngine, Graph, Params, BLOCK, P};
 use crate::model::room::spare;
-use crate::physics::{Linearization, SolverSettings, SolverStats};
+use crate::physics::{Linearization, Preconditioner, SolverSettings, SolverStats};
 
 /// A symmetric 3x3 matrix as `[xx, yy, zz, xy, xz, yz]`.
 type Sym = [f32; 6];
@@ -53,6 +59,10 @@ struct NodeSystem {
     diag: Sym,
     inverse: Sym,
     b: P,
+    /// How many of the row's blocks, first in the row, couple the node to an earlier node of
+    /// its own block of [`BLOCK`] nodes: the symmetric Gauss-Seidel sweep's lower part (the
+    /// rest of the row holds the upper part and the couplings to other blocks).
+    lower: u32,
 }
 
 /// A node's solution, residual and preconditioned residual in the conjugate gradients.
@@ -67,7 +77,8 @@ struct Iterate {
 pub(super) struct Implicit {
     settings: SolverSettings,
     stats: SolverStats,
-    /// Indexed like the adjacency: the block of each live entry (holes are never read).
+    /// Indexed like the adjacency, row by row: the blocks of each row's live entries in the
+    /// row's range, its lower part first (holes are never read).
     blocks: Vec<Block>,
     nodes: Vec<NodeSystem>,
     cg: Vec<Iterate>,
@@ -186,21 +197,22 @@ impl FastEngine {
         imp.fit(n, self.graph.adj.len());
         let (g, params) = (&self.graph, self.params);
         let settings = imp.settings;
-        // The first iterate is Baraff and Witkin's: linearised at the start of the step.
-        assemble(
+        // The first iterate is Baraff and Witkin's: linearised at the start of the step, and
+        // started from the last step's velocity change (still in `dv`) with a warm start.
+        let bb = assemble(
             imp,
             g,
             params,
             settings.linearization,
             Lin::Start(&self.x, &self.second),
         );
-        let result = solve(imp, g, settings);
+        let result = solve(imp, g, settings, bb, settings.warm_start);
         imp.record(result);
         update_dv(imp, params, &self.x, &self.second, true);
         for _ in 1..settings.newton_iterations.max(1) {
             // Newton on `g(y) = M (y - v) - h F(u + h y, y)` at `y = v + dv`.
-            assemble(imp, g, params, settings.linearization, Lin::Iterate);
-            let result = solve(imp, g, settings);
+            let bb = assemble(imp, g, params, settings.linearization, Lin::Iterate);
+            let result = solve(imp, g, settings, bb, false);
             imp.record(result);
             update_dv(imp, params, &self.x, &self.second, false);
         }
@@ -245,8 +257,9 @@ enum Lin<'a> {
     Iterate,
 }
 
-/// Form every free node's spring blocks, diagonal block, preconditioner and right-hand side.
-fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Lin) {
+/// Form every free node's spring blocks, diagonal block, preconditioner and right-hand side;
+/// returns `b . b`.
+fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Lin) -> f64 {
     let (x, v, newton) = match at {
         Lin::Start(x, v) => (x, v, None),
         Lin::Iterate => (&imp.xk[..], &imp.vk[..], Some(&imp.dv[..])),
@@ -255,7 +268,8 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
     let damped = !g.damping.is_empty();
     let (h, h2) = (p.h, p.h * p.h);
     let definite = lin == Linearization::Definite;
-    over_blocks(&mut imp.nodes, &mut imp.partials, |start, out| {
+    let [bb, _] = over_blocks(&mut imp.nodes, &mut imp.partials, |start, out| {
+        let mut bb = 0.0f64;
         for (k, node) in out.iter_mut().enumerate() {
             let i = start + k;
             if g.fixed[i] {
@@ -263,6 +277,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                     diag: IDENTITY,
                     inverse: IDENTITY,
                     b: [0.0; 4],
+                    lower: 0,
                 };
                 continue;
             }
@@ -273,16 +288,26 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
             let row_blocks = unsafe { blocks.row(first as usize, end as usize) };
             let (xi, vi) = (x[i], v[i]);
             let (mut f, mut kv, mut sum) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 6]);
-            for (e_at, (e, out)) in g.row(i).iter().zip(row_blocks.iter_mut()).enumerate() {
+            // Blocks coupling `i` to an earlier node of its own block go first in the row, the
+            // others last (see `precondition`); the product reads them in any order.
+            let (mut lower, mut last) = (0usize, row_blocks.len());
+            let mut place = |j: usize, block: Block| {
+                if j >= start && j < i {
+                    row_blocks[lower] = block;
+                    lower += 1;
+                } else {
+                    last -= 1;
+                    row_blocks[last] = block;
+                }
+            };
+            for (e_at, e) in g.row(i).iter().enumerate() {
                 let j = e.other as usize;
                 let d = spring_vector(e.edge, xi, x[j]);
                 let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                 if l2 <= 0.0 {
                     // No direction: no force and no block, as in the float64 model.
-                    *out = Block {
-                        s: [0.0; 6],
-                        other: e.other,
-                    };
+                    let s = [0.0; 6];
+                    place(j, Block { s, other: e.other });
                     continue;
                 }
                 let inv = 1.0 / l2.sqrt();
@@ -313,7 +338,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                 for (acc, s) in sum.iter_mut().zip(s) {
                     *acc += s;
                 }
-                *out = Block { s, other: e.other };
+                place(j, Block { s, other: e.other });
             }
             let m = 1.0 / g.inv_mass[i];
             let mh = (1.0 + h * p.alpha) * m;
@@ -329,51 +354,79 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                     Some(dv) => h * total - m * dv[i][a],
                 };
             }
+            bb += dot64(b, b);
             *node = NodeSystem {
                 diag,
                 inverse: inverse(&diag),
                 b,
+                lower: lower as u32,
             };
         }
-        [0.0; 2]
+        [bb, 0.0]
     });
+    bb
 }
 
-/// Solve `A y = b` from `y = 0` by preconditioned conjugate gradients, as the float64
-/// integrator does; the iterations and the final relative residual.
-fn solve(imp: &mut Implicit, g: &Graph, settings: SolverSettings) -> (u32, f64) {
+/// Solve `A y = b` (`bb = b . b`) by preconditioned conjugate gradients, as the float64
+/// integrator does, from `y = 0` or, with `guess`, from the last velocity change `dv` (zero on
+/// fixed nodes); the iterations and the final relative residual (to `|b|` either way).
+fn solve(
+    imp: &mut Implicit,
+    g: &Graph,
+    settings: SolverSettings,
+    bb: f64,
+    guess: bool,
+) -> (u32, f64) {
+    let sgs = settings.preconditioner != Preconditioner::BlockJacobi;
     let Implicit {
         blocks,
         nodes,
         cg,
         p,
         ap,
+        dv,
         partials,
         ..
     } = imp;
-    let nodes = &nodes[..];
-    // y = 0, r = b, z = P r.
-    let [bb, mut rz] = over_blocks(cg, partials, |start, out| {
-        let mut sums = [0.0f64; 2];
-        for (k, it) in out.iter_mut().enumerate() {
-            let s = &nodes[start + k];
-            let z = sym_mul(&s.inverse, s.b);
-            *it = Iterate {
-                y: [0.0; 4],
-                r: s.b,
-                z: [z[0], z[1], z[2], 0.0],
-            };
-            sums[0] += dot64(s.b, s.b);
-            sums[1] += dot64(s.b, it.z);
-        }
-        sums
-    });
+    let (nodes, blocks) = (&nodes[..], &blocks[..]);
     if bb == 0.0 {
+        cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
     }
     let b_norm = bb.sqrt();
+    if guess {
+        // The guess's product, through `p`: `r = b - A y`.
+        let dv = &dv[..];
+        over_blocks(p, partials, |start, out| {
+            for (k, o) in out.iter_mut().enumerate() {
+                let i = start + k;
+                *o = if g.fixed[i] { [0.0; 4] } else { dv[i] };
+            }
+            [0.0; 2]
+        });
+        product(g, blocks, nodes, p, ap, partials);
+    }
+    let (p0, ap0) = (&p[..], &ap[..]);
+    let [rr, mut rz] = over_blocks(cg, partials, |start, out| {
+        for (k, it) in out.iter_mut().enumerate() {
+            let i = start + k;
+            let b = nodes[i].b;
+            (it.y, it.r) = if guess {
+                (p0[i], [0, 1, 2, 3].map(|c| b[c] - ap0[i][c]))
+            } else {
+                ([0.0; 4], b)
+            };
+        }
+        precondition(start, out, nodes, blocks, g, sgs);
+        out.iter().fold([0.0; 2], |s, it| {
+            [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
+        })
+    });
+    let mut residual = rr.sqrt() / b_norm;
+    if residual <= settings.tolerance {
+        return (0, residual);
+    }
     direction(p, cg, partials, None);
-    let mut residual = 1.0;
     for iteration in 1..=settings.max_iterations {
         let [pap, _] = product(g, blocks, nodes, p, ap, partials);
         if pap <= 0.0 {
@@ -382,7 +435,7 @@ fn solve(imp: &mut Implicit, g: &Graph, settings: SolverSettings) -> (u32, f64) 
             return (iteration, residual);
         }
         let alpha = (rz / pap) as f32;
-        let [rr, rz_next] = advance(cg, partials, nodes, p, ap, alpha);
+        let [rr, rz_next] = advance(cg, partials, nodes, blocks, g, sgs, p, ap, alpha);
         residual = rr.sqrt() / b_norm;
         if residual <= settings.tolerance {
             return (iteration, residual);
@@ -395,29 +448,103 @@ fn solve(imp: &mut Implicit, g: &Graph, settings: SolverSettings) -> (u32, f64) 
 }
 
 /// `y += alpha p`, `r -= alpha Ap`, `z = P r`; returns `(r . r, r . z)`.
+#[allow(clippy::too_many_arguments)]
 fn advance(
     cg: &mut [Iterate],
     partials: &mut [[f64; 2]],
     nodes: &[NodeSystem],
+    blocks: &[Block],
+    g: &Graph,
+    sgs: bool,
     p: &[P],
     ap: &[P],
     alpha: f32,
 ) -> [f64; 2] {
     over_blocks(cg, partials, |start, out| {
-        let mut sums = [0.0f64; 2];
         for (k, it) in out.iter_mut().enumerate() {
             let i = start + k;
             for c in 0..3 {
                 it.y[c] += alpha * p[i][c];
                 it.r[c] -= alpha * ap[i][c];
             }
-            let z = sym_mul(&nodes[i].inverse, it.r);
-            it.z = [z[0], z[1], z[2], 0.0];
-            sums[0] += dot64(it.r, it.r);
-            sums[1] += dot64(it.r, it.z);
         }
-        sums
+        precondition(start, out, nodes, blocks, g, sgs);
+        out.iter().fold([0.0; 2], |s, it| {
+            [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
+        })
     })
+}
+
+/// `z = P r` over one block of nodes starting at `start`: block Jacobi, or one symmetric
+/// Gauss-Seidel sweep over the block's own nodes, `P^-1 = (D - L) D^-1 (D - U)` with `D` the
+/// diagonal blocks and `-L`, `-U` the spring blocks between nodes of the block (the system's
+/// off-diagonal blocks are `-S_ij`). Couplings to other blocks are left out, so the blocks
+/// are independent (any number of threads gives the same bits) and `P` stays symmetric
+/// positive definite. Fixed nodes are projected out: `z = 0` there.
+fn precondition(
+    start: usize,
+    out: &mut [Iterate],
+    nodes: &[NodeSystem],
+    blocks: &[Block],
+    g: &Graph,
+    sgs: bool,
+) {
+    if !sgs {
+        for (k, it) in out.iter_mut().enumerate() {
+            let z = sym_mul(&nodes[start + k].inverse, it.r);
+            it.z = [z[0], z[1], z[2], 0.0];
+        }
+        return;
+    }
+    let end = start + out.len();
+    // Each row's lower part, then the rest (`assemble` put them so): each sweep reads only
+    // its own part, and the two together read the row once.
+    let parts = |i: usize| {
+        let [first, last] = g.rows[i];
+        let split = first as usize + nodes[i].lower as usize;
+        (
+            &blocks[first as usize..split],
+            &blocks[split..last as usize],
+        )
+    };
+    // Forward: `(D - L) w = r`, `w` kept in `z`.
+    for k in 0..out.len() {
+        let i = start + k;
+        if g.fixed[i] {
+            out[k].z = [0.0; 4];
+            continue;
+        }
+        let mut acc = out[k].r;
+        for b in parts(i).0 {
+            let q = sym_mul(&b.s, out[b.other as usize - start].z);
+            for c in 0..3 {
+                acc[c] += q[c];
+            }
+        }
+        let z = sym_mul(&nodes[i].inverse, acc);
+        out[k].z = [z[0], z[1], z[2], 0.0];
+    }
+    // Backward: `(D - U) z = D w`, i.e. `z_i = w_i + D_i^-1 sum_(j > i) S_ij z_j`.
+    for k in (0..out.len()).rev() {
+        let i = start + k;
+        if g.fixed[i] {
+            continue;
+        }
+        let mut acc = [0.0f32; 4];
+        for b in parts(i).1 {
+            let j = b.other as usize;
+            if j > i && j < end {
+                let q = sym_mul(&b.s, out[j - start].z);
+                for c in 0..3 {
+                    acc[c] += q[c];
+                }
+            }
+        }
+        let z = sym_mul(&nodes[i].inverse, acc);
+        for (out, z) in out[k].z.iter_mut().zip(z) {
+            *out += z;
+        }
+    }
 }
 
 /// `p = z + beta p` (`p = z` without `beta`).

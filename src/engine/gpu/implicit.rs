@@ -6,8 +6,10 @@
 //! iteration count is the shader's own, exact, not rounded to the batch size.
 //!
 //! The product gathers over the connectivity table or the valence buckets (the layout's
-//! `row_of` joined to the shader); the edge layout has none yet and the engine refuses it with
-//! [`crate::Error::Unsupported`].
+//! `row_of` joined to the shader), or, on the edge layout, runs as the edge layout's gather
+//! variant: a pass over the springs stores each spring's block product, a pass over the nodes
+//! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's atomic
+//! variants have no incidence table: the implicit step refuses them.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -27,6 +29,7 @@ pub const ITERATIONS_PER_SUBMISSION: u32 = 16;
 const CONNECTIVITY: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/implicit_connectivity.wgsl")
 );
 
@@ -34,8 +37,16 @@ const CONNECTIVITY: &str = concat!(
 const VALENCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/valence_buckets.wgsl"),
     include_str!("../../../shaders/implicit_valence.wgsl")
+);
+
+/// The solve over the edge layout's springs and incidence table.
+const EDGES: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_edges.wgsl")
 );
 
 /// The solver vectors held in one buffer, in this order (see the shader).
@@ -60,7 +71,8 @@ pub struct SolveUniform {
     max_iterations: u32,
     groups: u32,
     stride: u32,
-    pad: [u32; 2],
+    springs: u32,
+    pad: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<SolveUniform>() == 64);
@@ -73,7 +85,9 @@ pub enum SolvePass {
     Setup,
     /// `|b|`, the first `r . z`, the status.
     Start,
-    /// `A p`.
+    /// The edge layout's spring pass of `A p`: each spring's block product.
+    SpringMultiply,
+    /// `A p` (on the edge layout, gathered from [`SolvePass::SpringMultiply`]).
     Multiply,
     /// `rz / pap`.
     StepLength,
@@ -88,9 +102,10 @@ pub enum SolvePass {
 }
 
 impl SolvePass {
-    const ALL: [SolvePass; 8] = [
+    const ALL: [SolvePass; 9] = [
         SolvePass::Setup,
         SolvePass::Start,
+        SolvePass::SpringMultiply,
         SolvePass::Multiply,
         SolvePass::StepLength,
         SolvePass::Update,
@@ -103,6 +118,7 @@ impl SolvePass {
         match self {
             SolvePass::Setup => "setup",
             SolvePass::Start => "start",
+            SolvePass::SpringMultiply => "spring_multiply",
             SolvePass::Multiply => "multiply",
             SolvePass::StepLength => "step_length",
             SolvePass::Update => "update",
@@ -112,11 +128,14 @@ impl SolvePass {
         }
     }
 
-    /// Whether the pass runs over the nodes (else in one workgroup).
+    /// Whether the pass runs over the nodes (else over the springs, or in one workgroup).
     fn over_nodes(self) -> bool {
         !matches!(
             self,
-            SolvePass::Start | SolvePass::StepLength | SolvePass::Residual
+            SolvePass::Start
+                | SolvePass::StepLength
+                | SolvePass::Residual
+                | SolvePass::SpringMultiply
         )
     }
 }
@@ -128,7 +147,14 @@ pub struct ImplicitSolver {
     uniform_data: SolveUniform,
     uniform: wgpu::Buffer,
     layout: wgpu::BindGroupLayout,
-    pipelines: Vec<wgpu::ComputePipeline>,
+    /// One per [`SolvePass::ALL`]; `None` for the spring pass of a node-centric layout.
+    pipelines: Vec<Option<wgpu::ComputePipeline>>,
+    /// Whether the product runs as the edge layout's spring and node passes.
+    edges: bool,
+    /// The edge layout's per-spring block products (a placeholder on the other layouts).
+    spring_values: wgpu::Buffer,
+    /// The workgroups of a dispatch over the spring records (edge layout).
+    spring_groups: (u32, u32),
     vectors: wgpu::Buffer,
     reduce: wgpu::Buffer,
     staging: wgpu::Buffer,
@@ -170,7 +196,8 @@ impl ImplicitSolver {
             max_iterations: settings.max_iterations,
             groups: 0,
             stride: 0,
-            pad: [0; 2],
+            springs: 0,
+            pad: 0,
         };
         let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("solve constants"),
@@ -195,15 +222,34 @@ impl ImplicitSolver {
                 bindings.push(true);
                 VALENCE
             }
-            LayoutKind::Edges => return Err(edge_refusal()),
+            LayoutKind::Edges => {
+                let most = ctx.limits.max_storage_buffers_per_shader_stage;
+                if most < 11 {
+                    return Err(Error::Unsupported(format!(
+                        "the implicit step over the edge layout binds 11 storage buffers, {} \
+                         allows {most}: use --layout connectivity",
+                        ctx.info.name
+                    )));
+                }
+                // Incidence rows and entries (read), the spring values (written).
+                bindings.extend([true, true, false]);
+                EDGES
+            }
         };
+        let edges = kind == LayoutKind::Edges;
         let layout = buffers::pass_layout(ctx, "implicit solve", &bindings);
         let pipelines = SolvePass::ALL
             .iter()
             .map(|pass| {
+                if *pass == SolvePass::SpringMultiply && !edges {
+                    return Ok(None);
+                }
                 buffers::compute_pipeline_at(ctx, pass.entry(), source, pass.entry(), &[&layout])
+                    .map(Some)
             })
             .collect::<Result<Vec<_>>>()?;
+        let spring_values =
+            buffers::zeroed_storage(ctx, "solver spring values", 16, buffers::Sizing::Exact)?;
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("solve status"),
             size: SCALARS,
@@ -217,6 +263,9 @@ impl ImplicitSolver {
             uniform,
             layout,
             pipelines,
+            edges,
+            spring_values,
+            spring_groups: (0, 0),
             vectors,
             reduce,
             staging,
@@ -247,30 +296,44 @@ impl ImplicitSolver {
         Ok((vectors, reduce))
     }
 
-    /// Bind the layout's slot and mass buffers and the node state (again after a patch, which
-    /// may have replaced any of them), with the dispatch sizes and connectivity width of now;
-    /// the solver buffers grow with the state.
+    /// Bind the layout's slot (or edge spring) and mass buffers, its further tables (the
+    /// valence buckets; the edge layout's incidence rows and entries) and the node state (again
+    /// after a patch, which may have replaced any of them), with the dispatch sizes and
+    /// connectivity width of now; the solver buffers grow with the state and the springs.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn rebind(
         &mut self,
         ctx: &GpuContext,
         slots: &wgpu::Buffer,
         inv_mass: &wgpu::Buffer,
-        table: Option<&wgpu::Buffer>,
+        tables: &[&wgpu::Buffer],
         state: &StateBuffers,
         n: u32,
         width: u32,
         row: u32,
         groups: (u32, u32),
+        springs: (u32, (u32, u32)),
     ) -> Result<()> {
         let capacity = state.capacity();
         if self.vectors.size() < VECTORS * capacity as u64 * 16 {
             (self.vectors, self.reduce) = Self::solver_buffers(ctx, capacity)?;
         }
+        // Room for every spring record the layout's buffer holds, so that most patches keep it.
+        let records = slots.size() / 32;
+        if self.edges && self.spring_values.size() < records.max(1) * 16 {
+            self.spring_values = buffers::zeroed_storage(
+                ctx,
+                "solver spring values",
+                records.max(1) * 16,
+                buffers::Sizing::Exact,
+            )?;
+        }
+        self.spring_groups = springs.1;
         let u = &mut self.uniform_data;
         (u.n, u.width, u.row) = (n, width, row);
         u.groups = group_count(groups);
         u.stride = capacity as u32;
+        u.springs = springs.0;
         self.write_uniform(ctx);
         self.bind_groups = (0..state.phases())
             .map(|phase| {
@@ -286,7 +349,10 @@ impl ImplicitSolver {
                     &self.vectors,
                     &self.reduce,
                 ];
-                bound.extend(table);
+                bound.extend(tables);
+                if self.edges {
+                    bound.push(&self.spring_values);
+                }
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("implicit solve"),
                     layout: &self.layout,
@@ -341,9 +407,17 @@ impl ImplicitSolver {
         groups: (u32, u32),
     ) {
         let index = SolvePass::ALL.iter().position(|&p| p == which).unwrap_or(0);
-        pass.set_pipeline(&self.pipelines[index]);
+        // Only the spring pass of a node-centric layout has no pipeline: nothing to run.
+        let Some(pipeline) = &self.pipelines[index] else {
+            return;
+        };
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind_groups[phase], &[]);
-        let g = if which.over_nodes() { groups } else { (1, 1) };
+        let g = match which {
+            SolvePass::SpringMultiply => self.spring_groups,
+            w if w.over_nodes() => groups,
+            _ => (1, 1),
+        };
         pass.dispatch_workgroups(g.0, g.1, 1);
     }
 
@@ -401,6 +475,7 @@ impl ImplicitSolver {
                 }
                 for _ in 0..ITERATIONS_PER_SUBMISSION.min(max) {
                     for which in [
+                        SolvePass::SpringMultiply,
                         SolvePass::Multiply,
                         SolvePass::StepLength,
                         SolvePass::Update,
@@ -484,19 +559,28 @@ impl ImplicitSolver {
     }
 }
 
-/// Refuse an implicit integrator on a layout without the product yet.
-pub(super) fn check_layout(integrator: Integrator, kind: LayoutKind) -> Result<()> {
-    if integrator.is_implicit() && kind == LayoutKind::Edges {
-        return Err(edge_refusal());
+/// Refuse an implicit integrator on the edge layout's atomic variants.
+pub(super) fn check_layout(
+    integrator: Integrator,
+    kind: LayoutKind,
+    accumulation: crate::layout::edges::Accumulation,
+) -> Result<()> {
+    if integrator.is_implicit()
+        && kind == LayoutKind::Edges
+        && accumulation != crate::layout::edges::Accumulation::Gather
+    {
+        return Err(atomic_refusal());
     }
     Ok(())
 }
 
-fn edge_refusal() -> Error {
+/// The implicit step's refusal of the edge layout's atomic variants, which have no incidence
+/// table to gather the spring products over.
+fn atomic_refusal() -> Error {
     Error::Unsupported(
-        "the GPU engine's implicit step (integrator BackwardEuler) runs on the connectivity and \
-         valence layouts only so far, not the edge layout: use --layout connectivity (layout: \
-         Connectivity) or --layout valence, or the reference engine"
+        "the GPU engine's implicit step (integrator BackwardEuler) runs on the edge layout's \
+         gather variant only, not its atomic accumulations: leave --accumulation out (gather) \
+         or use --layout connectivity"
             .into(),
     )
 }
@@ -508,27 +592,44 @@ impl GpuEngine {
         let Some(solver) = self.implicit.as_mut() else {
             return Ok(());
         };
-        let (width, table) = match (&self.layout, &self.passes) {
-            (PackedLayout::Connectivity(c), _) => (c.capacity, None),
-            (PackedLayout::Valence(_), Passes::Valence(p)) => (0, Some(p.table())),
-            (other, _) => return check_layout(self.config.integrator, other.kind()),
-        };
         let buffer = |a: LayoutArray| {
             self.passes
                 .buffer(a)
                 .ok_or_else(|| Error::Gpu(format!("no device buffer holds the {a:?} array")))
         };
+        let (width, records, tables) = match (&self.layout, &self.passes) {
+            (PackedLayout::Connectivity(c), _) => (c.capacity, LayoutArray::Slots, vec![]),
+            (PackedLayout::Valence(_), Passes::Valence(p)) => {
+                (0, LayoutArray::Slots, vec![p.table()])
+            }
+            (PackedLayout::Edges(_), Passes::Edges(_)) => (
+                0,
+                LayoutArray::EdgeSprings,
+                vec![
+                    buffer(LayoutArray::IncidenceRows)?,
+                    buffer(LayoutArray::Incidence)?,
+                ],
+            ),
+            (PackedLayout::Edges(_), _) => return Err(atomic_refusal()),
+            (other, _) => {
+                return Err(Error::Gpu(format!(
+                    "the {:?} layout's passes do not match it",
+                    other.kind()
+                )))
+            }
+        };
         solver.set_damped(&self.ctx, self.uniform_data.damped != 0);
         solver.rebind(
             &self.ctx,
-            buffer(LayoutArray::Slots)?,
+            buffer(records)?,
             buffer(LayoutArray::InvMass)?,
-            table,
+            &tables,
             &self.state,
             self.layout.node_slots() as u32,
             width,
             self.dispatch.row,
             self.dispatch.nodes,
+            (super::spring_records(&self.layout), self.dispatch.springs),
         )
     }
 

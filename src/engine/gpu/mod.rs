@@ -230,7 +230,7 @@ impl GpuEngine {
         mut layout: PackedLayout,
         accumulation: Accumulation,
     ) -> Result<Self> {
-        implicit::check_layout(config.integrator, layout.kind())?;
+        implicit::check_layout(config.integrator, layout.kind(), accumulation)?;
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
         let params = step_params(model, config);

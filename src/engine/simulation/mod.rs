@@ -75,6 +75,16 @@ fn make_engine(
             config.force_model
         )));
     }
+    let sgs = crate::physics::Preconditioner::SymmetricGaussSeidel;
+    if config.integrator.is_implicit()
+        && config.solver.preconditioner == sgs
+        && matches!(kind, EngineKind::Reference | EngineKind::Gpu)
+    {
+        return Err(Error::Unsupported(format!(
+            "the symmetric Gauss-Seidel preconditioner runs on the fast engine only, not on \
+             the {kind} engine: leave solver.preconditioner out (Auto) or choose BlockJacobi"
+        )));
+    }
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(
