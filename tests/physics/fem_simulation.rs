@@ -88,7 +88,7 @@ fn the_fast_and_gpu_engines_refuse_a_finite_element_model() {
 }
 
 #[test]
-fn a_step_above_the_finite_element_bound_and_a_cut_are_refused() {
+fn a_step_above_the_finite_element_bound_and_a_diff_naming_no_tet_are_refused() {
     let model = block();
     let kind = ForceModelKind::Corotational;
     let bound = kind.stable_time_step(&model).unwrap();
@@ -104,8 +104,19 @@ fn a_step_above_the_finite_element_bound_and_a_cut_are_refused() {
     assert!(matches!(err, Error::UnstableTimeStep { .. }), "{err}");
     let mut sim =
         Simulation::new(model, EngineKind::Reference, config(0.5 * bound.dt, kind)).unwrap();
-    let err = sim.apply(&ModelDiff::default()).unwrap_err();
-    assert!(matches!(err, Error::Unsupported(_)), "{err}");
+    // Cuts are taken (tests/cut/cut_fem.rs); a diff removing a tet the model does not have
+    // is refused before anything changes.
+    sim.apply(&ModelDiff::default()).unwrap();
+    let before = sim.model().clone();
+    let err = sim
+        .apply(&ModelDiff {
+            removed_tets: vec![[0, 1, 2, 1_000_000]],
+            ..ModelDiff::default()
+        })
+        .unwrap_err();
+    assert!(matches!(err, Error::DiffMismatch(_)), "{err}");
+    assert_eq!(sim.model(), &before);
+    assert_eq!(sim.bound().dt, kind.stable_time_step(&before).unwrap().dt);
 }
 
 #[test]
