@@ -16,11 +16,13 @@ pub enum ForceModelKind {
     #[default]
     Springs,
     /// Linear elasticity on constant-strain tets as node and edge tensors
-    /// ([`TensorMass`]): exact for small displacements, with ghost forces under rotation.
-    /// The float64 reference engine only, for now.
+    /// ([`super::TensorMass`]): exact for small displacements, with ghost forces under
+    /// rotation. The float64 reference engine and the fast float32 engine (explicit schemes);
+    /// not the GPU layouts yet.
     TensorMass,
-    /// Corotational linear elasticity ([`Corotational`]): no force under rigid motion. The
-    /// float64 reference engine only, for now.
+    /// Corotational linear elasticity ([`super::Corotational`]): no force under rigid motion.
+    /// The float64 reference engine and the fast float32 engine (explicit schemes); not the
+    /// GPU layouts yet.
     Corotational,
 }
 

@@ -1,5 +1,6 @@
 //! The finite-element force models in a simulation: chosen by `SimConfig::force_model` or a
-//! scene's `force_model`, run on the float64 reference engine and refused elsewhere; their
+//! scene's `force_model`, run on the float64 reference engine (and the fast engine,
+//! tests/engine/fast_fem.rs), refused on the GPU; their
 //! stable time step bounds the true critical step of explicit integration.
 
 use std::path::Path;
@@ -69,22 +70,30 @@ fn a_finite_element_model_runs_on_the_reference_engine_with_its_own_energy() {
 }
 
 #[test]
-fn the_fast_and_gpu_engines_refuse_a_finite_element_model() {
+fn the_gpu_engine_refuses_a_finite_element_model_and_auto_runs_the_fast_engine() {
     let model = block();
     let bound = ForceModelKind::TensorMass.stable_time_step(&model).unwrap();
-    for engine in [EngineKind::Fast, EngineKind::Gpu, EngineKind::Auto] {
-        let err = Simulation::new(
-            model.clone(),
-            engine,
-            config(0.5 * bound.dt, ForceModelKind::TensorMass),
-        )
-        .err()
-        .expect("refused");
-        assert!(
-            matches!(&err, Error::Unsupported(m) if m.contains("Reference")),
-            "{engine}: {err}"
-        );
-    }
+    let err = Simulation::new(
+        model.clone(),
+        EngineKind::Gpu,
+        config(0.5 * bound.dt, ForceModelKind::TensorMass),
+    )
+    .err()
+    .expect("refused");
+    assert!(
+        matches!(&err, Error::Unsupported(m) if m.contains("Fast") && m.contains("Reference")),
+        "{err}"
+    );
+    let auto = Simulation::new(
+        model,
+        EngineKind::Auto,
+        config(0.5 * bound.dt, ForceModelKind::TensorMass),
+    )
+    .unwrap();
+    assert_eq!(auto.kind(), EngineKind::Fast);
+    assert!(auto
+        .engine_note()
+        .is_some_and(|n| n.contains("tensor-mass")));
 }
 
 #[test]
