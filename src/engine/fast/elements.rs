@@ -511,7 +511,7 @@ impl FastElements {
                     .iter()
                     .flat_map(|s| s.k)
                     .fold(0.0f32, |m, v| m.max(v.abs()));
-                for i in 0..order.len() {
+                for (i, &node) in order.iter().enumerate() {
                     let row = |x: &Blocks| {
                         let [s, e] = x.rows[i];
                         x.slots[s as usize..e as usize].to_vec()
@@ -529,8 +529,7 @@ impl FastElements {
                         });
                     if !same {
                         out.push(format!(
-                            "fast engine: the tensor-mass row of node {} differs from a rebuild",
-                            order[i]
+                            "fast engine: the tensor-mass row of node {node} differs from a rebuild"
                         ));
                         break;
                     }
