@@ -7,8 +7,8 @@ use slotmap::SecondaryMap;
 
 use crate::mesh::{NodeKey, TetMesh};
 use crate::model::{
-    AddedNode, ModelDiff, ModelJournal, NodeChange, PackedSpring, SpringModel, SpringParams,
-    StateBlend,
+    AddedNode, ModelDiff, ModelJournal, NodeChange, PackedSpring, PackedTet, SpringModel,
+    SpringParams, StateBlend,
 };
 
 /// Where a node an edit makes starts its state: with a node's state (a copy of it), or with
@@ -93,6 +93,24 @@ pub fn diff_of(
             _ => {}
         }
     }
+    for (tk, before) in &changes.tets {
+        let after = mesh.tet(*tk);
+        if before.as_ref() == after.map(|t| &t.nodes) {
+            continue;
+        }
+        if let Some(b) = before {
+            diff.removed_tets.push(b.map(|k| dense[k]));
+        }
+        if let Some(t) = after {
+            diff.added_tets.push(PackedTet {
+                nodes: t.nodes.map(|k| dense[k]),
+                region: t.region,
+                material: *model.config().material_of(t.region),
+            });
+        }
+    }
+    diff.removed_tets.sort_unstable();
+    diff.added_tets.sort_by_key(|t| t.nodes);
     diff.removed_springs.sort_unstable();
     diff.added_springs.sort_by_key(|s| s.nodes);
     diff.changed_springs.sort_by_key(|s| s.nodes);

@@ -32,7 +32,8 @@ pub struct SimConfig {
     #[serde(default)]
     pub node_order: NodeOrdering,
     /// The force model the elements exert (default: springs). The finite-element models run
-    /// on the float64 reference engine only, for now: the fast and GPU engines refuse them.
+    /// on the float64 reference engine and, with an explicit scheme, the fast float32 engine;
+    /// the GPU engine refuses them (and `Auto` runs the fast engine, saying why).
     #[serde(default)]
     pub force_model: ForceModelKind,
 }

@@ -240,6 +240,28 @@ pub struct Health {
 }
 
 /// The error for a node index past the model.
+/// Append to the state `(x, v)` the nodes `diff` adds, where the engines start them: at rest
+/// displaced as their source node is (mixed with its blend partner), with its velocity, or at
+/// rest and still without a source. `rest` holds every node's rest position, the added ones
+/// included (the model after the change).
+pub(crate) fn grow_state(
+    rest: &[[f64; 3]],
+    x: &mut Vec<[f64; 3]>,
+    v: &mut Vec<[f64; 3]>,
+    diff: &crate::model::ModelDiff,
+) {
+    for a in &diff.added_nodes {
+        let d = a.start_value(|i| {
+            let i = i as usize;
+            [0, 1, 2].map(|c| x[i][c] - rest[i][c])
+        });
+        let p = d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]));
+        let u = a.start_value(|i| v[i as usize]).unwrap_or([0.0; 3]);
+        x.push(p);
+        v.push(u);
+    }
+}
+
 pub(crate) fn bad_node(i: u32, n: usize) -> Error {
     Error::NodeOutOfRange {
         node: i as u64,

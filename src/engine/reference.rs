@@ -4,8 +4,8 @@
 use super::{Engine, SimConfig};
 use crate::model::PackedModel;
 use crate::physics::{
-    integrator_for, ForceModel, ForceModelKind, NodeState, Nodes, SolverStats, SpringForces,
-    TimeIntegrator,
+    integrator_for, ElementForces, ForceModel, ForceModelKind, NodeState, Nodes, SolverStats,
+    SpringForces, TimeIntegrator,
 };
 
 type V3 = [f64; 3];
@@ -19,7 +19,7 @@ pub struct ReferenceEngine {
     integrator: Box<dyn TimeIntegrator>,
     state: NodeState,
     /// The finite-element force model, if one replaces the springs.
-    elements: Option<Box<dyn ForceModel + Send>>,
+    elements: Option<ElementForces>,
 }
 
 impl ReferenceEngine {
@@ -85,7 +85,7 @@ impl Engine for ReferenceEngine {
         };
         let springs = SpringForces::new(self.model.springs());
         let forces: &dyn ForceModel = match &self.elements {
-            Some(e) => e.as_ref(),
+            Some(e) => e,
             None => &springs,
         };
         for _ in 0..steps {
@@ -98,6 +98,47 @@ impl Engine for ReferenceEngine {
         match &self.elements {
             Some(e) => e.potential_energy(x),
             None => model.elastic_energy(x),
+        }
+    }
+
+    /// Springs: `None`, the simulation rebuilds the engine (serial and float64, it is the
+    /// reference, not the fast path). A finite-element model is patched: the removed tets'
+    /// shares subtracted and the added tets' added ([`ElementForces::patch`]), so that a cut's
+    /// update is checked against a rebuild ([`Engine::differences_from_rebuild`]).
+    fn patch(
+        &mut self,
+        model: &PackedModel,
+        diff: &crate::model::ModelDiff,
+    ) -> crate::Result<Option<super::PatchCost>> {
+        let Some(elements) = &mut self.elements else {
+            return Ok(None);
+        };
+        elements.patch(&model.rest, diff)?;
+        super::grow_state(&model.rest, &mut self.state.x, &mut self.state.v, diff);
+        self.model = model.clone();
+        // Nodes that became fixed are held at rest, as a new engine holds them.
+        for c in &diff.changed_nodes {
+            let i = c.node as usize;
+            if c.fixed {
+                self.state.x[i] = model.rest[i];
+                self.state.v[i] = [0.0; 3];
+            }
+        }
+        let memory = self.memory();
+        Ok(Some(super::PatchCost {
+            uploaded_bytes: 0,
+            copied_bytes: 0,
+            buffers_grown: 0,
+            layout_bytes: memory.stats.total,
+            state_moves: diff.added_nodes.len(),
+            reallocated: false,
+        }))
+    }
+
+    fn differences_from_rebuild(&self, model: &PackedModel) -> crate::Result<Vec<String>> {
+        match &self.elements {
+            Some(e) => e.differences_from_rebuild(model),
+            None => Ok(Vec::new()),
         }
     }
 

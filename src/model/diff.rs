@@ -17,7 +17,8 @@ use std::collections::HashSet;
 
 use rustc_hash::FxHashMap;
 
-use super::{PackedModel, PackedSpring};
+use super::tets::corner_set;
+use super::{PackedModel, PackedSpring, PackedTet};
 use crate::error::{Error, Result};
 use crate::mesh::NodeKey;
 
@@ -93,6 +94,13 @@ pub struct ModelDiff {
     pub added_springs: Vec<PackedSpring>,
     /// Springs whose rest length, stiffness or damping change, found by their end pair.
     pub changed_springs: Vec<PackedSpring>,
+    /// Tets removed (carved, split, or given new corners by a cut), by their corners in any
+    /// order: what a finite-element force model subtracts the shares of. Removed before
+    /// `added_tets` are added.
+    pub removed_tets: Vec<[u32; 4]>,
+    /// Tets added (split from a parent, or a tet given new corners), with their material:
+    /// what a finite-element force model adds the shares of. Corners may be new nodes.
+    pub added_tets: Vec<PackedTet>,
 }
 
 impl ModelDiff {
@@ -103,6 +111,8 @@ impl ModelDiff {
             && self.removed_springs.is_empty()
             && self.added_springs.is_empty()
             && self.changed_springs.is_empty()
+            && self.removed_tets.is_empty()
+            && self.added_tets.is_empty()
     }
 
     /// Every node whose springs, mass or fixed flag change (including added nodes), ascending.
@@ -113,6 +123,8 @@ impl ModelDiff {
             .chain(self.removed_springs.iter().flatten().copied())
             .chain(self.added_springs.iter().flat_map(|s| s.nodes))
             .chain(self.changed_springs.iter().flat_map(|s| s.nodes))
+            .chain(self.removed_tets.iter().flatten().copied())
+            .chain(self.added_tets.iter().flat_map(|t| t.nodes))
             .collect();
         t.sort_unstable();
         t.dedup();
@@ -305,6 +317,37 @@ impl PackedModel {
                 )));
             }
         }
+        self.tet_index.refresh(&self.tets);
+        let mut gone_tets = HashSet::new();
+        for &t in &diff.removed_tets {
+            if self.tet_index.get(&self.tets, t).is_none() {
+                // Edited in place since it was indexed: index again before refusing.
+                self.tet_index = super::tets::TetIndex::of(&self.tets);
+            }
+            if self.tet_index.get(&self.tets, t).is_none() || !gone_tets.insert(corner_set(t)) {
+                return Err(Error::DiffMismatch(format!(
+                    "cannot remove tet {t:?}: the model has no tet with those corners (or it is \
+                     removed twice)"
+                )));
+            }
+        }
+        let mut new_tets = HashSet::new();
+        for t in &diff.added_tets {
+            for &i in &t.nodes {
+                check_node(i, "an added tet")?;
+            }
+            let key = corner_set(t.nodes);
+            let distinct = key.windows(2).all(|w| w[0] != w[1]);
+            let exists =
+                self.tet_index.get(&self.tets, t.nodes).is_some() && !gone_tets.contains(&key);
+            if !distinct || exists || !new_tets.insert(key) {
+                return Err(Error::DiffMismatch(format!(
+                    "cannot add tet {:?}: its corners must be four distinct nodes not already \
+                     a tet of the model",
+                    t.nodes
+                )));
+            }
+        }
         // Validated: nothing below can fail.
         for a in &diff.added_nodes {
             self.node_keys.push(a.key);
@@ -336,6 +379,13 @@ impl PackedModel {
                 .expect("checked above");
             let nodes = self.springs[i].nodes;
             self.springs[i] = PackedSpring { nodes, ..*s };
+        }
+        for &t in &diff.removed_tets {
+            let i = self.tet_index.get(&self.tets, t).expect("checked above");
+            self.tet_index.swap_remove(&mut self.tets, i);
+        }
+        for t in &diff.added_tets {
+            self.tet_index.push(&mut self.tets, *t);
         }
         Ok(())
     }

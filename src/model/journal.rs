@@ -9,7 +9,7 @@
 
 use rustc_hash::FxHashMap;
 
-use crate::mesh::NodeKey;
+use crate::mesh::{NodeKey, TetKey};
 
 /// Rest length, stiffness and damping of a spring.
 pub type SpringParams = (f64, f64, f64);
@@ -22,12 +22,21 @@ pub struct ModelJournal {
     pub springs: FxHashMap<[NodeKey; 2], Option<SpringParams>>,
     /// Lumped mass (`None`: no tet held the node) and fixed flag.
     pub nodes: FxHashMap<NodeKey, (Option<f64>, bool)>,
+    /// Each tet's corners before its first change (`None`: the tet did not exist): a
+    /// finite-element model follows the tets, not the springs.
+    pub tets: FxHashMap<TetKey, Option<[NodeKey; 4]>>,
 }
 
 impl ModelJournal {
     /// Note spring `edge` as it is (`before`), unless it changed already.
     pub(super) fn spring(&mut self, edge: [NodeKey; 2], before: Option<SpringParams>) {
         self.springs.entry(edge).or_insert(before);
+    }
+
+    /// Note tet `t` as it is (`before`: its corners, `None` if it does not exist yet), unless
+    /// it changed already.
+    pub(super) fn tet(&mut self, t: TetKey, before: Option<[NodeKey; 4]>) {
+        self.tets.entry(t).or_insert(before);
     }
 
     /// Note node `n` as it is, unless it changed already.

@@ -29,7 +29,7 @@ pub use diff::{AddedNode, ModelDiff, NodeChange, StateBlend};
 pub use journal::{ModelJournal, SpringParams};
 pub use material::{Mass, Material, SpringDamping, Stiffness, StiffnessRule};
 pub use stability::{stable_time_step, stable_time_step_from_rows, BoundUndo, StabilityBound};
-pub use tets::PackedTet;
+pub use tets::{corner_set, PackedTet};
 
 new_key_type! {
     /// Stable identity of a spring.
@@ -341,6 +341,9 @@ impl SpringModel {
         let t = *mesh
             .tet(tk)
             .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
+        if let Some(j) = &mut self.journal {
+            j.tet(tk, Some(t.nodes));
+        }
         // A spring survives while another tet still holds its edge; likewise a node's mass.
         let mut removed = Vec::new();
         for &s in &share.springs {
@@ -377,6 +380,9 @@ impl SpringModel {
             .shares
             .get(tk)
             .ok_or_else(|| Error::Model("tet has no share in the model".into()))?;
+        if let Some(j) = &mut self.journal {
+            j.tet(tk, Some(old));
+        }
         for (i, (&o, &n)) in old.iter().zip(&new).enumerate() {
             if o == n {
                 continue;
@@ -476,6 +482,9 @@ impl SpringModel {
         let t = *mesh
             .tet(tk)
             .ok_or_else(|| Error::Model("tet is not in the mesh".into()))?;
+        if let Some(j) = &mut self.journal {
+            j.tet(tk, None);
+        }
         let at_node = t.nodes.map(|n| self.tets_at_node(n) + 1);
         let at_edge = TET_EDGES.map(|[a, b]| {
             let key = edge_key(t.nodes[a], t.nodes[b]);
@@ -586,7 +595,7 @@ impl SpringModel {
             })
             .collect();
         springs.sort_by_key(|s| s.nodes);
-        let tets = mesh
+        let tets: Vec<PackedTet> = mesh
             .tets()
             .map(|(_, t)| PackedTet {
                 nodes: t.nodes.map(|k| dense.index[k]),
@@ -595,6 +604,7 @@ impl SpringModel {
             })
             .collect();
         Ok(PackedModel {
+            tet_index: tets::TetIndex::of(&tets),
             tets,
             node_keys: dense.keys,
             rest,
@@ -640,12 +650,13 @@ pub struct PackedModel {
     pub mass_damping: f64,
     /// Where each spring is in `springs`, by end pair.
     index: diff::SpringIndex,
-    /// The tets with their region's material, in the mesh's storage order: what the
-    /// finite-element force models are built from. Packed from the mesh once; a model change
-    /// ([`PackedModel::apply`]) does not update them, which is why a simulation with a
-    /// finite-element model refuses changes (cuts) for now. Empty for a model made from springs
-    /// alone ([`PackedModel::from_springs`]).
+    /// The tets with their region's material, in the mesh's storage order when packed: what
+    /// the finite-element force models are built from. A diff ([`PackedModel::apply`]) moves the
+    /// last tet into the place of each it removes and appends those it adds, as for springs.
+    /// Empty for a model made from springs alone ([`PackedModel::from_springs`]).
     pub tets: Vec<PackedTet>,
+    /// Where each tet is in `tets`, by its corners.
+    tet_index: tets::TetIndex,
 }
 
 impl PackedModel {
@@ -704,6 +715,7 @@ impl PackedModel {
         }
         Ok(PackedModel {
             tets: Vec::new(),
+            tet_index: tets::TetIndex::default(),
             node_keys: vec![NodeKey::default(); n],
             fixed: vec![false; n],
             rest,
@@ -713,6 +725,18 @@ impl PackedModel {
             gravity: [0.0; 3],
             mass_damping: 0.0,
         })
+    }
+
+    /// The tet with corners `nodes` (in any order), if the model holds it.
+    pub fn tet(&self, nodes: [u32; 4]) -> Option<&PackedTet> {
+        match self.tet_index.get(&self.tets, nodes) {
+            Some(i) => Some(&self.tets[i]),
+            // The index is behind an edit in place of the public array: look it up by a scan.
+            None => {
+                let key = corner_set(nodes);
+                self.tets.iter().find(|t| corner_set(t.nodes) == key)
+            }
+        }
     }
 
     /// Elastic energy stored in the springs at positions `x`, J.

@@ -179,6 +179,44 @@ impl StabilityBound {
     /// the per-node bounds for the smallest). Returns what [`StabilityBound::undo`] needs to
     /// put the bound back, for a change that is then refused.
     pub fn update(&mut self, before: &PackedModel, diff: &super::ModelDiff) -> BoundUndo {
+        self.update_with(before, diff, |k_sum, c_sum| {
+            let mut add = |s: &super::PackedSpring, sign: f64| {
+                for &i in &s.nodes {
+                    if let (Some(k), Some(c)) =
+                        (k_sum.get_mut(i as usize), c_sum.get_mut(i as usize))
+                    {
+                        *k += sign * s.stiffness;
+                        *c += sign * s.damping;
+                    }
+                }
+            };
+            for &[a, c] in &diff.removed_springs {
+                if let Some(i) = before.spring_index(a, c) {
+                    add(&before.springs[i], -1.0);
+                }
+            }
+            for s in &diff.changed_springs {
+                if let Some(i) = before.spring_index(s.nodes[0], s.nodes[1]) {
+                    add(&before.springs[i], -1.0);
+                }
+                add(s, 1.0);
+            }
+            for s in &diff.added_springs {
+                add(s, 1.0);
+            }
+        })
+    }
+
+    /// [`StabilityBound::update`] with the change of the per-node stiffness and damping sums
+    /// made by `change` (given the sums, already grown to the node count after the diff): how
+    /// a finite-element model, whose sums come from its elements' rows, updates the bound. The
+    /// diff gives the nodes touched and their new masses and fixed flags.
+    pub fn update_with(
+        &mut self,
+        before: &PackedModel,
+        diff: &super::ModelDiff,
+        change: impl FnOnce(&mut [f64], &mut [f64]),
+    ) -> BoundUndo {
         let n0 = before.node_count();
         let n = n0 + diff.added_nodes.len();
         let touched = diff.touched_nodes(n0);
@@ -199,29 +237,7 @@ impl StabilityBound {
         self.per_node.resize(n, f64::INFINITY);
         self.k_sum.resize(n, 0.0);
         self.c_sum.resize(n, 0.0);
-        let (k_sum, c_sum) = (&mut self.k_sum, &mut self.c_sum);
-        let mut add = |s: &super::PackedSpring, sign: f64| {
-            for &i in &s.nodes {
-                if let (Some(k), Some(c)) = (k_sum.get_mut(i as usize), c_sum.get_mut(i as usize)) {
-                    *k += sign * s.stiffness;
-                    *c += sign * s.damping;
-                }
-            }
-        };
-        for &[a, c] in &diff.removed_springs {
-            if let Some(i) = before.spring_index(a, c) {
-                add(&before.springs[i], -1.0);
-            }
-        }
-        for s in &diff.changed_springs {
-            if let Some(i) = before.spring_index(s.nodes[0], s.nodes[1]) {
-                add(&before.springs[i], -1.0);
-            }
-            add(s, 1.0);
-        }
-        for s in &diff.added_springs {
-            add(s, 1.0);
-        }
+        change(&mut self.k_sum, &mut self.c_sum);
         let mut mass: std::collections::HashMap<u32, (f64, bool)> = diff
             .added_nodes
             .iter()

@@ -27,13 +27,18 @@ use nalgebra::Matrix3;
 
 use super::force_model::{axpy, dot, sub, ForceModel, Linearization, Mat3, Vec3};
 use super::linear_tet::TetElement;
-use crate::error::Result;
-use crate::model::PackedTet;
+use crate::error::{Error, Result};
+use crate::model::{corner_set, ModelDiff, PackedTet};
+use rustc_hash::FxHashMap;
 
 /// The corotational force model of a set of tets.
 #[derive(Debug)]
 pub struct Corotational {
+    /// The elements, in the order of the model's tets (a patch moves the last into the place
+    /// of each it removes, as [`crate::model::PackedModel::apply`] does).
     elements: Vec<TetElement>,
+    /// Where each element is in `elements`, by its corners as a set (never iterated).
+    by_corners: FxHashMap<[u32; 4], usize>,
     /// The rotations at the positions they were last computed at: an implicit solver asks
     /// for many products at the same positions, and the decompositions are most of a
     /// product's cost.
@@ -87,10 +92,60 @@ impl Corotational {
     /// The model of `tets` on rest positions `rest` (see [`TetElement::new`] for what each tet
     /// must satisfy).
     pub fn new(rest: &[Vec3], tets: &[PackedTet]) -> Result<Self> {
+        let elements = TetElement::all(rest, tets)?;
         Ok(Corotational {
-            elements: TetElement::all(rest, tets)?,
+            by_corners: elements
+                .iter()
+                .enumerate()
+                .map(|(i, e)| (corner_set(e.nodes), i))
+                .collect(),
+            elements,
             rotations: Mutex::new(RotationCache::default()),
         })
+    }
+
+    /// Follow a change of the model (what a cut makes): the elements of the removed tets go
+    /// (the last element taking each one's place, as the model's tets do), those of the added
+    /// tets, on `rest` (every node's rest position after the change), are appended. On error
+    /// (a removed tet the model does not hold, an added one that is not a valid element)
+    /// nothing changes.
+    pub fn patch(&mut self, rest: &[Vec3], diff: &ModelDiff) -> Result<()> {
+        let mut gone = std::collections::HashSet::new();
+        for &t in &diff.removed_tets {
+            let key = corner_set(t);
+            if !self.by_corners.contains_key(&key) || !gone.insert(key) {
+                return Err(Error::DiffMismatch(format!(
+                    "cannot remove tet {t:?}: the finite-element model holds no tet with those \
+                     corners (or it is removed twice)"
+                )));
+            }
+        }
+        let first = self.elements.len();
+        let added = diff
+            .added_tets
+            .iter()
+            .enumerate()
+            .map(|(k, t)| TetElement::new(rest, t, first + k))
+            .collect::<Result<Vec<TetElement>>>()?;
+        for &t in &diff.removed_tets {
+            let i = self
+                .by_corners
+                .remove(&corner_set(t))
+                .expect("checked above");
+            self.elements.swap_remove(i);
+            if let Some(moved) = self.elements.get(i) {
+                self.by_corners.insert(corner_set(moved.nodes), i);
+            }
+        }
+        for e in added {
+            self.by_corners
+                .insert(corner_set(e.nodes), self.elements.len());
+            self.elements.push(e);
+        }
+        // The cached rotations are by element: stale now.
+        let mut cache = self.rotations.lock().unwrap_or_else(|p| p.into_inner());
+        *cache = RotationCache::default();
+        Ok(())
     }
 
     /// The rotation of every element at positions `x`, computed once per positions.
@@ -135,7 +190,7 @@ impl Corotational {
     /// The corners' displacements in the element's frame, `R^T x_a - X_a`, each less corner
     /// 0's: `K_e` ignores a common translation, and the differences keep the rounding of a
     /// body far from the origin out of them.
-    fn local_displacements(e: &TetElement, r: &Mat3, x: &[Vec3]) -> [Vec3; 4] {
+    pub(crate) fn local_displacements(e: &TetElement, r: &Mat3, x: &[Vec3]) -> [Vec3; 4] {
         let origin = x[e.nodes[0] as usize];
         [0, 1, 2, 3].map(|a| {
             let p = rotate_back(r, sub(x[e.nodes[a] as usize], origin));

@@ -30,6 +30,7 @@
 
 pub mod backward_euler;
 pub mod corotational;
+pub mod element_forces;
 pub mod force_model;
 pub mod integrator;
 pub mod linear_tet;
@@ -48,6 +49,7 @@ mod tensor_mass_tests;
 
 pub use backward_euler::{BackwardEuler, Preconditioner, SolverSettings, SolverStats};
 pub use corotational::Corotational;
+pub use element_forces::{element_energy, ElementForces};
 pub use force_model::{ForceModel, Linearization, Mat3, Vec3};
 pub use integrator::{
     integrate, rescale_previous, state_buffers, state_traffic, velocity, Compensation, Integrator,

@@ -3,11 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::force_model::ForceModel;
-use super::linear_tet::{gershgorin_rows, TetElement};
-use super::{Corotational, TensorMass};
-use crate::error::Result;
-use crate::model::{stable_time_step_from_rows, PackedModel, StabilityBound};
+use super::element_forces::ElementForces;
+use super::linear_tet::{gershgorin_rows, spectral_norm, TetElement};
+use crate::error::{Error, Result};
+use crate::model::{stable_time_step_from_rows, BoundUndo, ModelDiff, PackedModel, StabilityBound};
 
 /// The force model of a simulation: what the elements of the model exert on its nodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -17,11 +16,13 @@ pub enum ForceModelKind {
     #[default]
     Springs,
     /// Linear elasticity on constant-strain tets as node and edge tensors
-    /// ([`TensorMass`]): exact for small displacements, with ghost forces under rotation.
-    /// The float64 reference engine only, for now.
+    /// ([`super::TensorMass`]): exact for small displacements, with ghost forces under
+    /// rotation. The float64 reference engine and the fast float32 engine (explicit schemes);
+    /// not the GPU layouts yet.
     TensorMass,
-    /// Corotational linear elasticity ([`Corotational`]): no force under rigid motion. The
-    /// float64 reference engine only, for now.
+    /// Corotational linear elasticity ([`super::Corotational`]): no force under rigid motion.
+    /// The float64 reference engine and the fast float32 engine (explicit schemes); not the
+    /// GPU layouts yet.
     Corotational,
 }
 
@@ -35,16 +36,8 @@ impl ForceModelKind {
     /// The finite-element force model of `model`'s tets, or `None` for springs (which the
     /// engines build from the springs themselves). Fails where the model has no tets or a tet's
     /// material has no Young's modulus (see [`TetElement::new`]).
-    pub fn element_forces(self, model: &PackedModel) -> Result<Option<Box<dyn ForceModel + Send>>> {
-        Ok(match self {
-            ForceModelKind::Springs => None,
-            ForceModelKind::TensorMass => {
-                Some(Box::new(TensorMass::new(&model.rest, &model.tets)?))
-            }
-            ForceModelKind::Corotational => {
-                Some(Box::new(Corotational::new(&model.rest, &model.tets)?))
-            }
-        })
+    pub fn element_forces(self, model: &PackedModel) -> Result<Option<ElementForces>> {
+        ElementForces::new(self, model)
     }
 
     /// The stable time step of explicit integration of `model` under this force model: the
@@ -65,6 +58,71 @@ impl ForceModelKind {
             &model.fixed,
             model.mass_damping,
         ))
+    }
+}
+
+impl ForceModelKind {
+    /// The elements a change removes (as they are in `before`) and adds (on the rest positions
+    /// after it: `before`'s and the added nodes'). Fails where a removed tet is not in
+    /// `before` or an added one is not a valid element, before anything changes.
+    pub fn diff_elements(
+        before: &PackedModel,
+        diff: &ModelDiff,
+    ) -> Result<(Vec<TetElement>, Vec<TetElement>)> {
+        let removed = diff
+            .removed_tets
+            .iter()
+            .map(|&t| {
+                let tet = before.tet(t).ok_or_else(|| {
+                    Error::DiffMismatch(format!(
+                        "cannot remove tet {t:?}: the model has no tet with those corners"
+                    ))
+                })?;
+                TetElement::new(&before.rest, tet, 0)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let rest: Vec<[f64; 3]> = before
+            .rest
+            .iter()
+            .copied()
+            .chain(diff.added_nodes.iter().map(|a| a.rest))
+            .collect();
+        let added = diff
+            .added_tets
+            .iter()
+            .enumerate()
+            .map(|(k, t)| TetElement::new(&rest, t, before.tets.len() + k))
+            .collect::<Result<Vec<_>>>()?;
+        Ok((removed, added))
+    }
+
+    /// Update `bound` (the stable step of `before` under this force model) for `diff`, touching
+    /// only the nodes the diff names: the springs' update, or for a finite-element model the
+    /// removed elements' Gershgorin rows subtracted and the added ones' added
+    /// ([`gershgorin_rows`]). Returns what [`StabilityBound::undo`] needs; on error (a tet the
+    /// diff names that cannot be an element) the bound is unchanged.
+    pub fn update_bound(
+        self,
+        bound: &mut StabilityBound,
+        before: &PackedModel,
+        diff: &ModelDiff,
+    ) -> Result<BoundUndo> {
+        if !self.is_finite_element() {
+            return Ok(bound.update(before, diff));
+        }
+        let (removed, added) = Self::diff_elements(before, diff)?;
+        Ok(bound.update_with(before, diff, |k_sum, c_sum| {
+            for (elements, sign) in [(&removed, -0.5), (&added, 0.5)] {
+                for e in elements {
+                    for a in 0..4 {
+                        let row: f64 = e.stiffness[a].iter().map(spectral_norm).sum();
+                        let i = e.nodes[a] as usize;
+                        k_sum[i] += sign * row;
+                        c_sum[i] += sign * e.beta * row;
+                    }
+                }
+            }
+        }))
     }
 }
 

@@ -21,7 +21,7 @@ use rustc_hash::FxHashMap;
 use super::force_model::{axpy, dot, mat_vec, sub, ForceModel, Linearization, Mat3, Vec3};
 use super::linear_tet::TetElement;
 use crate::error::{Error, Result};
-use crate::model::PackedTet;
+use crate::model::{corner_set, ModelDiff, PackedTet};
 
 /// The tensors of one edge: the block coupling its lower node `a` to its higher node `b`
 /// (the force on `a` is `-K_ab u_b`, on `b` is `-K_ab^T u_a`), for stiffness and damping.
@@ -48,6 +48,9 @@ pub struct TensorMass {
     edge_index: FxHashMap<[u32; 2], usize>,
     /// Each tet's share, `None` once removed.
     shares: Vec<Option<TetElement>>,
+    /// Where each tet still in the model is in `shares`, by its corners as a set (never
+    /// iterated).
+    by_corners: FxHashMap<[u32; 4], usize>,
 }
 
 fn add_scaled(target: &mut Mat3, s: f64, m: &Mat3) {
@@ -81,10 +84,10 @@ impl TensorMass {
             edges: Vec::new(),
             edge_index: FxHashMap::default(),
             shares: Vec::with_capacity(elements.len()),
+            by_corners: FxHashMap::default(),
         };
         for e in elements {
-            model.apply_share(&e, 1.0);
-            model.shares.push(Some(e));
+            model.push_share(e);
         }
         Ok(model)
     }
@@ -92,11 +95,56 @@ impl TensorMass {
     /// Add a tet (given as in [`TensorMass::new`]); returns its index for
     /// [`TensorMass::remove_tet`].
     pub fn add_tet(&mut self, tet: &PackedTet) -> Result<usize> {
+        let e = TetElement::new(&self.rest, tet, self.shares.len())?;
+        Ok(self.push_share(e))
+    }
+
+    /// Add element `e`'s share; returns its index.
+    fn push_share(&mut self, e: TetElement) -> usize {
         let index = self.shares.len();
-        let e = TetElement::new(&self.rest, tet, index)?;
         self.apply_share(&e, 1.0);
+        self.by_corners.insert(corner_set(e.nodes), index);
         self.shares.push(Some(e));
-        Ok(index)
+        index
+    }
+
+    /// Follow a change of the model (what a cut makes): the rest positions of the nodes it
+    /// added (`rest` holds every node's, after the change), the removed tets' shares
+    /// subtracted and the added tets' shares added, in the diff's order. Touches only the
+    /// tensors of the tets named. On error (a removed tet the model does not hold, an added
+    /// one that is not a valid element) nothing changes.
+    pub fn patch(&mut self, rest: &[Vec3], diff: &ModelDiff) -> Result<()> {
+        let gone = diff
+            .removed_tets
+            .iter()
+            .map(|&t| {
+                self.by_corners.get(&corner_set(t)).copied().ok_or_else(|| {
+                    Error::DiffMismatch(format!(
+                        "cannot remove tet {t:?}: the finite-element model holds no tet with \
+                         those corners"
+                    ))
+                })
+            })
+            .collect::<Result<Vec<usize>>>()?;
+        let first = self.shares.len();
+        let added = diff
+            .added_tets
+            .iter()
+            .enumerate()
+            .map(|(k, t)| TetElement::new(rest, t, first + k))
+            .collect::<Result<Vec<TetElement>>>()?;
+        if rest.len() > self.rest.len() {
+            self.rest.extend_from_slice(&rest[self.rest.len()..]);
+            self.node_stiffness.resize(rest.len(), [[0.0; 3]; 3]);
+            self.node_damping.resize(rest.len(), [[0.0; 3]; 3]);
+        }
+        for i in gone {
+            self.remove_tet(i)?;
+        }
+        for e in added {
+            self.push_share(e);
+        }
+        Ok(())
     }
 
     /// Subtract exactly what tet `index` (in the order given to [`TensorMass::new`], then
@@ -107,6 +155,7 @@ impl TensorMass {
             .get_mut(index)
             .and_then(Option::take)
             .ok_or_else(|| Error::Model(format!("tet {index} has no share in the model")))?;
+        self.by_corners.remove(&corner_set(e.nodes));
         self.apply_share(&e, -1.0);
         Ok(())
     }

@@ -35,7 +35,7 @@ use crate::engine::{Engine, EngineKind, GpuOptions, Integrator, SimConfig, Simul
 use crate::error::{Error, Result};
 use crate::layout::edges::Accumulation;
 use crate::layout::LayoutKind;
-use crate::model::{stable_time_step, PackedModel};
+use crate::model::PackedModel;
 use crate::physics::RungeKutta4;
 
 /// The default ladder of time steps, as fractions of the stable bound.
@@ -93,6 +93,11 @@ pub struct AccuracyOptions {
     /// first order only (see the module notes), so a study of the integrator's order starts
     /// from an unloaded state with a velocity instead.
     pub initial_velocity: Option<Vec<[f64; 3]>>,
+    /// The force model every run steps (the reference and each engine): springs by default;
+    /// [`scene_accuracy`] takes the scene's `force_model`. A finite-element model runs on the
+    /// CPU engines (GPU rows are skipped with the reason, as is backward Euler on the fast
+    /// engine), its ladder in fractions of its own stable bound.
+    pub force_model: crate::physics::ForceModelKind,
 }
 
 impl Default for AccuracyOptions {
@@ -113,6 +118,7 @@ impl Default for AccuracyOptions {
             warmup_steps: 20,
             batch: 500,
             initial_velocity: None,
+            force_model: crate::physics::ForceModelKind::Springs,
         }
     }
 }
@@ -194,6 +200,8 @@ pub struct AccuracyReport {
     pub springs: usize,
     /// Integration scheme.
     pub integrator: String,
+    /// Force model ("springs", "tensor-mass", "corotational").
+    pub force_model: String,
     /// Stable time-step bound, s.
     pub dt_bound: f64,
     /// Simulated times at which errors are measured, s.
@@ -447,7 +455,8 @@ fn run_reference(
     counts: &[u64],
     opts: &AccuracyOptions,
 ) -> Result<Run> {
-    let mut engine = ReferenceEngine::with_integrator(model, dt, Box::new(RungeKutta4::new()));
+    let mut engine = ReferenceEngine::with_integrator(model, dt, Box::new(RungeKutta4::new()))
+        .with_force_model(model, opts.force_model)?;
     let zero = vec![[0.0; 3]; model.node_count()];
     engine.set_state(&model.rest, opts.initial_velocity.as_ref().unwrap_or(&zero));
     let name = format!("{} ({})", engine.name(), engine.integrator_name());
@@ -500,7 +509,7 @@ pub fn model_accuracy(
     opts: &AccuracyOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<AccuracyReport> {
-    let bound = stable_time_step(model);
+    let bound = opts.force_model.stable_time_step(model)?;
     if !bound.dt.is_finite() {
         return Err(Error::Options(
             "the model has no finite stable time step (nothing free to oscillate), so there is \
@@ -557,6 +566,7 @@ pub fn model_accuracy(
     };
     let base = SimConfig {
         integrator,
+        force_model: opts.force_model,
         ..SimConfig::new(bound.dt)
     };
 
@@ -662,7 +672,9 @@ pub fn model_accuracy(
                 // without the implicit integrator, is skipped with the reason; the other
                 // series still run.
                 Err(Error::Unsupported(why))
-                    if *kind == EngineKind::Gpu || integrator.is_implicit() =>
+                    if *kind == EngineKind::Gpu
+                        || integrator.is_implicit()
+                        || opts.force_model.is_finite_element() =>
                 {
                     skipped.push(format!("{name} skipped: {why}"));
                     continue 'series;
@@ -690,6 +702,7 @@ pub fn model_accuracy(
         nodes: model.node_count(),
         springs: model.springs().len(),
         integrator: format!("{integrator:?}"),
+        force_model: opts.force_model.to_string(),
         dt_bound: bound.dt,
         sample_times: times,
         reference: reference_run,
@@ -734,7 +747,11 @@ pub fn scene_accuracy(
     let model = crate::model::SpringModel::build(&mesh, &model_config(scene))
         .map_err(|e| scene_err(e.to_string()))?
         .pack(&mesh)?;
-    let bound = stable_time_step(&model).dt;
+    let opts = &AccuracyOptions {
+        force_model: scene.force_model,
+        ..opts.clone()
+    };
+    let bound = scene.force_model.stable_time_step(&model)?.dt;
     let dt = match scene.dt {
         TimeStep::Seconds(s) => s,
         TimeStep::BoundFraction(f) => f * bound,

@@ -14,9 +14,7 @@ use crate::layout::edges::Accumulation;
 use crate::layout::LayoutKind;
 use crate::mesh::generate::{BoxGrid, TetSplit};
 use crate::mesh::TetMesh;
-use crate::model::{
-    stable_time_step, FixedSelector, Material, ModelConfig, PackedModel, SpringDamping,
-};
+use crate::model::{FixedSelector, Material, ModelConfig, PackedModel, SpringDamping};
 
 /// A mesh to benchmark on.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,6 +92,10 @@ pub struct BenchOptions {
     pub integrator: Integrator,
     /// The model every engine runs: the tissue of [`bench_model`] (`None`) or a preset's.
     pub preset: Option<Preset>,
+    /// The force model every engine steps (a finite-element one needs the tissue model, not
+    /// a preset's springs; the GPU rows are skipped with the reason, the GPU layouts do not
+    /// run it yet).
+    pub force_model: crate::physics::ForceModelKind,
 }
 
 /// The mass-spring benchmark that users of NVIDIA Warp, Newton and Taichi know (a box of
@@ -166,6 +168,7 @@ impl Default for BenchOptions {
             chunk: 20,
             integrator: Integrator::Verlet,
             preset: None,
+            force_model: crate::physics::ForceModelKind::Springs,
         }
     }
 }
@@ -181,6 +184,8 @@ pub struct BenchRow {
     pub springs: usize,
     /// Engine (and layout), with its device for the GPU.
     pub engine: String,
+    /// The force model stepped ("springs", "tensor-mass", "corotational").
+    pub force_model: String,
     /// GPU layout; none for the CPU engines.
     pub layout: Option<String>,
     /// Accumulation variant of the GPU edge layout ("gather", "atomic-fixed", "atomic-float");
@@ -348,13 +353,14 @@ pub fn run_bench(
                 let dt = if opts.integrator.is_implicit() {
                     IMPLICIT_BENCH_DT
                 } else {
-                    0.9 * stable_time_step(&model).dt
+                    0.9 * opts.force_model.stable_time_step(&model)?.dt
                 };
                 (model, dt)
             }
         };
         let base = SimConfig {
             integrator: opts.integrator,
+            force_model: opts.force_model,
             ..SimConfig::new(dt)
         };
         let total = opts.steps.max(opts.chunk);
@@ -369,6 +375,16 @@ pub fn run_bench(
                 let msg = format!(
                     "gpu rows skipped: the GPU engine has no {:?} yet",
                     opts.integrator
+                );
+                if !report.skipped.contains(&msg) {
+                    report.skipped.push(msg);
+                }
+                continue;
+            }
+            if v.engine == EngineKind::Gpu && opts.force_model.is_finite_element() {
+                let msg = format!(
+                    "gpu rows skipped: the GPU layouts do not run the {} force model yet",
+                    opts.force_model
                 );
                 if !report.skipped.contains(&msg) {
                     report.skipped.push(msg);
@@ -449,6 +465,7 @@ pub fn run_bench(
                 nodes: model.node_count(),
                 springs: model.springs().len(),
                 engine: sim.engine_name(),
+                force_model: opts.force_model.to_string(),
                 layout: v
                     .layout
                     .filter(|_| on_gpu)

@@ -10,6 +10,8 @@ pub mod cut_bench;
 pub mod device_copy;
 #[cfg(feature = "plot")]
 mod labels;
+#[cfg(feature = "scene")]
+pub mod model_error;
 #[cfg(feature = "plot")]
 pub mod plot;
 

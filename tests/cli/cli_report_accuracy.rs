@@ -178,3 +178,47 @@ fn accuracy_puts_backward_euler_above_the_bound_beside_the_explicit_series() {
         "{stdout}"
     );
 }
+
+/// `--model-error` on the cantilever fixture: one row per force model against Timoshenko's
+/// tip deflection in the JSON; a scene without an analytic answer exits with the reason.
+#[test]
+fn model_error_json_names_each_force_model_against_the_analytic_tip() {
+    let fixture = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/fixtures/scenes/fem_cantilever.ron"
+    );
+    let out = lancet(&[
+        "report",
+        "accuracy",
+        fixture,
+        "--model-error",
+        "--model-error-only",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let m = &v["model_error"];
+    assert!(m["analytic_tip_m"].as_f64().unwrap() < 0.0);
+    let models: Vec<&str> = m["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["force_model"].as_str().unwrap())
+        .collect();
+    assert_eq!(models, ["springs", "tensor-mass", "corotational"]);
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let out = lancet(&[
+        "report",
+        "accuracy",
+        &scene,
+        "--model-error",
+        "--model-error-only",
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("Beam"));
+}

@@ -10,6 +10,7 @@ mod models;
 #[path = "../common/splitmix.rs"]
 mod splitmix;
 
+mod cut_fem;
 mod cut_implicit;
 mod cut_per_node_models;
 mod cut_planar;

@@ -15,6 +15,7 @@ mod engine_agreement;
 mod engine_api;
 mod engine_correction;
 mod engine_patch;
+mod fast_fem;
 mod fast_implicit;
 mod fast_read_ahead;
 mod fast_simd;

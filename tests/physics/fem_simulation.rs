@@ -1,5 +1,6 @@
 //! The finite-element force models in a simulation: chosen by `SimConfig::force_model` or a
-//! scene's `force_model`, run on the float64 reference engine and refused elsewhere; their
+//! scene's `force_model`, run on the float64 reference engine (and the fast engine,
+//! tests/engine/fast_fem.rs), refused on the GPU; their
 //! stable time step bounds the true critical step of explicit integration.
 
 use std::path::Path;
@@ -69,26 +70,34 @@ fn a_finite_element_model_runs_on_the_reference_engine_with_its_own_energy() {
 }
 
 #[test]
-fn the_fast_and_gpu_engines_refuse_a_finite_element_model() {
+fn the_gpu_engine_refuses_a_finite_element_model_and_auto_runs_the_fast_engine() {
     let model = block();
     let bound = ForceModelKind::TensorMass.stable_time_step(&model).unwrap();
-    for engine in [EngineKind::Fast, EngineKind::Gpu, EngineKind::Auto] {
-        let err = Simulation::new(
-            model.clone(),
-            engine,
-            config(0.5 * bound.dt, ForceModelKind::TensorMass),
-        )
-        .err()
-        .expect("refused");
-        assert!(
-            matches!(&err, Error::Unsupported(m) if m.contains("Reference")),
-            "{engine}: {err}"
-        );
-    }
+    let err = Simulation::new(
+        model.clone(),
+        EngineKind::Gpu,
+        config(0.5 * bound.dt, ForceModelKind::TensorMass),
+    )
+    .err()
+    .expect("refused");
+    assert!(
+        matches!(&err, Error::Unsupported(m) if m.contains("Fast") && m.contains("Reference")),
+        "{err}"
+    );
+    let auto = Simulation::new(
+        model,
+        EngineKind::Auto,
+        config(0.5 * bound.dt, ForceModelKind::TensorMass),
+    )
+    .unwrap();
+    assert_eq!(auto.kind(), EngineKind::Fast);
+    assert!(auto
+        .engine_note()
+        .is_some_and(|n| n.contains("tensor-mass")));
 }
 
 #[test]
-fn a_step_above_the_finite_element_bound_and_a_cut_are_refused() {
+fn a_step_above_the_finite_element_bound_and_a_diff_naming_no_tet_are_refused() {
     let model = block();
     let kind = ForceModelKind::Corotational;
     let bound = kind.stable_time_step(&model).unwrap();
@@ -104,8 +113,19 @@ fn a_step_above_the_finite_element_bound_and_a_cut_are_refused() {
     assert!(matches!(err, Error::UnstableTimeStep { .. }), "{err}");
     let mut sim =
         Simulation::new(model, EngineKind::Reference, config(0.5 * bound.dt, kind)).unwrap();
-    let err = sim.apply(&ModelDiff::default()).unwrap_err();
-    assert!(matches!(err, Error::Unsupported(_)), "{err}");
+    // Cuts are taken (tests/cut/cut_fem.rs); a diff removing a tet the model does not have
+    // is refused before anything changes.
+    sim.apply(&ModelDiff::default()).unwrap();
+    let before = sim.model().clone();
+    let err = sim
+        .apply(&ModelDiff {
+            removed_tets: vec![[0, 1, 2, 1_000_000]],
+            ..ModelDiff::default()
+        })
+        .unwrap_err();
+    assert!(matches!(err, Error::DiffMismatch(_)), "{err}");
+    assert_eq!(sim.model(), &before);
+    assert_eq!(sim.bound().dt, kind.stable_time_step(&before).unwrap().dt);
 }
 
 #[test]

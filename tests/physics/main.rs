@@ -9,6 +9,7 @@ mod models;
 mod fem_simulation;
 mod fem_validation;
 mod implicit;
+mod model_error;
 mod model_springs;
 mod physics_beam;
 mod physics_energy;

@@ -2,12 +2,24 @@
 
 use super::*;
 
-/// Run the accuracy report, print it, write its plots.
+/// What `--model-error` asks for.
+pub(crate) struct ModelErrorArgs {
+    /// Measure the model error.
+    pub on: bool,
+    /// Meshes: the scene's and its refinements.
+    pub refinements: usize,
+    /// Skip the time-step ladder.
+    pub only: bool,
+}
+
+/// Run the accuracy report, print it, write its plots; with `--model-error`, the model error
+/// beside it.
 pub(crate) fn accuracy(
     scene_path: Option<&Path>,
     opts: &lancet::report::accuracy::AccuracyOptions,
     json: bool,
     plot: PlotTo,
+    model_error: ModelErrorArgs,
 ) -> lancet::Result<ExitCode> {
     let (scene, path) = match scene_path {
         None => (
@@ -16,6 +28,36 @@ pub(crate) fn accuracy(
         ),
         Some(p) => (Scene::read(p)?, p.to_path_buf()),
     };
+    let models = if model_error.on {
+        use lancet::physics::ForceModelKind;
+        let kinds = [
+            ForceModelKind::Springs,
+            ForceModelKind::TensorMass,
+            ForceModelKind::Corotational,
+        ];
+        Some(lancet::report::model_error::model_error(
+            &scene,
+            &kinds,
+            model_error.refinements,
+            |line| {
+                if !json {
+                    eprintln!("solving {line}");
+                }
+            },
+        )?)
+    } else {
+        None
+    };
+    if model_error.only {
+        let m = models.expect("--model-error-only requires --model-error");
+        if json {
+            let v = json!({ "model_error": m });
+            println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        } else {
+            print_model_error(&m);
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     let report = lancet::report::accuracy::scene_accuracy(&scene, &path, opts, |line| {
         if !json {
             eprintln!("running {line}");
@@ -34,12 +76,15 @@ pub(crate) fn accuracy(
         None => None,
     };
     if json {
-        let v = json!({ "report": report, "plots": plots });
+        let v = json!({ "report": report, "model_error": models, "plots": plots });
         println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         return Ok(ExitCode::SUCCESS);
     }
     print_accuracy(&report);
     print_time_to_error(&report, opts.target_error);
+    if let Some(m) = &models {
+        print_model_error(m);
+    }
     if let Some(p) = plots {
         for f in ["svg", "png"] {
             if let Some(path) = p.get(f).and_then(|v| v.as_str()) {
@@ -48,6 +93,37 @@ pub(crate) fn accuracy(
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The model-error table.
+pub(crate) fn print_model_error(m: &lancet::report::model_error::ModelErrorReport) {
+    println!("model error against {}", m.analytic);
+    println!("analytic tip deflection: {:.4e} m", m.analytic_tip_m);
+    println!(
+        "{:<14} {:>14} {:>8} {:>12} {:>9} {:>7} {:>8} {:>9}",
+        "force model", "cells", "tets", "tip (m)", "error", "newton", "cg its", "solve s"
+    );
+    for r in &m.rows {
+        println!(
+            "{:<14} {:>14} {:>8} {:>12.4e} {:>8.2}% {:>7} {:>8} {:>9.3}",
+            r.force_model,
+            format!(
+                "{} x {} x {}",
+                r.cells_along, r.cells_across, r.cells_across
+            ),
+            r.tets,
+            r.tip_m,
+            100.0 * r.relative_error,
+            r.newton,
+            r.cg_iterations,
+            r.solve_s
+        );
+    }
+    println!(
+        "error: (tip - analytic) / analytic of the static answer (float64); negative: stiffer \
+         than the beam. The time-step error above is against the same model, this against \
+         elasticity."
+    );
 }
 
 /// Write the plots; their paths (and a note when the PNG has no text) as JSON.
@@ -81,8 +157,8 @@ pub(crate) fn write_accuracy_plots(
 
 pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
     println!(
-        "scene: {} ({} nodes, {} springs), {}, stable bound {:.4e} s",
-        r.scene, r.nodes, r.springs, r.integrator, r.dt_bound
+        "scene: {} ({} nodes, {} springs), {}, force model {}, stable bound {:.4e} s",
+        r.scene, r.nodes, r.springs, r.integrator, r.force_model, r.dt_bound
     );
     let times: Vec<String> = r.sample_times.iter().map(|t| format!("{t:.4e}")).collect();
     println!("sample times (s): {}", times.join(", "));

@@ -244,6 +244,9 @@ pub(crate) fn bench(
         );
     }
     print_gpu_devices(rows.iter().map(|r| r.engine.as_str()));
+    if let Some(r) = rows.first() {
+        println!("force model: {}", r.force_model);
+    }
     println!(
         "{:<14} {:>8} {:>9} {:<24} {:<9} {:>9} {:>6} {:>9} {:>8} {:>10} {:>8} {:>7} {:>9}",
         "mesh",

@@ -176,6 +176,10 @@ enum Command {
         /// How the preset's box cells are split into tets (with --preset).
         #[arg(long, value_enum, default_value = "five")]
         split: SplitArg,
+        /// Force model every engine steps (finite elements: the CPU engines; GPU rows are
+        /// skipped with the reason).
+        #[arg(long, value_enum, default_value = "springs", conflicts_with = "preset")]
+        force_model: ForceModelArg,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -299,7 +303,40 @@ enum ReportCommand {
         /// Write no plots.
         #[arg(long, conflicts_with = "plot")]
         no_plot: bool,
+        /// Also measure the model error: each force model's static answer against an analytic
+        /// one (a Beam scene clamped at x = 0 under gravity: Timoshenko's tip deflection),
+        /// printed beside the time-step error.
+        #[arg(long)]
+        model_error: bool,
+        /// Meshes of the model-error table: the scene's, then twice and four times its cells
+        /// each way.
+        #[arg(long, default_value_t = 1, requires = "model_error")]
+        refinements: usize,
+        /// Only the model error: skip the time-step ladder.
+        #[arg(long, requires = "model_error")]
+        model_error_only: bool,
     },
+}
+
+/// A force model on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+enum ForceModelArg {
+    /// Springs on the tet edges.
+    Springs,
+    /// Linear finite elements as node and edge tensors.
+    TensorMass,
+    /// Corotational finite elements.
+    Corotational,
+}
+
+impl From<ForceModelArg> for lancet::physics::ForceModelKind {
+    fn from(a: ForceModelArg) -> Self {
+        match a {
+            ForceModelArg::Springs => Self::Springs,
+            ForceModelArg::TensorMass => Self::TensorMass,
+            ForceModelArg::Corotational => Self::Corotational,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -602,6 +639,9 @@ fn main() -> ExitCode {
                     json,
                     plot,
                     no_plot,
+                    model_error,
+                    refinements,
+                    model_error_only,
                 },
         } => {
             let opts = lancet::report::accuracy::AccuracyOptions {
@@ -624,7 +664,12 @@ fn main() -> ExitCode {
             } else {
                 plot.map_or(PlotTo::Default, PlotTo::Dir)
             };
-            accuracy(scene.as_deref(), &opts, json, plot)
+            let model_error = ModelErrorArgs {
+                on: model_error,
+                refinements,
+                only: model_error_only,
+            };
+            accuracy(scene.as_deref(), &opts, json, plot, model_error)
         }
         Command::Bench {
             what:
@@ -675,6 +720,7 @@ fn main() -> ExitCode {
             integrator,
             preset,
             split,
+            force_model,
             json,
         } => {
             let default_integrator = match preset {
@@ -689,6 +735,7 @@ fn main() -> ExitCode {
                 accumulations: accumulation.iter().map(|&a| a.into()).collect(),
                 orders: order.iter().map(|&o| o.into()).collect(),
                 steps,
+                force_model: force_model.into(),
                 ..Default::default()
             };
             bench(&cubes, &mesh, &opts, split.into(), json)

@@ -187,7 +187,7 @@ pub(super) fn euler_block<const DAMPED: bool>(
 /// `xo = x + step` plus what rounding lost at the last step, and what it loses now, kept in
 /// the `w` lanes of `xo` and `so` (the next second state), as `physics::integrate` does.
 #[inline(always)]
-fn advance(x: P, second: P, step: [f32; 3], xo: &mut P, so: &mut P) {
+pub(super) fn advance(x: P, second: P, step: [f32; 3], xo: &mut P, so: &mut P) {
     use crate::physics::Compensation;
     let carried = Compensation::decode(x, second);
     let mut lost = [0.0f32; 3];

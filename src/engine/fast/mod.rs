@@ -23,6 +23,7 @@
 //! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
 //! precision of each edge).
 
+mod elements;
 mod implicit;
 mod kernels;
 use kernels::*;
@@ -122,6 +123,9 @@ pub struct FastEngine {
     near_reads: super::NearReads,
     /// Backward Euler's solver and its scratch (`None` for the explicit schemes).
     implicit: Option<implicit::Implicit>,
+    /// The finite-element model that replaces the springs' force, if any
+    /// ([`FastEngine::with_force_model`]).
+    elements: Option<elements::FastElements>,
 }
 
 /// Nodes found in a box after a step, in node order, with their positions.
@@ -180,6 +184,7 @@ impl FastEngine {
             read_ahead: None,
             near_reads: Default::default(),
             implicit: None,
+            elements: None,
         };
         if config.integrator.is_implicit() {
             engine.implicit = Some(implicit::Implicit::new(
@@ -194,6 +199,36 @@ impl FastEngine {
         engine.graph.inv_mass.reserve(spare(n));
         engine.graph.fixed.reserve(spare(n));
         engine
+    }
+
+    /// Step with the finite-element force model `kind` of `model` (the model this engine was
+    /// built on) instead of the springs (see `elements.rs`); `Springs` changes nothing. Explicit
+    /// schemes only: with backward Euler it is refused, since the implicit solve takes the
+    /// springs' scalar stiffness as its Jacobian, not the elements' 3x3 blocks. Fails where the
+    /// model cannot have that force model (no tets, a tet without Young's modulus).
+    pub fn with_force_model(
+        mut self,
+        model: &PackedModel,
+        kind: crate::physics::ForceModelKind,
+    ) -> crate::Result<Self> {
+        if kind.is_finite_element() && self.integrator.is_implicit() {
+            return Err(crate::Error::Unsupported(format!(
+                "backward Euler with the {kind} force model on the fast engine: its implicit \
+                 solve takes the springs' scalar stiffness as its Jacobian, not the elements' \
+                 3x3 blocks; choose integrator Verlet or SymplecticEuler, or engine Reference"
+            )));
+        }
+        self.elements =
+            elements::FastElements::new(kind, model, &self.graph, &self.order, &self.rank)?;
+        Ok(self)
+    }
+
+    /// The name of the force model it steps.
+    pub fn force_model_name(&self) -> &'static str {
+        use crate::physics::ForceModel;
+        self.elements
+            .as_ref()
+            .map_or("springs", |e| e.reference().name())
     }
 
     /// Use the AVX2/FMA kernels or not (for comparing them with the baseline ones); they are
@@ -398,7 +433,18 @@ impl Engine for FastEngine {
     }
 
     fn differences_from_rebuild(&self, model: &PackedModel) -> crate::Result<Vec<String>> {
-        Ok(self.graph_differences(model))
+        let mut out = self.graph_differences(model);
+        if let Some(e) = &self.elements {
+            out.extend(e.differences(model, &self.graph, &self.order, &self.rank)?);
+        }
+        Ok(out)
+    }
+
+    fn elastic_energy(&self, model: &PackedModel, x: &[[f64; 3]]) -> f64 {
+        match &self.elements {
+            Some(e) => e.energy(x),
+            None => model.elastic_energy(x),
+        }
     }
 
     fn memory(&self) -> super::EngineMemory {
@@ -432,9 +478,16 @@ impl Engine for FastEngine {
             buffers.extend(imp.buffers());
         }
         // A step streams the adjacency once, reads the current state and writes the next;
-        // neighbours' state is re-read from cache, not memory, when the order is local.
+        // neighbours' state is re-read from cache, not memory, when the order is local. With
+        // finite elements, the element arrays replace the adjacency in the step.
         let state = 4 * n * p;
-        let bytes_per_step = slots * entry + n * 8 + n * 5 + state;
+        let bytes_per_step = match &self.elements {
+            Some(e) => {
+                buffers.extend(e.buffers());
+                e.bytes_per_step() + n * 5 + state
+            }
+            None => slots * entry + n * 8 + n * 5 + state,
+        };
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
                 buffers,
@@ -453,12 +506,38 @@ impl Engine for FastEngine {
         diff: &crate::model::ModelDiff,
     ) -> crate::Result<Option<super::PatchCost>> {
         self.read_ahead = None;
-        Ok(self.patch_in_place(model, diff))
+        if self
+            .elements
+            .as_ref()
+            .is_some_and(|e| e.needs_rebuild(&diff.added_tets))
+        {
+            return Ok(None);
+        }
+        let nodes_before = self.order.len();
+        let Some(mut cost) = self.patch_in_place(model, diff) else {
+            return Ok(None);
+        };
+        if let Some(e) = &mut self.elements {
+            cost.uploaded_bytes += e.patch(
+                model,
+                diff,
+                nodes_before,
+                &self.graph,
+                &self.order,
+                &self.rank,
+            )?;
+            cost.layout_bytes = self.memory().stats.total;
+        }
+        Ok(Some(cost))
     }
 
     fn step(&mut self, steps: u32) {
         self.read_ahead = None;
         for _ in 0..steps {
+            if self.elements.is_some() {
+                self.step_elements();
+                continue;
+            }
             match self.integrator {
                 Integrator::Verlet => self.step_verlet(),
                 Integrator::SymplecticEuler => self.step_euler(),

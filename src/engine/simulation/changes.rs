@@ -3,6 +3,7 @@
 //! leave; a new time step, a parameter of the step.
 
 use super::*;
+use crate::physics::element_energy;
 
 impl Simulation {
     /// Apply a change to the model between steps (what a cut produces): the GPU engine patches
@@ -56,17 +57,11 @@ impl Simulation {
         allow_unstable: bool,
         positions: Option<&[[f64; 3]]>,
     ) -> Result<PatchCost> {
-        if self.config.force_model.is_finite_element() {
-            // The packed tets and the element shares do not follow a diff yet.
-            return Err(Error::Unsupported(format!(
-                "model changes (cuts) with the {} force model are not supported yet; run cuts \
-                 with force_model: Springs",
-                self.config.force_model
-            )));
-        }
-        // Everything below touches only what the diff names, so that a local cut costs the
-        // same on a large mesh as on a small one.
-        let undo = self.bound.update(&self.model, diff);
+        // A finite-element model's bound follows the elements the diff removes and adds.
+        let undo = self
+            .config
+            .force_model
+            .update_bound(&mut self.bound, &self.model, diff)?;
         if self.config.dt > self.bound.dt
             && !allow_unstable
             && !self.config.integrator.is_implicit()
@@ -96,18 +91,7 @@ impl Simulation {
             None => {
                 let (mut x, mut v) = self.engine.state();
                 let before = x.len();
-                for a in &diff.added_nodes {
-                    // The source's displacement and velocity, mixed with the blend partner's.
-                    let rest = &self.model.rest;
-                    let d = a.start_value(|i| {
-                        let i = i as usize;
-                        [0, 1, 2].map(|c| x[i][c] - rest[i][c])
-                    });
-                    let p = d.map_or(a.rest, |d| [0, 1, 2].map(|c| a.rest[c] + d[c]));
-                    let u = a.start_value(|i| v[i as usize]).unwrap_or([0.0; 3]);
-                    x.push(p);
-                    v.push(u);
-                }
+                super::super::grow_state(&self.model.rest, &mut x, &mut v, diff);
                 debug_assert_eq!(x.len(), before + diff.added_nodes.len());
                 let (mut engine, _, _) =
                     make_engine(&self.model, self.kind, self.config, self.gpu, &self.host)?;
@@ -147,8 +131,9 @@ impl Simulation {
 
     /// Elastic energy, at the current positions, of the springs `diff` removes or changes (as
     /// they are) and of those it adds or changes (as they will be; a new node is displaced as
-    /// the node it copies, or as the mix of the two it blends). Reads back only the existing
-    /// nodes of those springs and sources, once, unless `positions` (all nodes, current) are
+    /// the node it copies, or as the mix of the two it blends); under a finite-element force
+    /// model, of the tets it removes and adds instead. Reads back only the existing nodes of
+    /// those springs, tets and sources, once, unless `positions` (all nodes, current) are
     /// given.
     pub(super) fn diff_elastic_energy(
         &self,
@@ -187,10 +172,17 @@ impl Simulation {
                 .get((i - n) as usize)
                 .map_or([None, None], |a| [a.state_from, a.blend.map(|b| b.with)])
         };
+        let kind = self.config.force_model;
+        let (old_tets, new_tets) = if kind.is_finite_element() {
+            ForceModelKind::diff_elements(&self.model, diff)?
+        } else {
+            (Vec::new(), Vec::new())
+        };
         let mut nodes: Vec<u32> = old
             .iter()
             .chain(&new)
             .flat_map(|s| s.nodes)
+            .chain(old_tets.iter().chain(&new_tets).flat_map(|e| e.nodes))
             .flat_map(sources)
             .flatten()
             .collect();
@@ -252,6 +244,15 @@ impl Simulation {
                 })
                 .sum()
         };
+        if kind.is_finite_element() {
+            let energy = |elements: &[crate::physics::TetElement]| -> f64 {
+                elements
+                    .iter()
+                    .map(|e| element_energy(kind, e, e.nodes.map(at)))
+                    .sum()
+            };
+            return Ok((energy(&old_tets), energy(&new_tets)));
+        }
         Ok((energy(&old), energy(&new)))
     }
 

@@ -68,10 +68,10 @@ fn make_engine(
     gpu: GpuOptions,
     host: &HostDevice,
 ) -> Result<Made> {
-    if config.force_model.is_finite_element() && kind != EngineKind::Reference {
+    if config.force_model.is_finite_element() && kind == EngineKind::Gpu {
         return Err(Error::Unsupported(format!(
-            "the {} force model runs on the float64 reference engine only for now, not on \
-             the {kind} engine: choose engine: Reference (--engine reference)",
+            "the {} force model runs on the CPU engines only for now, not on the GPU layouts: \
+             choose engine: Fast (--engine fast) or Reference (--engine reference)",
             config.force_model
         )));
     }
@@ -85,6 +85,11 @@ fn make_engine(
              the {kind} engine: leave solver.preconditioner out (Auto) or choose BlockJacobi"
         )));
     }
+    let fast = || -> Result<Box<dyn Engine>> {
+        Ok(Box::new(
+            fast::FastEngine::new(model, config).with_force_model(model, config.force_model)?,
+        ))
+    };
     Ok(match kind {
         EngineKind::Reference => (
             Box::new(
@@ -94,8 +99,16 @@ fn make_engine(
             kind,
             None,
         ),
-        EngineKind::Fast => (Box::new(fast::FastEngine::new(model, config)), kind, None),
+        EngineKind::Fast => (fast()?, kind, None),
         EngineKind::Gpu => (gpu_engine(model, config, gpu, host)?, kind, None),
+        EngineKind::Auto if config.force_model.is_finite_element() => (
+            fast()?,
+            EngineKind::Fast,
+            Some(format!(
+                "the GPU layouts do not run the {} force model yet; running the fast CPU engine",
+                config.force_model
+            )),
+        ),
         EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
