@@ -170,6 +170,18 @@ pub struct CutStage {
     copies: Vec<(u32, u32)>,
     /// What the cuts did so far.
     pub report: CutReport,
+    /// The cuts a render surface has not yet followed ([`CutStage::follow_cuts`]); `None`
+    /// when nothing follows them.
+    made: Option<Vec<CutMade>>,
+}
+
+/// What one cut changed, for a render surface to follow ([`crate::surface::Rebinder`]).
+#[derive(Debug, Clone)]
+pub struct CutMade {
+    /// The tets it removed, gave new corners or made.
+    pub tets: Vec<crate::mesh::TetKey>,
+    /// The blade's swept surface.
+    pub sweep: Sweep,
 }
 
 impl CutStage {
@@ -228,6 +240,7 @@ impl CutStage {
             bound_fraction,
             latencies: Vec::new(),
             copies: Vec::new(),
+            made: None,
             report: CutReport {
                 method: method.to_string(),
                 quality_floor,
@@ -235,6 +248,22 @@ impl CutStage {
                 ..CutReport::default()
             },
         }))
+    }
+
+    /// Keep what each cut changed until [`CutStage::take_cuts`] (a render surface follows
+    /// the cuts).
+    pub fn follow_cuts(&mut self) {
+        self.made.get_or_insert_with(Vec::new);
+    }
+
+    /// The cuts made since the last call, in order (empty unless [`CutStage::follow_cuts`]).
+    pub fn take_cuts(&mut self) -> Vec<CutMade> {
+        self.made.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// The cutter: the mesh as cut so far and its adjacency.
+    pub fn cutter(&self) -> &Cutter {
+        &self.cutter
     }
 
     /// Whether tool `i` of the scene cuts (and so is not pushed against as a contact).
@@ -313,6 +342,12 @@ impl CutStage {
             let applied = self.apply(sim, &outcome.diff)?;
             sim.edit_surface(&outcome.surface)?;
             let seconds = start.elapsed().as_secs_f64();
+            if let Some(made) = self.made.as_mut() {
+                made.push(CutMade {
+                    tets: outcome.tets_changed.clone(),
+                    sweep: sweep.clone(),
+                });
+            }
             self.latencies.push(seconds);
             // Copies of a node (splitting) sit at its rest position; nodes a subdivision puts
             // on an edge do not, and are not openings.

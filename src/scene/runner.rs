@@ -350,6 +350,9 @@ pub fn run_scene(
     if let Some(stage) = stage.as_mut() {
         let check = opts.check || scene.checks_cuts();
         stage.cut = super::cuts::CutStage::new(scene, opts.cut_method, check, &mesh, &model)?;
+        if let (Some(cut), true) = (stage.cut.as_mut(), surface.is_some()) {
+            cut.follow_cuts();
+        }
     }
     let method = stage
         .as_ref()
@@ -370,6 +373,9 @@ pub fn run_scene(
             // Tools move and touch every step: step one at a time.
             Some(stage) => (0..n).try_for_each(|k| {
                 stage.step(&mut sim)?;
+                if let (Some(s), Some(cut)) = (surface.as_mut(), stage.cut.as_mut()) {
+                    s.after_cuts(cut);
+                }
                 progress(done + k + 1, steps);
                 Ok(())
             }),
@@ -419,6 +425,13 @@ pub fn run_scene(
     if let Some((w, _)) = frames.as_mut() {
         w.finish()?;
         summary.frames_written = w.frames();
+    }
+    if let Some(s) = surface.as_mut() {
+        let current = stage
+            .as_ref()
+            .and_then(|s| s.cut.as_ref())
+            .map_or(&mesh, |c| c.mesh());
+        s.finish(current, &sim.positions());
     }
     summary.surface = surface.as_ref().map(super::surface::SurfaceStage::report);
     summary.energy = sim.energy();

@@ -8,17 +8,24 @@
 //!   holds it; an offset from the nearest boundary face for a vertex outside the mesh), and the
 //!   deformed surface evaluated from the node positions on the CPU.
 //! - [`vtp`]: the deformed surface per frame as VTK PolyData for ParaView (feature `vtu`).
+//! - [`rebind`]: after a cut, the vertices of the tets it changed bound again to the tet on
+//!   their side (only those; a carved vertex with nothing left on its side is dropped). The
+//!   cut's own faces are not added to the render surface yet: a cut opens it.
+//! - [`gap`]: the distance between the drawn surface and the simulation boundary.
 //! - [`grid`]: the uniform grid that finds a vertex's tet and nearest boundary face without
 //!   testing every tet.
 
 pub mod embed;
+pub mod gap;
 pub mod grid;
+pub mod rebind;
 #[cfg(feature = "surface-formats")]
 pub mod read;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 
 pub use embed::{Binding, Embedding};
+pub use rebind::{CutChange, Rebinder, Rebound};
 
 use crate::error::{Error, Result};
 
