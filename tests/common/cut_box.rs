@@ -150,7 +150,12 @@ impl Pulled {
 
     /// How the piece of tet `t` moved.
     pub fn of_tet(&self, t: lancet::TetKey) -> nalgebra::Vector3<f64> {
-        if self.piece[t] == self.minus {
+        self.of_side(self.piece[t] == self.minus)
+    }
+
+    /// How the piece on the blade's -y side (`minus`) or the other moved.
+    pub fn of_side(&self, minus: bool) -> nalgebra::Vector3<f64> {
+        if minus {
             nalgebra::Vector3::new(1e-3, -4e-3, 2e-3)
         } else {
             nalgebra::Vector3::new(-2e-3, 5e-3, -1e-3)

@@ -14,7 +14,7 @@ use crate::cut_box::{cloud, cut_once, cutter, sweeps, Pulled, H, Y0};
 
 /// Cut the box in three sweeps, the surface following each; returns the cutter, the embedding
 /// and the vertices rebound over all cuts.
-fn cut_with_surface(method: CutMethod) -> (Cutter, Embedding, usize) {
+fn cut_with_surface(method: CutMethod, check: bool) -> (Cutter, Embedding, usize) {
     let mut cutter = cutter(method);
     let surface = cloud(17, 900);
     let mut e = Embedding::new(cutter.mesh(), &surface).unwrap();
@@ -22,7 +22,9 @@ fn cut_with_surface(method: CutMethod) -> (Cutter, Embedding, usize) {
     let mut rebound = 0;
     for sweep in sweeps(3) {
         rebound += cut_once(&mut cutter, &sweep, Some((&mut rebinder, &mut e))).1;
-        check_bound(&cutter, &e);
+        if check {
+            check_bound(&cutter, &e);
+        }
     }
     (cutter, e, rebound)
 }
@@ -71,7 +73,7 @@ fn check_bound(cutter: &Cutter, e: &Embedding) {
 fn every_vertex_is_bound_in_the_cut_mesh_after_each_cut(
     #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
 ) {
-    let (cutter, e, rebound) = cut_with_surface(method);
+    let (cutter, e, rebound) = cut_with_surface(method, true);
     assert_eq!(cutter.mesh().component_count(), 2, "{method}: cut through");
     // The blade passes through a row of cells: a fair share of the vertices were near it.
     assert!(rebound > 40, "{method}: only {rebound} vertices rebound");
@@ -82,32 +84,30 @@ fn every_vertex_is_bound_in_the_cut_mesh_after_each_cut(
 fn the_two_sides_move_with_their_own_nodes(
     #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
 ) {
-    let (cutter, e, _) = cut_with_surface(method);
+    let (cutter, e, _) = cut_with_surface(method, false);
     let pulled = Pulled::apart(cutter.mesh());
     let got = e.evaluate(&pulled.x);
     let mut checked = 0;
-    for (v, b) in e.bindings.iter().enumerate() {
+    for v in 0..e.len() {
         if e.dropped[v] {
             continue;
         }
         let moved = Vector3::from(got[v]) - Vector3::from(e.rest[v]);
-        // Weights summing to one move a vertex as its tet's nodes when they move together.
-        let want = pulled.of_tet(b.tet());
+        // Carving rebinds by the blade's side; the other methods' cut follows the faces (or
+        // the sub-tets) near the blade, within a cell of it: nearer, a vertex moves with the
+        // piece its tet is in. Weights summing to one move a vertex as its tet's nodes when
+        // they move together.
+        let ry = e.rest[v][1];
+        let want = if method == CutMethod::Remove || (ry - Y0).abs() > H {
+            checked += 1;
+            pulled.of_side(ry < Y0)
+        } else {
+            pulled.of_tet(e.bindings[v].tet())
+        };
         assert!(
             (moved - want).norm() < 1e-12,
-            "{method}: vertex {v} moved {moved:?}, its piece {want:?}"
+            "{method}: vertex {v} at y {ry} moved {moved:?}, its side {want:?}"
         );
-        // Carving rebinds by the blade's side; the other methods' cut follows the faces (or
-        // the sub-tets) near the blade, within a cell of it.
-        let ry = e.rest[v][1];
-        if method == CutMethod::Remove || (ry - Y0).abs() > H {
-            assert_eq!(
-                pulled.piece[b.tet()] == pulled.minus,
-                ry < Y0,
-                "{method}: vertex {v} at y {ry} moves with the other side"
-            );
-            checked += 1;
-        }
     }
     assert!(checked > 300, "{method}: {checked} vertices checked");
 }
