@@ -21,9 +21,9 @@ use super::cuts::CutStage;
 use super::schema::{resolve_mesh_path, Scene};
 use crate::error::Result;
 use crate::mesh::TetMesh;
+use crate::surface::gap::{boundary_gap, Gap};
 use crate::surface::read::read_surface;
 use crate::surface::vtp::VtpSeries;
-use crate::surface::gap::{boundary_gap, Gap};
 use crate::surface::{CutChange, Embedding, Rebinder, RenderSurface};
 
 /// Where a scene's render surface comes from.

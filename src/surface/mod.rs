@@ -18,9 +18,9 @@
 pub mod embed;
 pub mod gap;
 pub mod grid;
-pub mod rebind;
 #[cfg(feature = "surface-formats")]
 pub mod read;
+pub mod rebind;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 

@@ -123,7 +123,9 @@ impl Rebinder {
             let p = Point3::from(embedding.rest[vi]);
             let old = embedding.bindings[vi];
             let found = match old {
-                Binding::Inside(_) => holding(&grid, &alive, &p).map(|(t, w)| (Binding::Inside(t), w)),
+                Binding::Inside(_) => {
+                    holding(&grid, &alive, &p).map(|(t, w)| (Binding::Inside(t), w))
+                }
                 // The same face, if still on the boundary with the vertex beyond it (a
                 // subdivision may have given the tet's key to another sub-tet).
                 Binding::Outside {
@@ -244,7 +246,12 @@ pub fn side_of(sweep: &Sweep, p: &Point3<f64>) -> bool {
     let nearest = sweep
         .triangles
         .iter()
-        .map(|t| (t, (closest_on_triangle(p, &t[0], &t[1], &t[2]) - p).norm_squared()))
+        .map(|t| {
+            (
+                t,
+                (closest_on_triangle(p, &t[0], &t[1], &t[2]) - p).norm_squared(),
+            )
+        })
         .min_by(|a, b| a.1.total_cmp(&b.1));
     match nearest {
         Some((t, _)) => (t[1] - t[0]).cross(&(t[2] - t[0])).dot(&(p - t[0])) >= 0.0,

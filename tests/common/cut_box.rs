@@ -51,8 +51,8 @@ pub fn cloud(seed: u64, n: usize) -> RenderSurface {
 /// so that the cut follows the blade by the parameter rule alone).
 pub fn cutter(method: CutMethod) -> Cutter {
     let mesh = box_mesh();
-    let model = SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3)))
-        .unwrap();
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
     Cutter::new(mesh, model, method)
         .unwrap()
         .with_quality_floor(0.0)
@@ -123,7 +123,11 @@ impl Pulled {
             y[piece[tk] as usize] += c;
             count[piece[tk] as usize] += 1.0;
         }
-        let minus = if y[0] / count[0] < y[1] / count[1] { 0 } else { 1 };
+        let minus = if y[0] / count[0] < y[1] / count[1] {
+            0
+        } else {
+            1
+        };
         let mut p = Pulled {
             x: Vec::new(),
             piece,
