@@ -99,13 +99,15 @@ impl Rebinder {
         let start = Instant::now();
         self.take_new_nodes(change.mesh);
         let mesh = change.mesh;
-        let mut affected: Vec<u32> = change
+        // Grouped by the tet they were bound to: those of a carved tet share its candidates.
+        let affected: Vec<u32> = change
             .tets
             .iter()
             .filter_map(|t| self.by_tet.remove(t))
             .flatten()
             .collect();
-        affected.sort_unstable();
+        // The boundary faces near the last carved tet looked at, with their sides.
+        let mut near: Option<(TetKey, Vec<Candidate>)> = None;
         let alive: Vec<(TetKey, [Point3<f64>; 4])> = change
             .tets
             .iter()
@@ -148,7 +150,13 @@ impl Rebinder {
                         )
                     }),
             };
-            let found = found.or_else(|| self.nearest_on_side(embedding, vi, &p, change));
+            let found = found.or_else(|| {
+                if near.as_ref().is_none_or(|(t, _)| *t != old.tet()) {
+                    near = Some((old.tet(), self.candidates(embedding.nodes[vi], change)));
+                }
+                let faces = &near.as_ref().expect("just made").1;
+                nearest_on_side(faces, &p, side_of(change.sweep, &p), mesh)
+            });
             match found {
                 Some((binding, w)) => {
                     let t = mesh.tet(binding.tet()).expect("a tet of the cut mesh");
@@ -165,25 +173,18 @@ impl Rebinder {
             }
         }
         out.vertices = affected;
+        out.vertices.sort_unstable();
         out.seconds = start.elapsed().as_secs_f64();
         out
     }
 
-    /// The nearest boundary face on the vertex's side of the sweep, among the tets within two
-    /// rings of its old corners: the outside binding to it.
-    fn nearest_on_side(
-        &self,
-        embedding: &Embedding,
-        v: usize,
-        p: &Point3<f64>,
-        change: &CutChange,
-    ) -> Option<(Binding, [f64; 4])> {
+    /// The boundary faces of the tets within two rings of the nodes `corners` (dense; a
+    /// carved tet's), each with the side of the sweep its centroid lies on.
+    fn candidates(&self, corners: [u32; 4], change: &CutChange) -> Vec<Candidate> {
         let (mesh, faces) = (change.mesh, change.faces);
-        let side = side_of(change.sweep, p);
         let mut ring: FxHashSet<TetKey> = FxHashSet::default();
-        let corners = embedding.nodes[v].map(|i| self.keys[i as usize]);
-        for n in corners {
-            ring.extend(faces.tets_at(n));
+        for i in corners {
+            ring.extend(faces.tets_at(self.keys[i as usize]));
         }
         let first: Vec<TetKey> = ring.iter().copied().collect();
         for t in first {
@@ -194,35 +195,63 @@ impl Rebinder {
         let mut ring: Vec<TetKey> = ring.into_iter().collect();
         // Ties go the same way every run.
         ring.sort_unstable();
-        let mut best: Option<(f64, TetKey, u8)> = None;
+        let mut out = Vec::new();
         for t in ring {
             let tet = mesh.tet(t).expect("a tet at a node");
-            for local in 0..4 {
+            for (local, corners) in TET_FACES.iter().enumerate() {
                 if faces.neighbour(t, tet, local).is_some() {
                     continue;
                 }
-                let f = TET_FACES[local].map(|i| mesh.rest(tet.nodes[i]));
-                let centre = Point3::from((f[0].coords + f[1].coords + f[2].coords) / 3.0);
-                if side_of(change.sweep, &centre) != side {
-                    continue;
-                }
-                let d = (closest_on_triangle(p, &f[0], &f[1], &f[2]) - p).norm();
-                if best.is_none_or(|b| d < b.0) {
-                    best = Some((d, t, local as u8));
-                }
+                let points = corners.map(|i| mesh.rest(tet.nodes[i]));
+                let centre =
+                    Point3::from((points[0].coords + points[1].coords + points[2].coords) / 3.0);
+                out.push(Candidate {
+                    tet: t,
+                    face: local as u8,
+                    points,
+                    side: side_of(change.sweep, &centre),
+                });
             }
         }
-        let (distance, tet, face) = best?;
-        let w = barycentric(&mesh.tet_points(mesh.tet(tet)?), p);
-        Some((
-            Binding::Outside {
-                tet,
-                face,
-                distance,
-            },
-            w,
-        ))
+        out
     }
+}
+
+/// A boundary face a carved vertex may be bound to.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    tet: TetKey,
+    face: u8,
+    points: [Point3<f64>; 3],
+    /// The side of the sweep its centroid lies on.
+    side: bool,
+}
+
+/// The outside binding of `p` to the nearest of `faces` on `side`.
+fn nearest_on_side(
+    faces: &[Candidate],
+    p: &Point3<f64>,
+    side: bool,
+    mesh: &TetMesh,
+) -> Option<(Binding, [f64; 4])> {
+    let mut best: Option<(f64, &Candidate)> = None;
+    for c in faces.iter().filter(|c| c.side == side) {
+        let [a, b, d] = &c.points;
+        let dist = (closest_on_triangle(p, a, b, d) - p).norm();
+        if best.is_none_or(|b| dist < b.0) {
+            best = Some((dist, c));
+        }
+    }
+    let (distance, c) = best?;
+    let w = barycentric(&mesh.tet_points(mesh.tet(c.tet)?), p);
+    Some((
+        Binding::Outside {
+            tet: c.tet,
+            face: c.face,
+            distance,
+        },
+        w,
+    ))
 }
 
 /// The tet among `alive` holding `p` (the one whose smallest weight is largest), with `p`'s

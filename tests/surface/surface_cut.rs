@@ -88,11 +88,11 @@ fn the_two_sides_move_with_their_own_nodes(
     let pulled = Pulled::apart(cutter.mesh());
     let got = e.evaluate(&pulled.x);
     let mut checked = 0;
-    for v in 0..e.len() {
+    for (v, at) in got.iter().enumerate() {
         if e.dropped[v] {
             continue;
         }
-        let moved = Vector3::from(got[v]) - Vector3::from(e.rest[v]);
+        let moved = Vector3::from(*at) - Vector3::from(e.rest[v]);
         // Carving rebinds by the blade's side; the other methods' cut follows the faces (or
         // the sub-tets) near the blade, within a cell of it: nearer, a vertex moves with the
         // piece its tet is in. Weights summing to one move a vertex as its tet's nodes when

@@ -97,7 +97,7 @@ impl EmbedPass {
         if bound.len() as u32 != self.count {
             (self.bound, self.vertices) = Self::buffers(ctx, bound)?;
             self.bind_groups.clear();
-            written = (bound.len() * size) as u64;
+            written = std::mem::size_of_val(bound) as u64;
         } else {
             let mut total = 0;
             let mut v = 0;
