@@ -24,7 +24,7 @@ impl Cutter {
             self.faces.remove(tk);
             self.model.remove_tet(&self.mesh, tk)?;
             self.mesh.remove_tet(tk);
-            self.tet_table.forget(tk);
+            self.forget_tet(tk);
         }
         self.volume_removed += outcome.volume_removed;
         self.crack

@@ -122,6 +122,9 @@ pub struct CutOutcome {
     pub classify_s: f64,
     /// Seconds spent editing the mesh and model and building the diff.
     pub edit_s: f64,
+    /// The tets this cut removed, gave new corners or made, sorted: what a render surface
+    /// embedded in the mesh rebinds ([`crate::surface::Embedding::rebind`]).
+    pub tets_changed: Vec<TetKey>,
 }
 
 impl CutOutcome {
@@ -188,6 +191,8 @@ pub struct Cutter {
     /// Crossings whose split waits for the blade to finish the tets around them (a split of
     /// part of a tet would fall below the quality floor).
     pending: std::collections::BTreeMap<[NodeKey; 2], subdivide::Crossing>,
+    /// Tets removed, re-cornered or made by the cut in progress (`CutOutcome::tets_changed`).
+    changed: Vec<TetKey>,
 }
 
 impl Cutter {
@@ -247,6 +252,7 @@ impl Cutter {
             quality_floor: subdivide::DEFAULT_QUALITY_FLOOR,
             families: template::Families::default(),
             pending: Default::default(),
+            changed: Vec::new(),
         })
     }
 
@@ -412,11 +418,18 @@ impl Cutter {
         c
     }
 
+    /// Forget removed tet `tk` in the tet table, and note it as changed.
+    fn forget_tet(&mut self, tk: TetKey) {
+        self.tet_table.forget(tk);
+        self.changed.push(tk);
+    }
+
     /// Bring tet `tk`'s entry in the tet table up to date (added, or given new corners).
     fn note_tet(&mut self, tk: TetKey) {
         let t = self.mesh.tet(tk).expect("a tet just made or changed");
         let c = t.nodes.map(|k| self.dense[k]);
         self.tet_table.set(tk, c);
+        self.changed.push(tk);
     }
 
     /// Dense indices of the corners of `tets` (repeats included).
@@ -561,6 +574,8 @@ impl Cutter {
         read: &mut ReadPositions,
     ) -> Result<CutOutcome> {
         let start = Instant::now();
+        // What a failed cut noted is not this one's.
+        self.changed.clear();
         if let Some((lo, hi)) = self.reading_box(sweep) {
             read.take_near(source.near(lo, hi)?)?;
             self.settle(read);
@@ -683,6 +698,10 @@ impl Cutter {
             added: to_dense(changes.added),
         };
         outcome.edit_s = start.elapsed().as_secs_f64() - outcome.classify_s;
+        let mut changed = std::mem::take(&mut self.changed);
+        changed.sort_unstable();
+        changed.dedup();
+        outcome.tets_changed = changed;
         outcome.read_s = read_s;
         outcome.nodes_read = read.near().len() + read.fetched();
         let d = &outcome.diff;

@@ -181,7 +181,7 @@ impl Cutter {
             }
             for &t in gone.iter().skip(count) {
                 self.mesh.remove_tet(t);
-                self.tet_table.forget(t);
+                self.forget_tet(t);
             }
             children.extend(keys.iter().copied());
             self.families.set_children(f, keys);

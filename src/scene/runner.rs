@@ -342,6 +342,11 @@ pub fn run_scene_with(
     world.set_up_scene(scene, opts)?;
     let mut driver = SceneDriver::new(scene);
     let method = world.cutting().map(|c| c.method());
+    if surface.is_some() {
+        if let Some(cut) = world.cutting_mut() {
+            cut.follow_cuts();
+        }
+    }
     summary.cut_method = method.map(|m| m.to_string());
     outputs.emit(
         scene,
@@ -369,6 +374,9 @@ pub fn run_scene_with(
             // Tools move and touch every step: step one at a time.
             (0..n).try_for_each(|k| {
                 driver.step(&mut world)?;
+                if let (Some(s), Some(cut)) = (surface.as_mut(), world.cutting_mut()) {
+                    s.after_cuts(cut);
+                }
                 progress(done + k + 1, steps);
                 Ok(())
             })
@@ -423,6 +431,9 @@ pub fn run_scene_with(
     if let Some((w, _)) = frames.as_mut() {
         w.finish()?;
         summary.frames_written = w.frames();
+    }
+    if let Some(s) = surface.as_mut() {
+        s.finish(world.mesh(), &world.positions());
     }
     summary.surface = surface.as_ref().map(super::surface::SurfaceStage::report);
     summary.frame_files = outputs.report();

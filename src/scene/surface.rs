@@ -7,21 +7,24 @@
 //! ```
 //!
 //! The path is found as the mesh's is (relative to the scene file's folder, or
-//! `$LANCET_MESH_DIR/...`). Cuts add nodes at the end of the node order and remove none, so
-//! the embedding made at rest stays valid through them; its vertices follow the nodes they
-//! were bound to (the side of a cut that kept the original nodes).
+//! `$LANCET_MESH_DIR/...`). After each cut the vertices of the tets it changed are bound again
+//! to the tet on their side ([`crate::surface::rebind`]; a carved vertex with nothing left on
+//! its side is dropped with its triangles). The cut's own faces are not added: a cut opens the
+//! render surface.
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::world::cutting::Cutting;
 use super::schema::{resolve_mesh_path, Scene};
 use crate::error::Result;
 use crate::mesh::TetMesh;
+use crate::surface::gap::{boundary_gap, Gap};
 use crate::surface::read::read_surface;
 use crate::surface::vtp::VtpSeries;
-use crate::surface::{Embedding, RenderSurface};
+use crate::surface::{CutChange, Embedding, Rebinder, RenderSurface};
 
 /// Where a scene's render surface comes from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -61,6 +64,22 @@ pub struct SurfaceReport {
     pub frames_written: usize,
     /// The `.pvd` series of the surface, if written.
     pub pvd: Option<PathBuf>,
+    /// Cuts the surface followed (rebinding the vertices of the tets each changed).
+    pub rebinds: usize,
+    /// Vertices rebound, over all cuts.
+    pub vertices_rebound: usize,
+    /// Vertices dropped (carved, nothing left on their side), with their triangles.
+    pub dropped: usize,
+    /// Time to rebind after a cut, ms: median.
+    pub rebind_p50_ms: f64,
+    /// 99th percentile, ms.
+    pub rebind_p99_ms: f64,
+    /// Largest, ms.
+    pub rebind_max_ms: f64,
+    /// Distance from the drawn vertices to the simulation boundary at rest, m.
+    pub gap_rest: Gap,
+    /// The same at the end of the run (cut and deformed).
+    pub gap_end: Gap,
 }
 
 /// The surface of a running scene, its embedding and its series of frames.
@@ -68,6 +87,14 @@ pub struct SurfaceStage {
     surface: RenderSurface,
     embedding: Embedding,
     series: Option<VtpSeries>,
+    /// Made at the first cut.
+    rebinder: Option<Rebinder>,
+    /// The surface as drawn, once a cut dropped vertices (their triangles left out).
+    drawn: Option<RenderSurface>,
+    rebind_s: Vec<f64>,
+    vertices_rebound: usize,
+    gap_rest: Gap,
+    gap_end: Gap,
 }
 
 impl SurfaceStage {
@@ -89,18 +116,74 @@ impl SurfaceStage {
         let surface = read_surface(&path)?.mapped(|p| t.apply(Point3::from(p)).into());
         let embedding = Embedding::new(mesh, &surface)?;
         let series = dir.map(|d| VtpSeries::new(d, &format!("{stem}_surface")));
+        let rest: Vec<[f64; 3]> = mesh.nodes().map(|(_, n)| n.rest.into()).collect();
+        let gap_rest = boundary_gap(&embedding, mesh, &rest);
         Ok(Some(SurfaceStage {
             surface,
             embedding,
             series,
+            rebinder: None,
+            drawn: None,
+            rebind_s: Vec::new(),
+            vertices_rebound: 0,
+            gap_rest,
+            gap_end: Gap::default(),
         }))
+    }
+
+    /// Follow the cuts `cut` made since the last call: rebind the vertices of the tets each
+    /// changed.
+    pub fn after_cuts(&mut self, cut: &mut Cutting) {
+        let made = cut.take_cuts();
+        if made.is_empty() {
+            return;
+        }
+        let cutter = cut.cutter();
+        let (mesh, faces) = (cutter.mesh(), cutter.faces());
+        let embedding = &mut self.embedding;
+        let rebinder = self
+            .rebinder
+            .get_or_insert_with(|| Rebinder::new(mesh, embedding));
+        let mut dropped = 0;
+        for m in &made {
+            let r = rebinder.rebind(
+                embedding,
+                &CutChange {
+                    mesh,
+                    faces,
+                    tets: &m.tets,
+                    sweep: &m.sweep,
+                },
+            );
+            self.rebind_s.push(r.seconds);
+            self.vertices_rebound += r.vertices.len();
+            dropped += r.dropped;
+        }
+        if dropped > 0 {
+            self.drawn = Some(RenderSurface {
+                positions: self.surface.positions.clone(),
+                triangles: embedding.drawn_triangles(&self.surface.triangles),
+            });
+        }
+    }
+
+    /// Measure the gap to the simulation boundary at the end of the run (`mesh` as cut, node
+    /// positions `x`).
+    pub fn finish(&mut self, mesh: &TetMesh, x: &[[f64; 3]]) {
+        self.gap_end = boundary_gap(&self.embedding, mesh, x);
+    }
+
+    /// The embedding as rebound so far.
+    pub fn embedding(&self) -> &Embedding {
+        &self.embedding
     }
 
     /// Write a frame at `time` from the node positions `x` (dense order), if frames are
     /// written.
     pub fn frame(&mut self, time: f64, x: &[[f64; 3]]) -> Result<()> {
         if let Some(series) = &mut self.series {
-            series.frame(time, &self.surface, &self.embedding.evaluate(x))?;
+            let surface = self.drawn.as_ref().unwrap_or(&self.surface);
+            series.frame(time, surface, &self.embedding.evaluate(x))?;
         }
         Ok(())
     }
@@ -118,6 +201,24 @@ impl SurfaceStage {
             outside: self.embedding.outside_count(),
             frames_written: self.series.as_ref().map_or(0, VtpSeries::frames),
             pvd: self.series.as_ref().map(VtpSeries::pvd_path),
+            rebinds: self.rebind_s.len(),
+            vertices_rebound: self.vertices_rebound,
+            dropped: self.embedding.dropped_count(),
+            rebind_p50_ms: 1e3 * percentile(&self.rebind_s, 0.5),
+            rebind_p99_ms: 1e3 * percentile(&self.rebind_s, 0.99),
+            rebind_max_ms: 1e3 * self.rebind_s.iter().copied().fold(0.0, f64::max),
+            gap_rest: self.gap_rest,
+            gap_end: self.gap_end,
         }
+    }
+}
+
+/// The `q` quantile of `samples` (nearest rank), 0 without samples.
+fn percentile(samples: &[f64], q: f64) -> f64 {
+    let mut l = samples.to_vec();
+    l.sort_by(f64::total_cmp);
+    match l.len() {
+        0 => 0.0,
+        n => l[((q * (n - 1) as f64).round() as usize).min(n - 1)],
     }
 }

@@ -64,11 +64,14 @@ pub struct Embedding {
     pub rest: Vec<[f64; 3]>,
     /// How each vertex is bound.
     pub bindings: Vec<Binding>,
+    /// Vertices a cut left with nothing on their side to bind to (carving): weights zero,
+    /// their triangles not drawn ([`Embedding::drawn_triangles`]).
+    pub dropped: Vec<bool>,
 }
 
 /// How far outside a tet (in barycentric weight) a vertex may lie and still count as in it:
 /// rounding, for vertices on a face or at a node.
-const INSIDE_TOLERANCE: f64 = 1e-10;
+pub(super) const INSIDE_TOLERANCE: f64 = 1e-10;
 
 /// The four barycentric coordinates of `p` in the tet `t` (extended outside it: negative
 /// where `p` lies beyond a face), each a ratio of signed volumes; a vertex at a node gets
@@ -129,7 +132,7 @@ pub fn closest_on_triangle(
 }
 
 /// The axis-aligned box of some points.
-fn bounds(points: &[Point3<f64>]) -> ([f64; 3], [f64; 3]) {
+pub(super) fn bounds(points: &[Point3<f64>]) -> ([f64; 3], [f64; 3]) {
     let mut lo = points[0].coords;
     let mut hi = lo;
     for p in &points[1..] {
@@ -162,6 +165,7 @@ impl Embedding {
             weights: Vec::with_capacity(surface.vertex_count()),
             rest: surface.positions.clone(),
             bindings: Vec::with_capacity(surface.vertex_count()),
+            dropped: vec![false; surface.vertex_count()],
         };
         for (v, x) in surface.positions.iter().enumerate() {
             let p = Point3::from(*x);
@@ -241,6 +245,20 @@ impl Embedding {
                 p
             })
             .collect()
+    }
+
+    /// The triangles of `triangles` (the surface's) whose vertices are all still drawn.
+    pub fn drawn_triangles(&self, triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| !self.dropped[v as usize]))
+            .copied()
+            .collect()
+    }
+
+    /// Vertices dropped by cuts.
+    pub fn dropped_count(&self) -> usize {
+        self.dropped.iter().filter(|&&d| d).count()
     }
 
     /// The vertices bound outside the mesh.

@@ -11,6 +11,10 @@
 //! - [`glb`]: triangle meshes per frame (the deformed surface, the tools) as binary glTF for
 //!   Blender, three.js and ParaView (feature `glb`).
 //! - [`colour`]: the displacement colour map of the pictures and the `.glb` vertex colours.
+//! - [`rebind`]: after a cut, the vertices of the tets it changed bound again to the tet on
+//!   their side (only those; a carved vertex with nothing left on its side is dropped). The
+//!   cut's own faces are not added to the render surface yet: a cut opens it.
+//! - [`gap`]: the distance between the drawn surface and the simulation boundary.
 //! - [`grid`]: the uniform grid that finds a vertex's tet and nearest boundary face without
 //!   testing every tet.
 
@@ -18,13 +22,16 @@ pub mod colour;
 pub mod embed;
 #[cfg(feature = "glb")]
 pub mod glb;
+pub mod gap;
 pub mod grid;
 #[cfg(feature = "surface-formats")]
 pub mod read;
+pub mod rebind;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 
 pub use embed::{Binding, Embedding};
+pub use rebind::{CutChange, Rebinder, Rebound};
 
 use crate::error::{Error, Result};
 

@@ -230,9 +230,37 @@ pub struct Cutting {
     copies: Vec<(u32, u32)>,
     /// What the cuts did so far.
     pub report: CutReport,
+    /// The cuts a render surface has not yet followed ([`Cutting::follow_cuts`]); `None`
+    /// when nothing follows them.
+    made: Option<Vec<CutMade>>,
+}
+
+/// What one cut changed, for a render surface to follow ([`crate::surface::Rebinder`]).
+#[derive(Debug, Clone)]
+pub struct CutMade {
+    /// The tets it removed, gave new corners or made.
+    pub tets: Vec<crate::mesh::TetKey>,
+    /// The blade's swept surface.
+    pub sweep: Sweep,
 }
 
 impl Cutting {
+    /// Keep what each cut changed until [`Cutting::take_cuts`] (a render surface follows
+    /// the cuts).
+    pub fn follow_cuts(&mut self) {
+        self.made.get_or_insert_with(Vec::new);
+    }
+
+    /// The cuts made since the last call, in order (empty unless [`Cutting::follow_cuts`]).
+    pub fn take_cuts(&mut self) -> Vec<CutMade> {
+        self.made.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// The cutter: the mesh as cut so far and its adjacency.
+    pub fn cutter(&self) -> &Cutter {
+        &self.cutter
+    }
+
     /// Cutting of `mesh` (whose model is `model`) under `settings`, with no blade yet.
     pub fn new(mesh: &TetMesh, model: &SpringModel, settings: CutSettings) -> Result<Self> {
         let min_quality_uncut = mesh.min_volume_length_ratio();
@@ -251,6 +279,7 @@ impl Cutting {
             check_floor,
             latencies: Vec::new(),
             copies: Vec::new(),
+            made: None,
             report: CutReport {
                 method: settings.method.to_string(),
                 quality_floor,
@@ -353,6 +382,12 @@ impl Cutting {
             let first = sim.model().node_count() as u32;
             let applied = self.apply(sim, &outcome.diff)?;
             sim.edit_surface(&outcome.surface)?;
+            if let Some(made) = self.made.as_mut() {
+                made.push(CutMade {
+                    tets: outcome.tets_changed.clone(),
+                    sweep: sweep.clone(),
+                });
+            }
             let seconds = start.elapsed().as_secs_f64();
             self.latencies.push(seconds);
             // Copies of a node (splitting) sit at its rest position; nodes a subdivision puts

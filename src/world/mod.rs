@@ -209,6 +209,11 @@ impl World {
         self.cutting.as_ref()
     }
 
+    /// The cutting, mutably (to follow its cuts with a render surface), when enabled.
+    pub fn cutting_mut(&mut self) -> Option<&mut Cutting> {
+        self.cutting.as_mut()
+    }
+
     /// What the cuts did so far, finished at the current positions (latency percentiles,
     /// fragments, opening), when cutting is enabled.
     pub fn cut_report(&self) -> Option<CutReport> {

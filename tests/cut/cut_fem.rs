@@ -12,12 +12,12 @@ use std::path::Path;
 
 use crate::models::Rng;
 use lancet::cut::CutMethod;
-use lancet::engine::{EngineKind, ForceModelKind, SimConfig, Simulation};
+use lancet::engine::{EngineKind, ForceModelKind, SimConfig};
 use lancet::model::{corner_set, SpringModel};
 use lancet::physics::TensorMass;
-use lancet::scene::cuts::CutStage;
+use lancet::scene::driver::SceneDriver;
 use lancet::scene::runner::{build_mesh, model_config};
-use lancet::scene::tools::ToolStage;
+use lancet::world::{World, WorldBuilder};
 use lancet::scene::{run_scene, RunOptions, Scene};
 use rstest::rstest;
 
@@ -63,6 +63,33 @@ fn scene_with(from: [f64; 3], to: [f64; 3]) -> String {
     )
 }
 
+/// `scene`'s tools and cuts (by `method`, every cut checked) stepped through a world of `mesh`
+/// under `config` on `engine`, for the scene's steps.
+fn run_cuts(
+    scene: &Scene,
+    mesh: lancet::TetMesh,
+    config: SimConfig,
+    engine: EngineKind,
+    method: CutMethod,
+) -> (World, SceneDriver) {
+    let mut world = WorldBuilder::new(mesh, &model_config(scene), config)
+        .unwrap()
+        .engine(engine)
+        .build()
+        .unwrap();
+    let opts = RunOptions {
+        cut_method: Some(method),
+        check: true,
+        ..RunOptions::default()
+    };
+    world.set_up_scene(scene, &opts).unwrap();
+    let mut driver = SceneDriver::new(scene);
+    for _ in 0..scene.steps {
+        driver.step(&mut world).unwrap();
+    }
+    (world, driver)
+}
+
 #[rstest]
 fn random_cuts_with_finite_elements_keep_every_invariant_and_equal_a_rebuild(
     #[values(CutMethod::Separate, CutMethod::Remove, CutMethod::Subdivide)] method: CutMethod,
@@ -80,13 +107,9 @@ fn random_cuts_with_finite_elements_keep_every_invariant_and_equal_a_rebuild(
         force_model: kind,
         ..SimConfig::new(0.8 * bound)
     };
-    let mut sim = Simulation::new(packed, engine, config).unwrap();
-    let mut stage = ToolStage::new(&scene, &mesh, &mut sim).unwrap().unwrap();
-    stage.cut = CutStage::new(&scene, Some(method), true, &mesh, &model).unwrap();
-    for _ in 0..scene.steps {
-        stage.step(&mut sim).unwrap();
-    }
-    let cut = stage.cut.as_ref().unwrap();
+    let _ = (model, packed);
+    let (world, _) = run_cuts(&scene, mesh, config, engine, method);
+    let (sim, cut) = (world.sim(), world.cutting().unwrap());
     let report = &cut.report;
     assert!(report.cuts > 0, "seed {seed} {method} {kind}: nothing cut");
     assert_eq!(report.checks, report.cuts);
@@ -138,13 +161,10 @@ fn no_tensor_couples_nodes_across_a_completed_cut() {
         force_model: kind,
         ..SimConfig::new(0.8 * kind.stable_time_step(&packed).unwrap().dt)
     };
-    let mut sim = Simulation::new(packed, EngineKind::Reference, config).unwrap();
-    let mut stage = ToolStage::new(&scene, &mesh, &mut sim).unwrap().unwrap();
-    stage.cut = CutStage::new(&scene, Some(CutMethod::Separate), true, &mesh, &model).unwrap();
-    for _ in 0..scene.steps {
-        stage.step(&mut sim).unwrap();
-    }
-    let report = &stage.cut.as_ref().unwrap().report;
+    let _ = model;
+    let (world, _) = run_cuts(&scene, mesh, config, EngineKind::Reference, CutMethod::Separate);
+    let sim = world.sim();
+    let report = &world.cutting().unwrap().report;
     assert!(report.cuts > 0 && report.nodes_added > 0);
     assert!(report.violations.is_empty(), "{:#?}", report.violations);
     let m = sim.model();

@@ -3,7 +3,7 @@
 //! (bit for bit where the device rounds like the CPU) and the float64 evaluation from the
 //! positions a full readback gives, to float32 rounding.
 
-use crate::{common, models};
+use crate::{common, cut_box, models};
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{Engine, SimConfig};
 use lancet::layout::LayoutKind;
@@ -86,4 +86,60 @@ fn device_surface_equals_its_twin(
     engine.patch(&next, &diff).unwrap();
     engine.step(2);
     assert!(check(&mut engine, &e) > 300);
+}
+
+/// After each sweep of a cut right through a box, the surface rebound on the CPU goes to the
+/// device with only the bound vertices that changed (rebound, or bound to nodes the patch moved
+/// in the layout); with the two pieces pulled apart on the device, the vertex buffer equals its
+/// twin and every vertex moved as the piece of its own tet.
+#[rstest]
+fn device_surface_follows_its_side_after_a_rebind(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+) {
+    use lancet::cut::CutMethod;
+    use lancet::surface::Rebinder;
+
+    let Some(ctx) = common::gpu() else { return };
+    let mut cutter = cut_box::cutter(CutMethod::Separate);
+    let mut packed = cutter.model().pack(cutter.mesh()).unwrap();
+    let mut engine = GpuEngine::with_context(ctx, &packed, SimConfig::new(1e-5), kind).unwrap();
+    let surface = cut_box::cloud(29, 900);
+    let mut e = Embedding::new(cutter.mesh(), &surface).unwrap();
+    let mut rebinder = Rebinder::new(cutter.mesh(), &e);
+    assert_eq!(engine.set_render_surface(&e).unwrap(), 48 * 900);
+    let mut rebound = 0;
+    for sweep in cut_box::sweeps(3) {
+        let before = engine.bound_vertices(&e).unwrap();
+        let (outcome, n) = cut_box::cut_once(&mut cutter, &sweep, Some((&mut rebinder, &mut e)));
+        rebound += n;
+        packed.apply(&outcome.diff).unwrap();
+        engine.patch(&packed, &outcome.diff).unwrap();
+        let after = engine.bound_vertices(&e).unwrap();
+        let differ = before.iter().zip(&after).filter(|(a, b)| a != b).count();
+        assert!(differ >= n.min(1), "{kind:?}: the rebound vertices changed");
+        assert_eq!(
+            engine.set_render_surface(&e).unwrap(),
+            48 * differ as u64,
+            "{kind:?}: only the changed vertices go up"
+        );
+    }
+    let pulled = cut_box::Pulled::apart(cutter.mesh());
+    engine.set_state(&pulled.x, &vec![[0.0; 3]; pulled.x.len()]);
+    let got = engine.read_render_surface().unwrap();
+    let bound = engine.bound_vertices(&e).unwrap();
+    let want = embed_surface_cpu(&bound, &engine.raw_state().unwrap().0);
+    let exact = common::rounds_like_cpu();
+    for (v, (g, w)) in got.iter().zip(&want).enumerate() {
+        if exact {
+            assert_eq!(g.map(f32::to_bits), w.map(f32::to_bits), "vertex {v}");
+        }
+        let moved = nalgebra::Vector3::from([0, 1, 2].map(|c| g[c] as f64 - e.rest[v][c]));
+        let side = pulled.of_tet(e.bindings[v].tet());
+        // Float32 rest positions and displacements of centimetre coordinates.
+        assert!(
+            (moved - side).norm() < 1e-8,
+            "{kind:?}: vertex {v} moved {moved:?}, its piece {side:?}"
+        );
+    }
+    assert!(rebound > 40, "{kind:?}: {rebound} rebound");
 }

@@ -5,6 +5,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/cut_box.rs"]
+mod cut_box;
 #[path = "../common/models.rs"]
 mod models;
 #[path = "../common/read_ahead.rs"]

@@ -4,9 +4,12 @@
 //! One test binary per area (linking each binary costs more than its tests on a 2-core
 //! machine); each module is one behaviour.
 
+#[path = "../common/cut_box.rs"]
+mod cut_box;
 #[path = "../common/splitmix.rs"]
 mod splitmix;
 
+mod surface_cut;
 mod surface_embed;
 mod surface_read;
 mod surface_scene;

@@ -102,3 +102,48 @@ fn the_surface_is_placed_by_the_mesh_transform() {
     // vertex would be centimetres outside.
     assert_eq!(summary.surface.unwrap().outside, 0);
 }
+
+/// The box of `surface_cut_box.ron` cut right through by `method`, its render surface (on the
+/// box's boundary) following the cuts.
+fn cut_box(method: lancet::cut::CutMethod) -> lancet::scene::RunSummary {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/surface_cut_box.ron");
+    let scene = Scene::read(&path).unwrap();
+    let opts = RunOptions {
+        cut_method: Some(method),
+        no_output: true,
+        ..Default::default()
+    };
+    run_scene(&scene, &path, &opts, |_, _| {}).unwrap()
+}
+
+/// A surface on the simulation box's boundary stays on the boundary of the pieces through a
+/// cut that separates them (each vertex lies on a boundary face of its tet, which an affine
+/// map keeps a boundary face), while the free piece falls centimetres away from the one that
+/// hangs (the scene's expectations): the vertices of the falling piece went with it.
+#[test]
+fn the_surface_stays_on_the_boundary_of_the_pieces() {
+    let method = lancet::cut::CutMethod::Separate;
+    let summary = cut_box(method);
+    assert!(summary.expectations_passed, "{:#?}", summary.expectations);
+    let cuts = summary.cuts.as_ref().unwrap();
+    let s = summary.surface.unwrap();
+    assert_eq!(s.gap_rest.vertices, s.vertices);
+    assert!(s.gap_rest.max < 1e-15, "{method}: {:?}", s.gap_rest);
+    assert!(s.gap_end.max < 1e-9, "{method}: {:?}", s.gap_end);
+    assert_eq!(s.rebinds, cuts.cuts, "{method}: one rebinding per cut");
+    assert!(s.vertices_rebound > 100, "{method}: {}", s.vertices_rebound);
+    assert_eq!(s.dropped, 0);
+}
+
+/// Carving takes a layer out: its surface vertices go to the nearest face left on their side
+/// of the blade, within the layer's thickness (1 cm) of the boundary, and none is dropped (each
+/// side keeps material).
+#[test]
+fn carved_surface_vertices_stay_within_the_layer_of_their_side() {
+    let summary = cut_box(lancet::cut::CutMethod::Remove);
+    assert!(summary.expectations_passed, "{:#?}", summary.expectations);
+    let s = summary.surface.unwrap();
+    assert!(s.gap_end.max < 0.01, "{:?}", s.gap_end);
+    assert_eq!(s.dropped, 0);
+    assert!(s.vertices_rebound > 100);
+}

@@ -3,9 +3,10 @@
 //! a buffer a host binds as its vertex buffer (`VERTEX | STORAGE`, 16 bytes per vertex: xyz
 //! and w = 1), so that drawing the deformed organ needs no readback.
 //!
-//! The engine holds the pass ([`GpuEngine::set_render_surface`]); the bind group is made at
-//! each evaluation (once per drawn frame, not per step), so that it always binds the state
-//! buffer of the current phase, whatever a patch reallocated.
+//! The engine holds the pass ([`GpuEngine::set_render_surface`]); it keeps a bind group per
+//! state buffer it has seen, so that it always binds the state buffer of the current phase,
+//! whatever a patch reallocated. After a cut only the bound vertices that changed (rebound, or
+//! bound to nodes a patch moved) are written.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -34,6 +35,8 @@ pub struct EmbedPass {
     bound: wgpu::Buffer,
     vertices: wgpu::Buffer,
     count: u32,
+    /// What the device's bound vertices hold: a change writes only the vertices that differ.
+    host: Vec<BoundVertex>,
     /// Bind groups made for the displacement buffers seen so far (the state alternates between
     /// two), so that evaluating a frame makes none; emptied when the pass's own buffers change.
     bind_groups: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
@@ -58,6 +61,7 @@ impl EmbedPass {
             bound: bound_buf,
             vertices,
             count: 0,
+            host: bound.to_vec(),
             bind_groups: Vec::new(),
         };
         pass.write(ctx, bound);
@@ -84,18 +88,41 @@ impl EmbedPass {
         Ok((bound_buf, vertices))
     }
 
-    /// Replace the bound vertices (a new surface, or the same after a patch moved node slots):
-    /// written in place when the count is unchanged, new buffers otherwise.
-    pub fn set_bound(&mut self, ctx: &GpuContext, bound: &[BoundVertex]) -> Result<()> {
+    /// Replace the bound vertices (a new surface, a cut's rebinding, or the same after a patch
+    /// moved node slots): with the count unchanged, only the runs of vertices that differ from
+    /// what the device holds are written; new buffers otherwise. Returns the bytes written.
+    pub fn set_bound(&mut self, ctx: &GpuContext, bound: &[BoundVertex]) -> Result<u64> {
+        let size = std::mem::size_of::<BoundVertex>();
+        let written;
         if bound.len() as u32 != self.count {
             (self.bound, self.vertices) = Self::buffers(ctx, bound)?;
             self.bind_groups.clear();
-        } else if !bound.is_empty() {
-            ctx.queue
-                .write_buffer(&self.bound, 0, bytemuck::cast_slice(bound));
+            written = std::mem::size_of_val(bound) as u64;
+        } else {
+            let mut total = 0;
+            let mut v = 0;
+            while v < bound.len() {
+                if bound[v] == self.host[v] {
+                    v += 1;
+                    continue;
+                }
+                let run = v;
+                while v < bound.len() && bound[v] != self.host[v] {
+                    v += 1;
+                }
+                ctx.queue.write_buffer(
+                    &self.bound,
+                    (run * size) as u64,
+                    bytemuck::cast_slice(&bound[run..v]),
+                );
+                total += (v - run) * size;
+            }
+            written = total as u64;
         }
+        self.host.clear();
+        self.host.extend_from_slice(bound);
         self.write(ctx, bound);
-        Ok(())
+        Ok(written)
     }
 
     fn write(&mut self, ctx: &GpuContext, bound: &[BoundVertex]) {
@@ -194,15 +221,19 @@ impl GpuEngine {
     }
 
     /// Bind a render surface: from now on [`GpuEngine::render_surface`] evaluates it. Call it
-    /// again after a patch (a cut moves node slots and adds nodes).
-    pub fn set_render_surface(&mut self, embedding: &Embedding) -> Result<()> {
+    /// again after a patch (a cut moves node slots and adds nodes) and after a cut rebinds
+    /// vertices ([`crate::surface::Rebinder`]): only the vertices whose nodes, slots or weights
+    /// changed are uploaded. Returns the bytes of bound vertices written.
+    pub fn set_render_surface(&mut self, embedding: &Embedding) -> Result<u64> {
         let bound = self.bound_vertices(embedding)?;
         self.host.render = Some((embedding.clone(), self.patches));
         match &mut self.render {
-            Some(pass) => pass.set_bound(&self.ctx, &bound)?,
-            None => self.render = Some(EmbedPass::new(&self.ctx, &bound)?),
+            Some(pass) => pass.set_bound(&self.ctx, &bound),
+            None => {
+                self.render = Some(EmbedPass::new(&self.ctx, &bound)?);
+                Ok(std::mem::size_of_val(bound.as_slice()) as u64)
+            }
         }
-        Ok(())
     }
 
     /// Evaluate the render surface at the current state on the device and return its vertex
