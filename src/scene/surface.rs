@@ -17,7 +17,6 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use crate::world::cutting::Cutting;
 use super::schema::{resolve_mesh_path, Scene};
 use crate::error::Result;
 use crate::mesh::TetMesh;
@@ -25,6 +24,7 @@ use crate::surface::gap::{boundary_gap, Gap};
 use crate::surface::read::read_surface;
 use crate::surface::vtp::VtpSeries;
 use crate::surface::{CutChange, Embedding, Rebinder, RenderSurface};
+use crate::world::cutting::Cutting;
 
 /// Where a scene's render surface comes from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

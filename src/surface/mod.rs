@@ -20,9 +20,9 @@
 
 pub mod colour;
 pub mod embed;
+pub mod gap;
 #[cfg(feature = "glb")]
 pub mod glb;
-pub mod gap;
 pub mod grid;
 #[cfg(feature = "surface-formats")]
 pub mod read;

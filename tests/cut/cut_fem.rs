@@ -17,8 +17,8 @@ use lancet::model::{corner_set, SpringModel};
 use lancet::physics::TensorMass;
 use lancet::scene::driver::SceneDriver;
 use lancet::scene::runner::{build_mesh, model_config};
-use lancet::world::{World, WorldBuilder};
 use lancet::scene::{run_scene, RunOptions, Scene};
+use lancet::world::{World, WorldBuilder};
 use rstest::rstest;
 
 /// A 3 cm box of 4 x 4 x 4 cells hanging from its y = 0 face, a blade entering from above at a
@@ -162,7 +162,13 @@ fn no_tensor_couples_nodes_across_a_completed_cut() {
         ..SimConfig::new(0.8 * kind.stable_time_step(&packed).unwrap().dt)
     };
     let _ = model;
-    let (world, _) = run_cuts(&scene, mesh, config, EngineKind::Reference, CutMethod::Separate);
+    let (world, _) = run_cuts(
+        &scene,
+        mesh,
+        config,
+        EngineKind::Reference,
+        CutMethod::Separate,
+    );
     let sim = world.sim();
     let report = &world.cutting().unwrap().report;
     assert!(report.cuts > 0 && report.nodes_added > 0);
