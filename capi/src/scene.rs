@@ -7,6 +7,22 @@ use lancet::scene::{run_scene, RunOptions, Scene};
 
 use crate::error::{guard, out, text, Failure, LancetStatus};
 
+/// The scene file at `path`, or the embedded default scene for NULL, and the path naming it.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string.
+pub(crate) unsafe fn load_scene(path: *const c_char) -> Result<(Scene, PathBuf), Failure> {
+    if path.is_null() {
+        return Ok((
+            Scene::default_scene(),
+            PathBuf::from("<embedded default scene>"),
+        ));
+    }
+    // SAFETY: the contract above.
+    let p = Path::new(unsafe { text(path, "path") }?);
+    Ok((Scene::read(p)?, p.to_path_buf()))
+}
+
 /// Run the scene file at `path` (NULL: the embedded default scene) with its expectations, and
 /// return its summary as JSON in `*summary_json` (release it with `lancet_string_free`). The
 /// status is `LANCET_STATUS_OK` when the run completed, whether or not its expectations held:
@@ -23,16 +39,8 @@ pub unsafe extern "C" fn lancet_run_scene(
         // SAFETY: the contract above.
         let slot = unsafe { out(summary_json, "summary_json") }?;
         *slot = std::ptr::null_mut();
-        let (scene, scene_path) = if path.is_null() {
-            (
-                Scene::default_scene(),
-                PathBuf::from("<embedded default scene>"),
-            )
-        } else {
-            // SAFETY: the contract above.
-            let p = Path::new(unsafe { text(path, "path") }?);
-            (Scene::read(p)?, p.to_path_buf())
-        };
+        // SAFETY: the contract above.
+        let (scene, scene_path) = unsafe { load_scene(path) }?;
         let summary = run_scene(&scene, &scene_path, &RunOptions::default(), |_, _| {})?;
         let json = serde_json::to_string(&summary)
             .map_err(|e| Failure(LancetStatus::Model, format!("summary to JSON: {e}")))?;

@@ -4,7 +4,6 @@
 //! forces and the positions.
 
 use std::ffi::c_char;
-use std::path::{Path, PathBuf};
 
 use lancet::collide::ToolShape;
 use lancet::cut::CutMethod;
@@ -12,7 +11,7 @@ use lancet::engine::{EngineKind, Integrator, SimConfig};
 use lancet::mesh::generate::BoxGrid;
 use lancet::mesh::TetMesh;
 use lancet::model::{FixedSelector, Material, ModelConfig};
-use lancet::scene::{RunOptions, Scene};
+use lancet::scene::RunOptions;
 use lancet::world::{CutSettings, StepReport, ToolHandle, VirtualCoupling, World, WorldBuilder};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
@@ -240,16 +239,8 @@ pub unsafe extern "C" fn lancet_world_from_scene(
         // SAFETY: the contract above.
         let slot = unsafe { out(world, "world") }?;
         *slot = std::ptr::null_mut();
-        let (scene, scene_path) = if path.is_null() {
-            (
-                Scene::default_scene(),
-                PathBuf::from("<embedded default scene>"),
-            )
-        } else {
-            // SAFETY: the contract above.
-            let p = Path::new(unsafe { text(path, "path") }?);
-            (Scene::read(p)?, p.to_path_buf())
-        };
+        // SAFETY: the contract above.
+        let (scene, scene_path) = unsafe { crate::scene::load_scene(path) }?;
         let w = World::from_scene(&scene, &scene_path, &RunOptions::default())?;
         finish(w, slot);
         Ok(())
