@@ -178,8 +178,10 @@ fn rendered_force_increments_stay_within_the_coupling_and_converge_to_the_tissue
     let (rendered, proxy) = (held.rendered.unwrap(), held.proxy.unwrap());
     let load = base_load(&world);
     assert!(proxy.velocity.norm() < 1e-6, "{proxy:?}");
+    // Equal to the implicit solve's tolerance (1e-5 of the residual): the warm-started CG
+    // stops at a slightly different state from step to step.
     assert!(
-        (rendered - held.force).norm() < 1e-6 * held.force.norm(),
+        (rendered - held.force).norm() < 1e-5 * held.force.norm(),
         "{rendered:?} {:?}",
         held.force
     );
