@@ -219,6 +219,27 @@ fn build(
     Ok(builder.build()?)
 }
 
+/// The material and settings arguments, refused when NULL.
+///
+/// # Safety
+/// Each pointer is NULL or points to a valid value.
+unsafe fn inputs<'a>(
+    material: *const LancetMaterial,
+    settings: *const LancetSettings,
+) -> Result<(&'a LancetMaterial, &'a LancetSettings), Failure> {
+    // SAFETY: the contract above.
+    unsafe {
+        Ok((
+            material
+                .as_ref()
+                .ok_or_else(|| invalid("material is NULL"))?,
+            settings
+                .as_ref()
+                .ok_or_else(|| invalid("settings is NULL"))?,
+        ))
+    }
+}
+
 fn finish(world: World, out_world: &mut *mut LancetWorld) {
     *out_world = Box::into_raw(Box::new(LancetWorld { world, last: None }));
 }
@@ -265,16 +286,7 @@ pub unsafe extern "C" fn lancet_world_from_mesh_file(
         let (slot, path) = unsafe { (out(world, "world")?, text(mesh_path, "mesh_path")?) };
         *slot = std::ptr::null_mut();
         // SAFETY: the contract above.
-        let (material, settings) = unsafe {
-            (
-                material
-                    .as_ref()
-                    .ok_or_else(|| invalid("material is NULL"))?,
-                settings
-                    .as_ref()
-                    .ok_or_else(|| invalid("settings is NULL"))?,
-            )
-        };
+        let (material, settings) = unsafe { inputs(material, settings) }?;
         let mesh = lancet::mesh::io::read(path)?.mesh;
         finish(build(mesh, material, settings)?, slot);
         Ok(())
@@ -310,16 +322,7 @@ pub unsafe extern "C" fn lancet_world_new_box(
             )
         };
         // SAFETY: the contract above.
-        let (material, settings) = unsafe {
-            (
-                material
-                    .as_ref()
-                    .ok_or_else(|| invalid("material is NULL"))?,
-                settings
-                    .as_ref()
-                    .ok_or_else(|| invalid("settings is NULL"))?,
-            )
-        };
+        let (material, settings) = unsafe { inputs(material, settings) }?;
         let mesh = BoxGrid {
             cells: cells.map(|c| c as usize),
             size,

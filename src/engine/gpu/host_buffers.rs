@@ -155,13 +155,19 @@ impl GpuEngine {
     /// if a patch moved node slots since it was bound; `None` when none is set.
     pub fn render_vertices(&mut self) -> Result<Option<DeviceVertices<'_>>> {
         let patches = self.patches;
-        let embedding = match &self.host.render {
-            Some((e, at)) if *at != patches => Some(e.clone()),
-            Some(_) => None,
+        match &self.host.render {
+            Some((e, at)) if *at != patches => {
+                // Bound again from the kept embedding, without copying it.
+                let bound = self.bound_vertices(e)?;
+                if let Some(pass) = self.render.as_mut() {
+                    pass.set_bound(&self.ctx, &bound)?;
+                }
+                if let Some((_, at)) = self.host.render.as_mut() {
+                    *at = patches;
+                }
+            }
+            Some(_) => {}
             None => return Ok(None),
-        };
-        if let Some(e) = embedding {
-            self.set_render_surface(&e)?;
         }
         if self.render_surface().is_none() {
             return Ok(None);
