@@ -57,6 +57,7 @@ pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod tensor_mass;
 pub mod time_step;
 
 use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};
