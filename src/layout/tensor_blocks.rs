@@ -123,8 +123,8 @@ pub fn slot_walk(layout: &PackedLayout) -> Vec<(u32, usize, u32)> {
     match layout {
         PackedLayout::Connectivity(c) => {
             let k = c.capacity as usize;
-            for i in 0..c.node_count() {
-                if order[i] == super::NodeOrder::HOLE {
+            for (i, &o) in order.iter().enumerate().take(c.node_count()) {
+                if o == super::NodeOrder::HOLE {
                     continue;
                 }
                 let mut row = i;

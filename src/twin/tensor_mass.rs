@@ -1,8 +1,8 @@
-//! Twins of the tensor-mass passes (`engine::gpu::tensor_mass`): `shaders/tensor_gather.wgsl`
-//! with `tensor_connectivity.wgsl` or `tensor_valence.wgsl` (each node sums `-K_ij (u_j - u_i)
-//! - C_ij (v_j - v_i)` over its slots and integrates), and on the edge layout
-//! `tensor_edges.wgsl` (each record's two end forces) then `tensor_gather_edges.wgsl` (each
-//! node sums its ends' forces in incidence order and integrates).
+//! Twins of the tensor-mass passes (`engine::gpu::tensor_mass`): on the node-centric layouts
+//! `shaders/tensor_gather.wgsl` with `tensor_connectivity.wgsl` or `tensor_valence.wgsl` (each
+//! node sums `-K_ij (u_j - u_i) - C_ij (v_j - v_i)` over its slots and integrates); on the edge
+//! layout `tensor_edges.wgsl` (each record's two end forces), then `tensor_gather_edges.wgsl`
+//! (each node sums its ends' forces in incidence order and integrates).
 
 use crate::layout::edges::{EdgeLayout, B_END};
 use crate::layout::tensor_blocks::{slot_walk, Row, TensorBlocks};

@@ -106,7 +106,7 @@ fn make_engine(
         EngineKind::Auto if config.force_model.is_finite_element() => (
             fast()?,
             EngineKind::Fast,
-            Some(format!("{}", auto_fem_note(config.force_model))),
+            Some(auto_fem_note(config.force_model)),
         ),
         EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
