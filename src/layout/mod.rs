@@ -15,6 +15,7 @@ pub mod connectivity;
 pub mod edges;
 pub mod patch;
 pub mod rcm;
+pub mod tensor_blocks;
 pub mod valence;
 mod verify;
 

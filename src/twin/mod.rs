@@ -21,6 +21,8 @@
 //! | `atomic_edges` (fixed point) | `integrate_fixed.wgsl` | [`integrate_fixed`]: `EdgeLayout::fixed_forces`, `step_fixed_cpu` | `tests/gpu/gpu_edges.rs` |
 //! | `atomic_edges` (float) | `accumulate_float.wgsl` + `edge_spring.wgsl` | [`accumulate_float`]: `EdgeLayout::accumulate_float_cpu` | `tests/gpu/gpu_edges.rs` (within a tolerance: the order of the adds varies) |
 //! | `atomic_edges` (float) | `integrate_float.wgsl` | [`integrate_float`]: `EdgeLayout::step_float_cpu` | `tests/gpu/gpu_edges.rs` |
+//! | `tensor_mass` (connectivity, valence) | `tensor_gather.wgsl` + `tensor_connectivity.wgsl` or `tensor_valence.wgsl` (over `node_gather.wgsl`'s bindings) | [`tensor_mass`]: `TensorBlocks::node_forces_cpu`, `step_cpu` | `tests/gpu/gpu_tensor_mass.rs` |
+//! | `tensor_mass` (edges, gather) | `tensor_edges.wgsl` then `tensor_gather_edges.wgsl` | [`tensor_mass`]: `TensorBlocks::record_forces_cpu`, `gather_edges_cpu`, `step_cpu` | `tests/gpu/gpu_tensor_mass.rs` |
 //! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
 //! | `implicit` (every layout) | `implicit_solve.wgsl` (entry points `setup`, `start`, `multiply`, `step_length`, `update`, `residual`, `direction`, `finish`) with `implicit_slots.wgsl` or, on the edge layout, `implicit_edges.wgsl` (`spring_multiply`, and its gather in `multiply`) | [`implicit_solve`]: one function per entry point, [`implicit_solve::implicit_step_cpu`] and [`implicit_solve::implicit_step_edges_cpu`] the whole step | `tests/gpu/gpu_implicit.rs` |
 //! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
@@ -57,6 +59,7 @@ pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod tensor_mass;
 pub mod time_step;
 
 use crate::layout::edges::{Accumulation, EdgeLayout, FixedPoint};

@@ -1,6 +1,7 @@
 //! The finite-element force models in a simulation: chosen by `SimConfig::force_model` or a
 //! scene's `force_model`, run on the float64 reference engine (and the fast engine,
-//! tests/engine/fast_fem.rs), refused on the GPU; their
+//! tests/engine/fast_fem.rs); tensor-mass runs on the GPU layouts too (tests/gpu/gpu_tensor_mass.rs),
+//! corotational is refused there; their
 //! stable time step bounds the true critical step of explicit integration.
 
 use std::path::Path;
@@ -70,13 +71,13 @@ fn a_finite_element_model_runs_on_the_reference_engine_with_its_own_energy() {
 }
 
 #[test]
-fn the_gpu_engine_refuses_a_finite_element_model_and_auto_runs_the_fast_engine() {
+fn the_gpu_engine_refuses_a_corotational_model_and_auto_runs_the_fast_engine() {
     let model = block();
     let bound = ForceModelKind::TensorMass.stable_time_step(&model).unwrap();
     let err = Simulation::new(
         model.clone(),
         EngineKind::Gpu,
-        config(0.5 * bound.dt, ForceModelKind::TensorMass),
+        config(0.5 * bound.dt, ForceModelKind::Corotational),
     )
     .err()
     .expect("refused");

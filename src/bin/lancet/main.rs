@@ -176,8 +176,9 @@ enum Command {
         /// How the preset's box cells are split into tets (with --preset).
         #[arg(long, value_enum, default_value = "five")]
         split: SplitArg,
-        /// Force model every engine steps (finite elements: the CPU engines; GPU rows are
-        /// skipped with the reason).
+        /// Force model every engine steps. Tensor-mass runs on every GPU layout too (the edge
+        /// layout with the gather; atomic edge rows are skipped with the reason); corotational
+        /// runs on the CPU engines, its GPU rows skipped with the reason.
         #[arg(long, value_enum, default_value = "springs", conflicts_with = "preset")]
         force_model: ForceModelArg,
         /// Print JSON on stdout.

@@ -25,6 +25,7 @@ pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
 pub mod surface_nodes;
+pub mod tensor_mass;
 pub mod time_step;
 pub mod timing;
 pub mod upload;
@@ -194,6 +195,9 @@ pub struct GpuEngine {
     host: host_buffers::HostBuffers,
     /// Patches applied so far: the host buffers bind again when it moved.
     patches: u64,
+    /// The tensor-mass model and its passes, which replace the springs' force
+    /// (`config.force_model` TensorMass); `None` for springs.
+    tensor: Option<tensor_mass::TensorMassPasses>,
 }
 
 impl GpuEngine {
@@ -279,6 +283,14 @@ impl GpuEngine {
             fixed_point,
             Sizing::Headroom,
         )?;
+        let tensor = tensor_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
+        let mut uniform_data = uniform_data;
+        if let Some(t) = &tensor {
+            // The tensor blocks' stride follows the tets' damping, not the springs'.
+            uniform_data.damped = t.damped() as u32;
+            ctx.queue
+                .write_buffer(&uniform, 0, bytemuck::bytes_of(&uniform_data));
+        }
         let health = health_pass(&ctx, &passes, &uniform, &state, dispatch)?;
         let timer = timing::PassTimer::new(&ctx);
         let mover = move_state::MovePass::new(&ctx)?;
@@ -310,6 +322,7 @@ impl GpuEngine {
             render: None,
             host: host_buffers::HostBuffers::default(),
             patches: 0,
+            tensor,
             ctx,
             config,
             layout,
@@ -477,6 +490,11 @@ impl GpuEngine {
         )
     }
 
+    /// The tensor-mass model and its passes, when the engine runs that force model.
+    pub fn tensor_mass(&self) -> Option<&tensor_mass::TensorMassPasses> {
+        self.tensor.as_ref()
+    }
+
     /// Whether a spring force has saturated the fixed-point accumulators (edge layout with
     /// [`Accumulation::AtomicFixed`]) since setup; false for every other layout and variant.
     pub fn fixed_point_overflowed(&self) -> Result<bool> {
@@ -484,6 +502,40 @@ impl GpuEngine {
             Passes::AtomicEdges(p) => p.overflowed(&self.ctx),
             _ => Ok(false),
         }
+    }
+}
+
+/// The tensor-mass passes where `config` asks for that force model (explicit integrators
+/// only); `None` for springs. Corotational is refused: it has no GPU pass yet.
+fn tensor_passes(
+    ctx: &GpuContext,
+    model: &PackedModel,
+    config: SimConfig,
+    layout: &PackedLayout,
+    passes: &Passes,
+    uniform: &wgpu::Buffer,
+    state: &StateBuffers,
+) -> Result<Option<tensor_mass::TensorMassPasses>> {
+    use crate::physics::ForceModelKind;
+    match config.force_model {
+        ForceModelKind::Springs => Ok(None),
+        ForceModelKind::TensorMass if config.integrator.is_implicit() => {
+            Err(crate::Error::Unsupported(
+                "the tensor-mass force model runs on the GPU layouts with the explicit \
+                 integrators only (Verlet, SymplecticEuler): the GPU implicit solve takes the \
+                 springs' stiffness as its Jacobian. Choose an explicit integrator, or engine: \
+                 Fast or Reference"
+                    .into(),
+            ))
+        }
+        ForceModelKind::TensorMass => Ok(Some(tensor_mass::TensorMassPasses::new(
+            ctx, model, layout, passes, uniform, state,
+        )?)),
+        kind => Err(crate::Error::Unsupported(format!(
+            "the {kind} force model runs on the CPU engines only for now, not on the GPU \
+             layouts (TensorMass does): choose engine: Fast (--engine fast) or Reference \
+             (--engine reference)"
+        ))),
     }
 }
 

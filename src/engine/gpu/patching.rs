@@ -59,6 +59,19 @@ impl GpuEngine {
         {
             self.uniform_data.damped = 1;
         }
+        let mut tensor_bytes = 0;
+        if let Some(t) = self.tensor.as_mut() {
+            tensor_bytes = t.patch(
+                &self.ctx,
+                model,
+                diff,
+                &self.layout,
+                &patch.dirty,
+                patch.repacked || rebuild,
+            )?;
+            // The blocks' stride follows the tets' damping, not the springs'.
+            self.uniform_data.damped = t.damped() as u32;
+        }
         let layout_bytes = self.layout.upload_bytes();
         let mut cost = PatchCost {
             uploaded_bytes: layout_bytes,
@@ -150,6 +163,10 @@ impl GpuEngine {
         }
         // The solver binds the slot and mass buffers and the state, any of which may be new.
         self.rebind_implicit()?;
+        if let Some(t) = self.tensor.as_mut() {
+            t.rebind(&self.ctx, &self.passes, &self.uniform, &self.state)?;
+            cost.uploaded_bytes += tensor_bytes;
+        }
         // Node indices and state buffers may have changed under the surface: the culler is
         // brought up to date when next used (a cut usually edits the surface right after).
         // Only the moved slots are stale, after a repack too (see `SurfaceSync`).

@@ -117,6 +117,16 @@ impl ValencePass {
         grow
     }
 
+    /// Layout of group 1 (the bucket table), for passes that walk the buckets too.
+    pub fn bucket_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.bucket_layout
+    }
+
+    /// Group 1 (the bucket table) as bound now: a table that grew binds anew.
+    pub fn bucket_group(&self) -> &wgpu::BindGroup {
+        &self.buckets
+    }
+
     /// The bucket table's buffer (the implicit solve binds it too).
     pub fn table(&self) -> &wgpu::Buffer {
         &self.table

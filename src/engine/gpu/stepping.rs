@@ -29,6 +29,11 @@ impl Engine for GpuEngine {
             });
             for _ in 0..steps {
                 let d = self.dispatch;
+                if let Some(t) = &self.tensor {
+                    t.record(&mut pass, &self.passes, self.phase, d.springs, d.nodes);
+                    self.phase = (self.phase + 1) % self.state.phases();
+                    continue;
+                }
                 match &self.passes {
                     Passes::Connectivity(p) => p.record(&mut pass, self.phase, d.nodes),
                     Passes::Valence(p) => p.record(&mut pass, self.phase, d.nodes),
@@ -143,12 +148,29 @@ impl Engine for GpuEngine {
     fn differences_from_rebuild(&self, model: &PackedModel) -> Result<Vec<String>> {
         let mut out = self.layout.differences_from_rebuild(model)?;
         out.extend(self.device_differences()?);
+        if let Some(t) = &self.tensor {
+            out.extend(t.differences(&self.ctx, model, &self.layout)?);
+        }
         Ok(out)
     }
 
     fn memory(&self) -> EngineMemory {
         // Counted when asked (a pass over the slot table), not at every patch.
-        layout_memory(&self.layout, self.config, self.accumulation)
+        let mut m = layout_memory(&self.layout, self.config, self.accumulation);
+        if let Some(t) = &self.tensor {
+            // The tensor passes read the layout's tables as the springs' passes do, and their
+            // blocks beside them.
+            m.bytes_per_step += t.extra_bytes_per_step(&self.layout);
+            let before = m.stats.total.max(1) as f64;
+            for (name, bytes) in t.buffers() {
+                m.stats.total += bytes;
+                m.stats.buffers.push((name, bytes));
+            }
+            let grown = m.stats.total as f64 / before;
+            m.stats.bytes_per_node *= grown;
+            m.stats.bytes_per_spring *= grown;
+        }
+        m
     }
 
     fn name(&self) -> String {

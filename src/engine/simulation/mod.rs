@@ -68,10 +68,12 @@ fn make_engine(
     gpu: GpuOptions,
     host: &HostDevice,
 ) -> Result<Made> {
-    if config.force_model.is_finite_element() && kind == EngineKind::Gpu {
+    if config.force_model == crate::physics::ForceModelKind::Corotational && kind == EngineKind::Gpu
+    {
         return Err(Error::Unsupported(format!(
-            "the {} force model runs on the CPU engines only for now, not on the GPU layouts: \
-             choose engine: Fast (--engine fast) or Reference (--engine reference)",
+            "the {} force model runs on the CPU engines only for now, not on the GPU layouts \
+             (TensorMass does): choose engine: Fast (--engine fast) or Reference \
+             (--engine reference)",
             config.force_model
         )));
     }
@@ -104,10 +106,7 @@ fn make_engine(
         EngineKind::Auto if config.force_model.is_finite_element() => (
             fast()?,
             EngineKind::Fast,
-            Some(format!(
-                "the GPU layouts do not run the {} force model yet; running the fast CPU engine",
-                config.force_model
-            )),
+            Some(auto_fem_note(config.force_model)),
         ),
         EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
@@ -118,6 +117,21 @@ fn make_engine(
             ),
         },
     })
+}
+
+/// Why `Auto` runs a finite-element model on the fast CPU engine.
+fn auto_fem_note(kind: crate::physics::ForceModelKind) -> String {
+    match kind {
+        // Auto keeps the CPU: the GPU's tensor-mass passes are explicit and gather-only, and
+        // the fast engine runs every scheme; a program asks for them with engine: Gpu.
+        crate::physics::ForceModelKind::TensorMass => format!(
+            "Auto runs the {kind} force model on the fast CPU engine; choose engine: Gpu \
+             (--engine gpu) for its GPU layouts"
+        ),
+        _ => format!(
+            "the GPU layouts do not run the {kind} force model yet; running the fast CPU engine"
+        ),
+    }
 }
 
 /// The GPU engine, on the host's device where the simulation was given one.

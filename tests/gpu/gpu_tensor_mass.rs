@@ -1,0 +1,336 @@
+//! The tensor-mass force model on the GPU layouts: each layout's passes equal their CPU twin
+//! (`twin::tensor_mass`) bit for bit on lavapipe on a jittered box with random masses and a
+//! random state; the GPU engine follows the float64 reference engine; a cut engine's blocks
+//! and steps equal a rebuilt one's; what has no GPU pass is refused with a reason.
+
+use crate::{common, models};
+use lancet::engine::gpu::GpuEngine;
+use lancet::engine::{Engine, EngineKind, ForceModelKind, Integrator, SimConfig, Simulation};
+use lancet::layout::edges::Accumulation;
+use lancet::layout::tensor_blocks::TensorBlocks;
+use lancet::layout::LayoutKind;
+use lancet::model::PackedModel;
+use lancet::report::bench::relative_l2;
+use lancet::Error;
+use models::{random_box, Rng};
+use rstest::rstest;
+
+const LAYOUTS: [LayoutKind; 3] = [
+    LayoutKind::Connectivity,
+    LayoutKind::Valence,
+    LayoutKind::Edges,
+];
+
+/// [`random_box`] (random masses, gravity, a fixed base; Rayleigh-damped when `damped`) with
+/// every free node's rest position moved by up to 8% of a cell: no two tets alike, so every
+/// block differs.
+fn jittered_box(seed: u64, damped: bool) -> PackedModel {
+    let mut model = random_box(seed, damped);
+    let mut rng = Rng(seed ^ 0x5151);
+    for (r, fixed) in model.rest.iter_mut().zip(&model.fixed) {
+        if !fixed {
+            for c in r.iter_mut() {
+                *c += (rng.next() - 0.5) * 0.16 * 0.01;
+            }
+        }
+    }
+    model
+}
+
+/// A tensor-mass configuration at `fraction` of the model's stable time step.
+fn config(model: &PackedModel, integrator: Integrator, fraction: f64) -> SimConfig {
+    let kind = ForceModelKind::TensorMass;
+    SimConfig {
+        integrator,
+        force_model: kind,
+        ..SimConfig::new(fraction * kind.stable_time_step(model).unwrap().dt)
+    }
+}
+
+/// Random displacements (about 5% of a cell) and velocities.
+fn random_state(model: &PackedModel, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let mut rng = Rng(seed);
+    let mut v = |s: f64| [0, 1, 2].map(|_| (rng.next() - 0.5) * s);
+    let x = model
+        .rest
+        .iter()
+        .map(|r| {
+            let d = v(1e-3);
+            [r[0] + d[0], r[1] + d[1], r[2] + d[2]]
+        })
+        .collect();
+    let vel = model.rest.iter().map(|_| v(0.05)).collect();
+    (x, vel)
+}
+
+/// Each layout's tensor-mass step equals its CPU twin: bit for bit on lavapipe, after 1 and
+/// after 20 steps, damped under Verlet (the damping blocks and velocity differences read) and
+/// undamped under symplectic Euler.
+#[rstest]
+fn tensor_mass_passes_equal_their_cpu_twin(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] kind: LayoutKind,
+    #[values((Integrator::Verlet, true), (Integrator::SymplecticEuler, false))] scheme: (
+        Integrator,
+        bool,
+    ),
+) {
+    let Some(ctx) = common::gpu() else { return };
+    let (integrator, damped) = scheme;
+    let model = jittered_box(7, damped);
+    let mut gpu =
+        GpuEngine::with_context(ctx, &model, config(&model, integrator, 0.5), kind).unwrap();
+    let (x, v) = random_state(&model, 11);
+    gpu.set_state(&x, &v);
+    let start = gpu.raw_state().unwrap();
+    let tensor = gpu.tensor_mass().expect("a tensor-mass engine");
+    assert_eq!(tensor.damped(), damped);
+    let blocks: TensorBlocks = tensor.blocks().clone();
+    assert!(
+        blocks.rows.iter().flatten().any(|&k| k != 0.0),
+        "the blocks hold the tensors"
+    );
+    let layout = gpu.layout().clone();
+    let p = gpu.step_params();
+    assert_eq!(p.damped, damped);
+    let mut twin = start.clone();
+    for steps in [1usize, 19] {
+        twin = lancet::twin::steps(&p, twin, steps, |p, u, s| blocks.step_cpu(p, &layout, u, s));
+        gpu.step(steps as u32);
+        let got = gpu.raw_state().unwrap();
+        let what = format!("{kind:?} {integrator:?} damped={damped}");
+        common::assert_twin(&got.0, &twin.0, &start.0, steps, &what);
+        common::assert_twin(&got.1, &twin.1, &start.1, steps, &what);
+    }
+    // The twin's force is the float64 model's, rounded: the state moved.
+    assert!(twin.0 != start.0);
+}
+
+/// The GPU engine in every layout follows the float64 reference engine's tensor-mass run (300
+/// steps at 0.8 of the bound, damped, under gravity from a random state) within float32
+/// rounding: the fast engine's bar (`tests/engine/fast_fem.rs`). The springs' force, which
+/// the same engine would compute, is far off: the tensors are what is stepped.
+#[rstest]
+fn gpu_tensor_mass_follows_the_float64_reference(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+) {
+    let Some(_) = common::gpu() else { return };
+    let model = jittered_box(3, true);
+    let config = config(&model, Integrator::Verlet, 0.8);
+    let (x, v) = random_state(&model, 5);
+    let run = |kind: EngineKind, config: SimConfig| {
+        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
+        sim.set_state(&x, &v).unwrap();
+        sim.run(300).unwrap();
+        sim.positions()
+    };
+    let gpu = run(EngineKind::Gpu, config);
+    let reference = run(EngineKind::Reference, config);
+    let err = relative_l2(&model.rest, &gpu, &reference);
+    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
+    let springs = run(
+        EngineKind::Reference,
+        SimConfig {
+            force_model: ForceModelKind::Springs,
+            ..config
+        },
+    );
+    let apart = relative_l2(&model.rest, &springs, &reference);
+    assert!(
+        apart > 100.0 * err.max(1e-6),
+        "springs {apart:e}, gpu {err:e}"
+    );
+}
+
+/// Memory per layout counts the blocks: a 3x3 block of three vec4 rows per slot in use (six
+/// when damped), beside the springs' buffers.
+#[test]
+fn memory_reports_the_tensor_blocks() {
+    let Some(ctx) = common::gpu() else { return };
+    let model = jittered_box(1, true);
+    for kind in LAYOUTS {
+        let springs = GpuEngine::with_context(
+            ctx.clone(),
+            &model,
+            SimConfig {
+                force_model: ForceModelKind::Springs,
+                ..config(&model, Integrator::Verlet, 0.5)
+            },
+            kind,
+        )
+        .unwrap();
+        let tensor = GpuEngine::with_context(
+            ctx.clone(),
+            &model,
+            config(&model, Integrator::Verlet, 0.5),
+            kind,
+        )
+        .unwrap();
+        let (ms, mt) = (springs.memory(), tensor.memory());
+        let blocks = mt
+            .stats
+            .buffers
+            .iter()
+            .find(|(n, _)| n == "tensor-mass blocks")
+            .map(|b| b.1)
+            .expect("the blocks are reported");
+        // One block per slot or record: twice the springs on the node-centric layouts (one
+        // slot per end), once on the edge layout; 96 bytes each when damped.
+        let records = match kind {
+            LayoutKind::Edges => model.springs().len() as u64,
+            _ => 2 * model.springs().len() as u64,
+        };
+        assert!(blocks >= records * 96, "{kind:?}: {blocks} bytes");
+        assert!(mt.stats.total >= ms.stats.total + blocks, "{kind:?}");
+        assert!(
+            mt.bytes_per_step >= ms.bytes_per_step + records * 96,
+            "{kind:?}: {} vs {}",
+            mt.bytes_per_step,
+            ms.bytes_per_step
+        );
+    }
+}
+
+/// What has no GPU pass says so and names what runs instead.
+#[test]
+fn what_the_gpu_does_not_run_is_refused_with_a_reason() {
+    let Some(ctx) = common::gpu() else { return };
+    let model = jittered_box(1, false);
+    let base = config(&model, Integrator::Verlet, 0.5);
+    let corot = SimConfig {
+        force_model: ForceModelKind::Corotational,
+        ..base
+    };
+    let err = GpuEngine::with_context(ctx.clone(), &model, corot, LayoutKind::Connectivity)
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(&err, Error::Unsupported(m) if m.contains("engine: Fast")),
+        "{err}"
+    );
+    let options = lancet::engine::GpuOptions {
+        layout: LayoutKind::Edges,
+        accumulation: Accumulation::AtomicFixed,
+    };
+    let err = GpuEngine::with_context(ctx.clone(), &model, base, options)
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(&err, Error::Unsupported(m) if m.contains("Gather")),
+        "{err}"
+    );
+    let implicit = SimConfig {
+        integrator: Integrator::BackwardEuler,
+        ..base
+    };
+    let err = GpuEngine::with_context(ctx, &model, implicit, LayoutKind::Valence)
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(&err, Error::Unsupported(m) if m.contains("explicit")),
+        "{err}"
+    );
+}
+
+/// A 3 cm box of 4 x 4 x 4 cells hanging from its y = 0 face, Rayleigh-damped, a blade
+/// sweeping down through it and across over 20 ms (as `tests/cut/cut_fem.rs` cuts it).
+const CUT_SCENE: &str = r#"Scene(
+    name: "tensor-mass cuts on the GPU",
+    mesh: Box((cells: (4, 4, 4), size: (0.03, 0.03, 0.03))),
+    material: (
+        stiffness: Material(youngs_modulus: 1e4, poisson_ratio: 0.3),
+        mass: Density(1000.0),
+        damping: StiffnessProportional(1e-3),
+    ),
+    gravity: (0.0, -9.81, 0.0),
+    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 1.0, 0.0), tolerance: 1e-9)],
+    dt: BoundFraction(0.8),
+    steps: 40,
+    engine: Gpu,
+    tools: [(
+        name: "scalpel",
+        shape: Blade(width: 0.1, length: 0.1, thickness: 2e-4),
+        trajectory: Keyframes([
+            (time: 0.0, translation: (0.011, 0.012, 0.04)),
+            (time: 0.02, translation: (0.019, 0.021, -0.01)),
+        ]),
+    )],
+    cut: Some((methods: [Separate, Subdivide], check: true, time_step: Substep)),
+)"#;
+
+/// Cuts through a tensor-mass model on the GPU, in every layout: after every cut the engine's
+/// float64 tensors equal a rebuild from the cut mesh to 1e-12 and its blocks (host and device)
+/// a fresh assembly beside the patched layout to float32 rounding (the world's checks, through
+/// `Engine::differences_from_rebuild`); and the cut engine then steps as a GPU engine built
+/// afresh from the cut model does, to float32 rounding.
+#[rstest]
+fn a_cut_gpu_tensor_mass_model_equals_a_rebuilt_one(
+    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
+    #[values(lancet::cut::CutMethod::Separate, lancet::cut::CutMethod::Subdivide)]
+    method: lancet::cut::CutMethod,
+) {
+    use lancet::scene::driver::SceneDriver;
+    use lancet::scene::runner::{build_mesh, model_config};
+    use lancet::scene::{RunOptions, Scene};
+    use lancet::world::WorldBuilder;
+    let Some(_) = common::gpu() else { return };
+    let path = std::path::Path::new("gpu_tensor_cuts.ron");
+    let scene = Scene::from_ron(CUT_SCENE, path).unwrap();
+    let mesh = build_mesh(&scene, path).unwrap();
+    let mconfig = model_config(&scene);
+    let packed = lancet::SpringModel::build(&mesh, &mconfig)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let config = config(&packed, Integrator::Verlet, 0.8);
+    let mut world = WorldBuilder::new(mesh, &mconfig, config)
+        .unwrap()
+        .engine(EngineKind::Gpu)
+        .gpu(layout.into())
+        .build()
+        .unwrap();
+    let opts = RunOptions {
+        cut_method: Some(method),
+        check: true,
+        ..RunOptions::default()
+    };
+    world.set_up_scene(&scene, &opts).unwrap();
+    let mut driver = SceneDriver::new(&scene);
+    for _ in 0..scene.steps {
+        driver.step(&mut world).unwrap();
+    }
+    let report = &world.cutting().unwrap().report;
+    assert!(report.cuts > 0, "{layout:?} {method}: nothing cut");
+    assert!(report.nodes_added > 0, "{layout:?} {method}");
+    assert_eq!(report.checks, report.cuts);
+    assert!(
+        report.violations.is_empty(),
+        "{layout:?} {method}: {:#?}",
+        report.violations
+    );
+    let sim = world.sim_mut();
+    assert!(sim.engine_name().starts_with("gpu-"));
+    let model = sim.model().clone();
+    let (x, v) = (sim.positions(), sim.velocities());
+    let mut fresh =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, *sim.config(), layout.into()).unwrap();
+    fresh.set_state(&x, &v).unwrap();
+    sim.set_state(&x, &v).unwrap();
+    sim.run(30).unwrap();
+    fresh.run(30).unwrap();
+    let (a, b) = (sim.positions(), fresh.positions());
+    let motion = a
+        .iter()
+        .zip(&x)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f64::max);
+    let worst = a
+        .iter()
+        .zip(&b)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f64::max);
+    assert!(motion > 1e-6, "the cut box moves ({motion:e})");
+    assert!(
+        worst <= 1e-4 * motion,
+        "{layout:?} {method}: cut and rebuilt engines differ by {worst:e} (motion {motion:e})"
+    );
+}
