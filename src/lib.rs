@@ -42,5 +42,6 @@ pub mod scene;
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctest;
+#[cfg(feature = "cut")]
 pub mod cut;
 pub mod world;

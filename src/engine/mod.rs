@@ -10,6 +10,7 @@ mod config;
 pub mod fast;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod reading;
 pub mod reference;
 mod simulation;
 mod surface_list;
@@ -123,7 +124,11 @@ pub trait Engine: Send {
     /// may come too. What a cut reads ([`crate::cut::Cutter::cut_from`]): engines whose state
     /// lives on a device find the nodes there and read back only those.
     fn nodes_near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
-        crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&self.positions()), lo, hi)
+        crate::engine::reading::PositionSource::near(
+            &mut crate::engine::reading::AllPositions(&self.positions()),
+            lo,
+            hi,
+        )
     }
     /// Find the nodes in the box `lo..=hi` (m) as the last pass of the next [`Engine::step`]
     /// and start reading them back with it, so that a [`Engine::nodes_near`] for a box inside

@@ -6,6 +6,7 @@ pub mod bandwidth;
 pub mod bench;
 #[cfg(all(feature = "gpu", feature = "collide"))]
 pub mod collide_bench;
+#[cfg(feature = "cut")]
 pub mod cut_bench;
 pub mod device_copy;
 #[cfg(feature = "plot")]

@@ -26,11 +26,13 @@ pub mod glb;
 pub mod grid;
 #[cfg(feature = "surface-formats")]
 pub mod read;
+#[cfg(feature = "cut")]
 pub mod rebind;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 
 pub use embed::{Binding, Embedding};
+#[cfg(feature = "cut")]
 pub use rebind::{CutChange, Rebinder, Rebound};
 
 use crate::error::{Error, Result};

@@ -73,6 +73,7 @@
 mod builder;
 mod contact;
 pub mod coupling;
+#[cfg(feature = "cut")]
 pub mod cutting;
 #[cfg(feature = "scene")]
 mod scene;
@@ -80,6 +81,7 @@ mod step;
 
 pub use builder::WorldBuilder;
 pub use coupling::{ProxyState, VirtualCoupling};
+#[cfg(feature = "cut")]
 pub use cutting::{CutEvent, CutReport, CutSettings, TimeStepPolicy};
 pub use step::{SelfContactStep, StepReport, ToolStep};
 
@@ -90,6 +92,7 @@ use crate::engine::Simulation;
 use crate::error::{Error, Result};
 use crate::mesh::TetMesh;
 use crate::model::{PackedModel, SpringModel};
+#[cfg(feature = "cut")]
 use cutting::Cutting;
 
 /// A tool in a [`World`], as [`World::add_tool`] returned it.
@@ -120,7 +123,8 @@ struct Coupled {
 pub struct World {
     /// The mesh as built (cuts edit the cutter's copy: [`World::mesh`]).
     mesh: TetMesh,
-    /// The model as built (the simulation holds the current one).
+    /// The model as built (the simulation holds the current one); the cutter starts from it.
+    #[cfg_attr(not(feature = "cut"), allow(dead_code))]
     model: SpringModel,
     sim: Simulation,
     tools: Vec<Tool>,
@@ -128,6 +132,7 @@ pub struct World {
     /// Whether each tool was given a pose since the last step.
     posed: Vec<bool>,
     couplings: Vec<Option<Coupled>>,
+    #[cfg(feature = "cut")]
     cutting: Option<Cutting>,
     contact: contact::ContactPhase,
     /// Whether the simulation was given the mesh's boundary (for the tools and self-contact).
@@ -145,6 +150,7 @@ impl World {
             names: Vec::new(),
             posed: Vec::new(),
             couplings: Vec::new(),
+            #[cfg(feature = "cut")]
             cutting: None,
             contact: contact::ContactPhase::default(),
             surface_given: false,
@@ -166,7 +172,11 @@ impl World {
     /// The current mesh: as cut so far when cutting is enabled. Its nodes are numbered as the
     /// simulation's (cuts add nodes at the end and remove none).
     pub fn mesh(&self) -> &TetMesh {
-        self.cutting.as_ref().map_or(&self.mesh, Cutting::mesh)
+        #[cfg(feature = "cut")]
+        if let Some(c) = &self.cutting {
+            return c.mesh();
+        }
+        &self.mesh
     }
 
     /// The current packed model (the simulation's: cuts patch it).
@@ -205,17 +215,20 @@ impl World {
     }
 
     /// Cutting, when enabled: its method, mesh and report so far.
+    #[cfg(feature = "cut")]
     pub fn cutting(&self) -> Option<&Cutting> {
         self.cutting.as_ref()
     }
 
     /// The cutting, mutably (to follow its cuts with a render surface), when enabled.
+    #[cfg(feature = "cut")]
     pub fn cutting_mut(&mut self) -> Option<&mut Cutting> {
         self.cutting.as_mut()
     }
 
     /// What the cuts did so far, finished at the current positions (latency percentiles,
     /// fragments, opening), when cutting is enabled.
+    #[cfg(feature = "cut")]
     pub fn cut_report(&self) -> Option<CutReport> {
         let cutting = self.cutting.as_ref()?;
         let mut report = cutting.report_at(&self.sim.positions());
@@ -240,6 +253,7 @@ impl World {
         let tool = Tool::new(shape, pose)?;
         self.give_surface()?;
         let index = self.tools.len();
+        #[cfg(feature = "cut")]
         if let Some(c) = self.cutting.as_mut() {
             if c.settings().cuts_with(name, &shape) {
                 c.add_blade(index, name);
@@ -301,6 +315,7 @@ impl World {
 
     /// Cut with the world's blades (those added before and after) under `settings` from now
     /// on. Refused when cutting is already enabled.
+    #[cfg(feature = "cut")]
     pub fn enable_cutting(&mut self, settings: CutSettings) -> Result<()> {
         if self.cutting.is_some() {
             return Err(Error::Options("cutting is already enabled".into()));
@@ -320,6 +335,7 @@ impl World {
     /// this every few steps while cutting (the scene runner does at every frame and at least
     /// every [`crate::engine::INVERSION_CHECK_EVERY`] steps).
     pub fn rewatch(&mut self) -> Result<()> {
+        #[cfg(feature = "cut")]
         if self.cutting.is_some() && self.sim.watched_tets_touched() {
             let mesh = self
                 .cutting

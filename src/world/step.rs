@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 
 use super::coupling::ProxyState;
+#[cfg(feature = "cut")]
 use super::cutting::CutEvent;
 use super::World;
 use crate::error::Result;
@@ -57,6 +58,7 @@ pub struct StepReport {
     /// Each tool, in the order they were added ([`super::ToolHandle::index`]).
     pub tools: Vec<ToolStep>,
     /// The cuts this step made, in blade order.
+    #[cfg(feature = "cut")]
     pub cuts: Vec<CutEvent>,
     /// Penetrating surface triangles over all tools.
     pub contacts: usize,
@@ -93,21 +95,22 @@ impl World {
             }
             self.posed[i] = false;
         }
+        #[cfg(feature = "cut")]
         if let Some(cut) = &self.cutting {
             cut.before_step(&mut self.sim, &self.tools);
         }
         self.sim.run(1)?;
-        let before = self.cutting.as_ref().map_or(0, |c| c.report.events.len());
-        if let Some(cut) = self.cutting.as_mut() {
-            cut.after_step(&mut self.sim, &self.tools)?;
-        }
-        let cuts = self
-            .cutting
-            .as_ref()
-            .map_or(Vec::new(), |c| c.report.events[before..].to_vec());
-        let cutting: Vec<bool> = (0..self.tools.len())
-            .map(|i| self.cutting.as_ref().is_some_and(|c| c.cuts_with(i)))
-            .collect();
+        #[cfg(feature = "cut")]
+        let cuts = {
+            let before = self.cutting.as_ref().map_or(0, |c| c.report.events.len());
+            if let Some(cut) = self.cutting.as_mut() {
+                cut.after_step(&mut self.sim, &self.tools)?;
+            }
+            self.cutting
+                .as_ref()
+                .map_or(Vec::new(), |c| c.report.events[before..].to_vec())
+        };
+        let cutting: Vec<bool> = (0..self.tools.len()).map(|i| self.cuts_with(i)).collect();
         let (mut tools, self_contact) = if self.tools.is_empty() && !self.self_contact_on() {
             (Vec::new(), None)
         } else {
@@ -127,9 +130,23 @@ impl World {
             contacts: tools.iter().map(|t| t.contacts).sum(),
             deepest: tools.iter().map(|t| t.deepest).fold(0.0, f64::max),
             tools,
+            #[cfg(feature = "cut")]
             cuts,
             self_contact,
         })
+    }
+
+    /// Whether tool `i` cuts (a blade, with cutting enabled) instead of pushing.
+    fn cuts_with(&self, i: usize) -> bool {
+        #[cfg(feature = "cut")]
+        {
+            self.cutting.as_ref().is_some_and(|c| c.cuts_with(i))
+        }
+        #[cfg(not(feature = "cut"))]
+        {
+            let _ = i;
+            false
+        }
     }
 
     /// Whether self-contact is resolved at each step.

@@ -20,5 +20,4 @@ mod cut_scenes;
 mod cut_snap;
 mod cut_state;
 mod cut_surface;
-mod cut_time_step;
 mod cut_topology_errors;

@@ -3,6 +3,7 @@
 //! One test binary per area (linking each binary costs more than its tests on a 2-core
 //! machine); each module is one behaviour, named as the file it was.
 
+mod features;
 mod io_bombs;
 mod io_duplicates;
 mod io_formats;

@@ -9,7 +9,6 @@
 #[path = "../common/mod.rs"]
 mod common;
 
-mod render_cli;
 mod render_glb;
 mod render_png;
 mod render_shapes;

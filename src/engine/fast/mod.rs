@@ -299,7 +299,7 @@ impl FastEngine {
         // A scan of the engine's own arrays, in their order: no copy of every position. The box
         // is first tested in float32 (rest and displacement side by side), grown by the
         // rounding of that sum, which rejects most nodes without gathering their float64 rest.
-        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
+        let (lo32, hi32) = crate::engine::reading::float32_box(lo, hi);
         let mut out = Vec::new();
         for i in range {
             let (r, u) = (self.rest_inner[i], self.x[i]);
@@ -315,7 +315,7 @@ impl FastEngine {
                 continue;
             }
             let x = self.position_at(i);
-            if crate::cut::reading::inside(&x, &lo, &hi) {
+            if crate::engine::reading::inside(&x, &lo, &hi) {
                 out.push((self.order[i], x));
             }
         }
@@ -343,7 +343,7 @@ impl FastEngine {
             let _ = parallel;
             self.scan_near(lo, hi, 0..n)
         };
-        crate::cut::reading::sort_by_node(&mut out);
+        crate::engine::reading::sort_by_node(&mut out);
         out
     }
 
@@ -568,7 +568,7 @@ impl Engine for FastEngine {
                 return Ok(a
                     .found
                     .iter()
-                    .filter(|(_, x)| crate::cut::reading::inside(x, &lo, &hi))
+                    .filter(|(_, x)| crate::engine::reading::inside(x, &lo, &hi))
                     .copied()
                     .collect());
             }

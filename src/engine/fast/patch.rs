@@ -287,7 +287,7 @@ impl FastEngine {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "cut"))]
 mod tests {
     use nalgebra::Isometry3;
 

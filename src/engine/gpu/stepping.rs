@@ -49,7 +49,7 @@ impl Engine for GpuEngine {
         let slots = self.layout.node_slots() as u32;
         let near = match (ahead, self.surface.as_mut()) {
             (Some((lo, hi)), Some(s)) => {
-                let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
+                let (lo32, hi32) = crate::engine::reading::float32_box(lo, hi);
                 s.near
                     .record_ahead(&self.ctx, &mut enc, self.phase, slots, lo32, hi32);
                 Some(&mut s.near)

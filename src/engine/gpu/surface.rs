@@ -285,9 +285,13 @@ impl GpuEngine {
         self.refresh_surface()?;
         let Some(surface) = &mut self.surface else {
             let x = self.state_f64().0;
-            return crate::cut::PositionSource::near(&mut crate::cut::AllPositions(&x), lo, hi);
+            return crate::engine::reading::PositionSource::near(
+                &mut crate::engine::reading::AllPositions(&x),
+                lo,
+                hi,
+            );
         };
-        let (lo32, hi32) = crate::cut::reading::float32_box(lo, hi);
+        let (lo32, hi32) = crate::engine::reading::float32_box(lo, hi);
         let (order, rest, fixed) = (&self.layout.order().order, &self.rest, &self.fixed);
         // The model node at a slot and its position as `state_f64` gives it (a cut reads what
         // a full readback gives), with its rest position; none at a hole.
@@ -345,7 +349,7 @@ impl GpuEngine {
                     .collect()
             }
         };
-        crate::cut::reading::sort_by_node(&mut out);
+        crate::engine::reading::sort_by_node(&mut out);
         Ok(out)
     }
 

@@ -651,7 +651,7 @@ impl Simulation {
 
 /// A simulation is where a cut reads the positions near its blade
 /// ([`crate::cut::Cutter::cut_from`]).
-impl crate::cut::PositionSource for Simulation {
+impl crate::engine::reading::PositionSource for Simulation {
     fn near(&mut self, lo: [f64; 3], hi: [f64; 3]) -> Result<Vec<(u32, [f64; 3])>> {
         self.nodes_near(lo, hi)
     }

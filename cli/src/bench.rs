@@ -3,7 +3,6 @@
 use super::*;
 
 /// Run the benchmark matrix and print it.
-#[cfg(all(feature = "gpu", feature = "collide"))]
 pub(crate) fn bench_collide(
     triangles: &[usize],
     tools: &[usize],
@@ -59,20 +58,6 @@ pub(crate) fn bench_collide(
          candidates' nodes, narrow phase, correction) for a 3 mm probe pressed 0.5 mm, ms"
     );
     Ok(ExitCode::SUCCESS)
-}
-
-#[cfg(not(all(feature = "gpu", feature = "collide")))]
-pub(crate) fn bench_collide(
-    _: &[usize],
-    _: &[usize],
-    _: usize,
-    _: bool,
-) -> lancet::Result<ExitCode> {
-    Err(lancet::Error::Unsupported(
-        "bench collide runs the GPU broad phases and the narrow phase; build with the `gpu` \
-         and `collide` features"
-            .into(),
-    ))
 }
 
 /// Run the cut benchmark and print it.
@@ -175,7 +160,6 @@ pub(crate) fn engine_labels<'a>(
 
 /// The device's copy bandwidth, the floor of the GPU rows (asked for only when there are
 /// some), where an adapter opens.
-#[cfg(feature = "gpu")]
 pub(crate) fn device_bandwidth() -> Option<lancet::report::device_copy::DeviceBandwidth> {
     let ctx = lancet::engine::gpu::GpuContext::new().ok()?;
     match lancet::report::device_copy::device_copy(&ctx) {
@@ -185,11 +169,6 @@ pub(crate) fn device_bandwidth() -> Option<lancet::report::device_copy::DeviceBa
             None
         }
     }
-}
-
-#[cfg(not(feature = "gpu"))]
-pub(crate) fn device_bandwidth() -> Option<lancet::report::device_copy::DeviceBandwidth> {
-    None
 }
 
 pub(crate) fn bench(

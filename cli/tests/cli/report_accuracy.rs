@@ -325,9 +325,7 @@ fn scenes_with_tools_or_cuts_are_refused_naming_what_would_be_left_out() {
         ("cut_two_crossing.ron", "a cut"),
         ("grasp_lift.ron", "tools"),
     ] {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("fixtures/scenes")
-            .join(file);
+        let path = Path::new(crate::REPO).join("fixtures/scenes").join(file);
         let scene = Scene::read(&path).unwrap();
         let err = scene_accuracy(&scene, &path, &cpu_options(&[1.0]), |_| {}).unwrap_err();
         let msg = err.to_string();

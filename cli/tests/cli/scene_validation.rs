@@ -82,7 +82,7 @@ fn an_unknown_field_like_no_valid_one_lists_the_valid_names() {
 /// Every fixture scene still reads: none relied on a field being ignored.
 #[test]
 fn every_fixture_scene_reads() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes");
+    let dir = Path::new(crate::REPO).join("fixtures/scenes");
     let mut n = 0;
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();

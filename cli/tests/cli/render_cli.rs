@@ -6,7 +6,7 @@ use std::process::Command;
 
 fn lancet() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_lancet"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c.current_dir(crate::REPO);
     c
 }
 

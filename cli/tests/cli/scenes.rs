@@ -8,9 +8,7 @@ use lancet::scene::{run_scene, RunOptions, Scene};
 use rstest::rstest;
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures/scenes")
-        .join(name)
+    Path::new(crate::REPO).join("fixtures/scenes").join(name)
 }
 
 #[rstest]

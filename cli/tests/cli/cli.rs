@@ -32,7 +32,7 @@ fn ok_json(out: &Output) -> serde_json::Value {
 }
 
 fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes")
+    Path::new(crate::REPO).join("fixtures/scenes")
 }
 
 #[test]

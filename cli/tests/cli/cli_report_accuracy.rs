@@ -183,10 +183,7 @@ fn accuracy_puts_backward_euler_above_the_bound_beside_the_explicit_series() {
 /// tip deflection in the JSON; a scene without an analytic answer exits with the reason.
 #[test]
 fn model_error_json_names_each_force_model_against_the_analytic_tip() {
-    let fixture = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/fixtures/scenes/fem_cantilever.ron"
-    );
+    let fixture = &format!("{}/fixtures/scenes/fem_cantilever.ron", crate::REPO);
     let out = lancet(&[
         "report",
         "accuracy",
