@@ -222,8 +222,15 @@ impl<'a> SweepIndex<'a> {
             .map(|(k, (_, e))| (k, e))
             .collect();
         // The same order every run.
-        edges.sort_by(|a, b| a.0.cmp(&b.0));
-        let (mut lo, mut hi) = bounds(&plane.triangles.iter().flatten().copied().collect::<Vec<_>>());
+        edges.sort_by_key(|a| a.0);
+        let (mut lo, mut hi) = bounds(
+            &plane
+                .triangles
+                .iter()
+                .flatten()
+                .copied()
+                .collect::<Vec<_>>(),
+        );
         let pad = 1e-9 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         for k in 0..3 {
             lo[k] -= pad;
@@ -522,7 +529,15 @@ fn cap(e: &Embedding, rim: &[(u32, u32)], plane: &CutPlane) -> Option<Vec<[u32; 
     }
     // Coordinates in the plane.
     let n = plane.normal;
-    let u = n.cross(&(if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() })).normalize();
+    let u = n
+        .cross(
+            &(if n.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            }),
+        )
+        .normalize();
     let w = n.cross(&u);
     let flat = |v: u32| {
         let d = Point3::from(e.rest[v as usize]) - plane.origin;
@@ -571,15 +586,14 @@ fn cap(e: &Embedding, rim: &[(u32, u32)], plane: &CutPlane) -> Option<Vec<[u32; 
             (pos[0].x + pos[1].x + pos[2].x) / 3.0,
             (pos[0].y + pos[1].y + pos[2].y) / 3.0,
         );
-        if !polys.iter().fold(false, |inside, p| inside ^ contains(p, c)) {
+        if !polys
+            .iter()
+            .fold(false, |inside, p| inside ^ contains(p, c))
+        {
             continue;
         }
         let v = f.vertices().map(|h| vertex_of[&h.fix()]);
-        out.push(if outer > 0.0 {
-            v
-        } else {
-            [v[0], v[2], v[1]]
-        });
+        out.push(if outer > 0.0 { v } else { [v[0], v[2], v[1]] });
     }
     Some(out)
 }

@@ -180,8 +180,7 @@ pub fn closed_box(lo: [f64; 3], hi: [f64; 3], n: [usize; 3]) -> RenderSurface {
     let mut positions = Vec::new();
     let mut vertex = |i: [usize; 3]| -> u32 {
         *index.entry(i).or_insert_with(|| {
-            positions
-                .push([0, 1, 2].map(|c| lo[c] + (hi[c] - lo[c]) * i[c] as f64 / n[c] as f64));
+            positions.push([0, 1, 2].map(|c| lo[c] + (hi[c] - lo[c]) * i[c] as f64 / n[c] as f64));
             (positions.len() - 1) as u32
         })
     };

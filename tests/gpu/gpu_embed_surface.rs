@@ -203,7 +203,9 @@ fn device_surface_grows_with_the_caps() {
         }
     }
     let moved = |v: u32| {
-        nalgebra::Vector3::from([0, 1, 2].map(|c| got[v as usize][c] as f64 - e.rest[v as usize][c]))
+        nalgebra::Vector3::from(
+            [0, 1, 2].map(|c| got[v as usize][c] as f64 - e.rest[v as usize][c]),
+        )
     };
     for t in &triangles {
         for k in 1..3 {

@@ -25,6 +25,34 @@ fn organ() -> RenderSurface {
 /// Its volume.
 const VOLUME: f64 = 0.048 * 0.038 * 0.028;
 
+/// The drawn edges that cross one of `sweeps`' triangles, ends more than a micrometre from its
+/// plane on either side and the crossing inside it: an edge across the opening.
+fn edges_across(e: &Embedding, triangles: &[[u32; 3]], sweeps: &[lancet::cut::Sweep]) -> usize {
+    let mut n = 0;
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (
+                Point3::from(e.rest[t[k] as usize]),
+                Point3::from(e.rest[t[(k + 1) % 3] as usize]),
+            );
+            let across = sweeps.iter().flat_map(|s| &s.triangles).any(|q| {
+                let normal = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                let (da, db) = (normal.dot(&(a - q[0])), normal.dot(&(b - q[0])));
+                if da * db >= 0.0 || da.abs() < 1e-6 || db.abs() < 1e-6 {
+                    return false;
+                }
+                let x = a + (b - a) * (da / (da - db));
+                (0..3).all(|i| {
+                    let (p, r) = (q[i], q[(i + 1) % 3]);
+                    (r - p).cross(&(x - p)).dot(&normal) > 0.0
+                })
+            });
+            n += across as usize;
+        }
+    }
+    n
+}
+
 /// Cut with `sweeps`, the surface rebound and capped after each; returns the cutter, the
 /// embedding and what the last cut left drawn.
 fn cut_and_cap(method: CutMethod, sweeps: &[lancet::cut::Sweep]) -> (Cutter, Embedding, Capped) {
@@ -42,6 +70,9 @@ fn cut_and_cap(method: CutMethod, sweeps: &[lancet::cut::Sweep]) -> (Cutter, Emb
             panic!("{method}: the drawn surface is open after a stroke: {why}");
         }
     }
+    // The blade opened the surface: no drawn edge crosses where it swept.
+    let across = edges_across(&e, &last.triangles, sweeps);
+    assert_eq!(across, 0, "{method}: {across} drawn edges cross the cut");
     (cutter, e, last)
 }
 
@@ -52,27 +83,45 @@ fn a_cut_right_through_leaves_the_surface_closed_and_each_side_moving_whole(
     let strokes = sweeps(3);
     let (cutter, e, capped) = cut_and_cap(method, &strokes);
     assert_eq!(cutter.mesh().component_count(), 2, "{method}: cut through");
-    assert!(capped.cap_triangles > 0 && capped.open == 0, "{method}: {capped:?}");
+    assert!(
+        capped.cap_triangles > 0 && capped.open == 0,
+        "{method}: {capped:?}"
+    );
     // At rest the two caps of each side coincide: the box's volume.
     let v = enclosed_volume(&e.rest, &capped.triangles);
-    assert!((v - VOLUME).abs() < 1e-9 * VOLUME, "{method}: {v} enclosed, box {VOLUME}");
+    assert!(
+        (v - VOLUME).abs() < 1e-9 * VOLUME,
+        "{method}: {v} enclosed, box {VOLUME}"
+    );
 
     // The new vertices: on the blade's plane, bound to a tet on their own side (inside it when
     // the mesh's cut follows the blade, subdividing; within a cell of it otherwise).
     let own = organ().vertex_count();
     let added = own..e.len();
-    assert!(added.len() >= 2 * 2 * (10 + 6), "{method}: {} added", added.len());
+    assert!(
+        added.len() >= 2 * 2 * (10 + 6),
+        "{method}: {} added",
+        added.len()
+    );
     let mesh = cutter.mesh();
     for v in added.clone() {
         assert!((e.rest[v][1] - Y0).abs() < 1e-12, "vertex {v} off the cut");
         assert!(!e.dropped[v], "{method}: cap vertex {v} dropped");
-        let t = mesh.tet(e.bindings[v].tet()).expect("a tet of the cut mesh");
+        let t = mesh
+            .tet(e.bindings[v].tet())
+            .expect("a tet of the cut mesh");
         let w = barycentric(&mesh.tet_points(t), &Point3::from(e.rest[v]));
         match e.bindings[v] {
             Binding::Inside(_) => assert!(w.iter().all(|&w| w >= -1e-10), "vertex {v}: {w:?}"),
             Binding::Outside { distance, .. } => {
-                assert!(method != CutMethod::Subdivide, "vertex {v} outside a sub-tet");
-                assert!(distance <= H, "{method}: vertex {v} {distance} m from its tet");
+                assert!(
+                    method != CutMethod::Subdivide,
+                    "vertex {v} outside a sub-tet"
+                );
+                assert!(
+                    distance <= H,
+                    "{method}: vertex {v} {distance} m from its tet"
+                );
             }
         }
     }
@@ -91,7 +140,10 @@ fn a_cut_right_through_leaves_the_surface_closed_and_each_side_moving_whole(
     };
     for t in &capped.triangles {
         let p = t.map(piece);
-        assert!(p[0] == p[1] && p[1] == p[2], "{method}: triangle {t:?} stretched across");
+        assert!(
+            p[0] == p[1] && p[1] == p[2],
+            "{method}: triangle {t:?} stretched across"
+        );
     }
     for v in 0..own as u32 {
         let y = e.rest[v as usize][1];
@@ -108,11 +160,18 @@ fn a_cut_right_through_leaves_the_surface_closed_and_each_side_moving_whole(
     for (p, sides) in &at {
         let mut s = sides.clone();
         s.sort_unstable();
-        assert_eq!(s, [false, true], "{method}: the vertices at {p:?} moved with {sides:?}");
+        assert_eq!(
+            s,
+            [false, true],
+            "{method}: the vertices at {p:?} moved with {sides:?}"
+        );
     }
     // Each piece moved rigidly: the enclosed volume is still the box's.
     let v = enclosed_volume(&x, &capped.triangles);
-    assert!((v - VOLUME).abs() < 1e-9 * VOLUME, "{method}: {v} pulled apart");
+    assert!(
+        (v - VOLUME).abs() < 1e-9 * VOLUME,
+        "{method}: {v} pulled apart"
+    );
 }
 
 #[rstest]
@@ -120,10 +179,20 @@ fn a_blade_stopping_inside_leaves_the_surface_closed(
     #[values(CutMethod::Remove, CutMethod::Separate, CutMethod::Subdivide)] method: CutMethod,
 ) {
     let (cutter, e, capped) = cut_and_cap(method, &sweeps_down_to(2, 0.012));
-    assert_eq!(cutter.mesh().component_count(), 1, "{method}: not cut through");
-    assert!(capped.split > 0 && capped.cap_triangles > 0, "{method}: {capped:?}");
+    assert_eq!(
+        cutter.mesh().component_count(),
+        1,
+        "{method}: not cut through"
+    );
+    assert!(
+        capped.split > 0 && capped.cap_triangles > 0,
+        "{method}: {capped:?}"
+    );
     let v = enclosed_volume(&e.rest, &capped.triangles);
-    assert!((v - VOLUME).abs() < 1e-9 * VOLUME, "{method}: {v} enclosed, box {VOLUME}");
+    assert!(
+        (v - VOLUME).abs() < 1e-9 * VOLUME,
+        "{method}: {v} enclosed, box {VOLUME}"
+    );
     // The slit ends on the box's sides at the blade's edge: vertices both sides share there.
     let ends = (organ().vertex_count()..e.len())
         .filter(|&v| (e.rest[v][2] - 0.012).abs() < 1e-9)
