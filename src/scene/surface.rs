@@ -9,8 +9,9 @@
 //! The path is found as the mesh's is (relative to the scene file's folder, or
 //! `$LANCET_MESH_DIR/...`). After each cut the vertices of the tets it changed are bound again
 //! to the tet on their side ([`crate::surface::rebind`]; a carved vertex with nothing left on
-//! its side is dropped with its triangles). The cut's own faces are not added: a cut opens the
-//! render surface.
+//! its side is dropped with its triangles), the triangles the blade crossed are split at its
+//! sweep and each side of the opening is capped ([`crate::surface::cap`]), so that the drawn
+//! surface stays closed and outward.
 
 use std::path::{Path, PathBuf};
 
@@ -23,7 +24,7 @@ use crate::mesh::TetMesh;
 use crate::surface::gap::{boundary_gap, Gap};
 use crate::surface::read::read_surface;
 use crate::surface::vtp::VtpSeries;
-use crate::surface::{CutChange, Embedding, Rebinder, RenderSurface};
+use crate::surface::{Capper, CutChange, Embedding, Rebinder, RenderSurface};
 use crate::world::cutting::Cutting;
 
 /// Where a scene's render surface comes from.
@@ -76,6 +77,22 @@ pub struct SurfaceReport {
     pub rebind_p99_ms: f64,
     /// Largest, ms.
     pub rebind_max_ms: f64,
+    /// Vertices the cuts added (crossings of the blade, two per crossing, and slit ends), at
+    /// the end.
+    pub vertices_added: usize,
+    /// Triangles drawn at the end (the surface's, split where a blade crossed them, and the
+    /// caps).
+    pub triangles_drawn: usize,
+    /// Cap triangles at the end.
+    pub cap_triangles: usize,
+    /// Rims left open at the last cut (their triangulation failed); 0 when closed.
+    pub open_rims: usize,
+    /// Time to split and cap after a cut, ms: median.
+    pub cap_p50_ms: f64,
+    /// 99th percentile, ms.
+    pub cap_p99_ms: f64,
+    /// Largest, ms.
+    pub cap_max_ms: f64,
     /// Distance from the drawn vertices to the simulation boundary at rest, m.
     pub gap_rest: Gap,
     /// The same at the end of the run (cut and deformed).
@@ -89,9 +106,14 @@ pub struct SurfaceStage {
     series: Option<VtpSeries>,
     /// Made at the first cut.
     rebinder: Option<Rebinder>,
-    /// The surface as drawn, once a cut dropped vertices (their triangles left out).
+    capper: Capper,
+    /// The surface as drawn once cut: the vertices the cuts added appended, split and capped
+    /// triangles, dropped vertices' triangles left out.
     drawn: Option<RenderSurface>,
     rebind_s: Vec<f64>,
+    cap_s: Vec<f64>,
+    cap_triangles: usize,
+    open_rims: usize,
     vertices_rebound: usize,
     gap_rest: Gap,
     gap_end: Gap,
@@ -119,12 +141,16 @@ impl SurfaceStage {
         let rest: Vec<[f64; 3]> = mesh.nodes().map(|(_, n)| n.rest.into()).collect();
         let gap_rest = boundary_gap(&embedding, mesh, &rest);
         Ok(Some(SurfaceStage {
+            capper: Capper::new(surface.vertex_count(), &surface.triangles),
             surface,
             embedding,
             series,
             rebinder: None,
             drawn: None,
             rebind_s: Vec::new(),
+            cap_s: Vec::new(),
+            cap_triangles: 0,
+            open_rims: 0,
             vertices_rebound: 0,
             gap_rest,
             gap_end: Gap::default(),
@@ -132,7 +158,7 @@ impl SurfaceStage {
     }
 
     /// Follow the cuts `cut` made since the last call: rebind the vertices of the tets each
-    /// changed.
+    /// changed, then split and cap the surface at the blade's sweep.
     pub fn after_cuts(&mut self, cut: &mut Cutting) {
         let made = cut.take_cuts();
         if made.is_empty() {
@@ -144,7 +170,6 @@ impl SurfaceStage {
         let rebinder = self
             .rebinder
             .get_or_insert_with(|| Rebinder::new(mesh, embedding));
-        let mut dropped = 0;
         for m in &made {
             let r = rebinder.rebind(
                 embedding,
@@ -157,12 +182,13 @@ impl SurfaceStage {
             );
             self.rebind_s.push(r.seconds);
             self.vertices_rebound += r.vertices.len();
-            dropped += r.dropped;
-        }
-        if dropped > 0 {
+            let capped = self.capper.cut(embedding, mesh, &m.sweep);
+            self.cap_s.push(capped.seconds);
+            self.cap_triangles = capped.cap_triangles;
+            self.open_rims = capped.open;
             self.drawn = Some(RenderSurface {
-                positions: self.surface.positions.clone(),
-                triangles: embedding.drawn_triangles(&self.surface.triangles),
+                positions: embedding.rest.clone(),
+                triangles: capped.triangles,
             });
         }
     }
@@ -188,9 +214,15 @@ impl SurfaceStage {
         Ok(())
     }
 
-    /// The surface at rest (placed) and its vertices at node positions `x` (dense order).
+    /// The surface as drawn at rest (placed; split and capped once cut) and its vertices at
+    /// node positions `x` (dense order).
     pub fn deformed(&self, x: &[[f64; 3]]) -> (&RenderSurface, Vec<[f64; 3]>) {
-        (&self.surface, self.embedding.evaluate(x))
+        (self.drawn(), self.embedding.evaluate(x))
+    }
+
+    /// The surface as drawn at rest: as read until a cut, then split and capped.
+    pub fn drawn(&self) -> &RenderSurface {
+        self.drawn.as_ref().unwrap_or(&self.surface)
     }
 
     /// What was done, for the run's summary.
@@ -207,6 +239,13 @@ impl SurfaceStage {
             rebind_p50_ms: 1e3 * percentile(&self.rebind_s, 0.5),
             rebind_p99_ms: 1e3 * percentile(&self.rebind_s, 0.99),
             rebind_max_ms: 1e3 * self.rebind_s.iter().copied().fold(0.0, f64::max),
+            vertices_added: self.embedding.len() - self.surface.vertex_count(),
+            triangles_drawn: self.drawn().triangles.len(),
+            cap_triangles: self.cap_triangles,
+            open_rims: self.open_rims,
+            cap_p50_ms: 1e3 * percentile(&self.cap_s, 0.5),
+            cap_p99_ms: 1e3 * percentile(&self.cap_s, 0.99),
+            cap_max_ms: 1e3 * self.cap_s.iter().copied().fold(0.0, f64::max),
             gap_rest: self.gap_rest,
             gap_end: self.gap_end,
         }

@@ -256,6 +256,26 @@ impl Embedding {
             .collect()
     }
 
+    /// Append a vertex at rest position `x`, not bound yet (its weights zero: it stays at the
+    /// origin until bound), and return its index.
+    pub(super) fn push(&mut self, x: Point3<f64>) -> u32 {
+        self.nodes.push([0; 4]);
+        self.weights.push([0.0; 4]);
+        self.rest.push(x.into());
+        self.bindings.push(Binding::Inside(TetKey::default()));
+        self.dropped.push(false);
+        (self.nodes.len() - 1) as u32
+    }
+
+    /// Keep only the first `n` vertices.
+    pub(super) fn truncate(&mut self, n: usize) {
+        self.nodes.truncate(n);
+        self.weights.truncate(n);
+        self.rest.truncate(n);
+        self.bindings.truncate(n);
+        self.dropped.truncate(n);
+    }
+
     /// Vertices dropped by cuts.
     pub fn dropped_count(&self) -> usize {
         self.dropped.iter().filter(|&&d| d).count()

@@ -12,12 +12,15 @@
 //!   Blender, three.js and ParaView (feature `glb`).
 //! - [`colour`]: the displacement colour map of the pictures and the `.glb` vertex colours.
 //! - [`rebind`]: after a cut, the vertices of the tets it changed bound again to the tet on
-//!   their side (only those; a carved vertex with nothing left on its side is dropped). The
-//!   cut's own faces are not added to the render surface yet: a cut opens it.
+//!   their side (only those; a carved vertex with nothing left on its side is dropped).
+//! - [`cap`]: after a cut, the triangles the blade crossed split at its sweep (a vertex per
+//!   side at each crossing) and each side of the opening capped, so that the drawn surface
+//!   stays closed and outward; the new vertices are bound on their own side.
 //! - [`gap`]: the distance between the drawn surface and the simulation boundary.
 //! - [`grid`]: the uniform grid that finds a vertex's tet and nearest boundary face without
 //!   testing every tet.
 
+pub mod cap;
 pub mod colour;
 pub mod embed;
 pub mod gap;
@@ -31,6 +34,7 @@ pub mod rebind;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 
+pub use cap::{Capped, Capper};
 pub use embed::{Binding, Embedding};
 #[cfg(feature = "cut")]
 pub use rebind::{CutChange, Rebinder, Rebound};

@@ -19,8 +19,8 @@
 //!   all the material on its side there) it is **dropped**: [`Embedding::dropped`] says so,
 //!   its weights are zero, and [`Embedding::drawn_triangles`] leaves out its triangles.
 //!
-//! What is not done here: the cut's faces are not added to the render surface, so a cut
-//! opens it (see the module docs of [`super`]).
+//! The triangles the blade crossed are split, and the opening capped, by [`super::cap`] after
+//! the rebinding, so that the drawn surface stays closed.
 
 use std::time::Instant;
 

@@ -61,8 +61,14 @@ pub fn cutter(method: CutMethod) -> Cutter {
 /// The sweeps of the upright blade in the plane `y = Y0` moving down through the whole box
 /// in `steps` steps.
 pub fn sweeps(steps: usize) -> Vec<Sweep> {
+    sweeps_down_to(steps, -0.015)
+}
+
+/// The sweeps of the same blade moving down from above the box to height `bottom` in `steps`
+/// steps (a partial cut for a `bottom` inside the box).
+pub fn sweeps_down_to(steps: usize, bottom: f64) -> Vec<Sweep> {
     let at = |z: f64| Isometry3::translation(0.02, Y0, z);
-    let (top, bottom) = (0.045, -0.015);
+    let top = 0.045;
     (0..steps)
         .map(|k| {
             let z0 = top + (bottom - top) * k as f64 / steps as f64;
@@ -165,4 +171,83 @@ impl Pulled {
             nalgebra::Vector3::new(-2e-3, 5e-3, -1e-3)
         }
     }
+}
+
+/// The closed surface of the box `lo..hi`, `n` segments along each axis, triangles
+/// counter-clockwise seen from outside: a finer surface than the mesh's boundary.
+pub fn closed_box(lo: [f64; 3], hi: [f64; 3], n: [usize; 3]) -> RenderSurface {
+    let mut index = std::collections::HashMap::new();
+    let mut positions = Vec::new();
+    let mut vertex = |i: [usize; 3]| -> u32 {
+        *index.entry(i).or_insert_with(|| {
+            positions.push([0, 1, 2].map(|c| lo[c] + (hi[c] - lo[c]) * i[c] as f64 / n[c] as f64));
+            (positions.len() - 1) as u32
+        })
+    };
+    let mut triangles = Vec::new();
+    // Each face: the axis it is normal to, which end, and the two axes spanning it in an order
+    // whose cross product points out of the box.
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for end in [0, n[axis]] {
+            for a in 0..n[u] {
+                for b in 0..n[v] {
+                    let at = |du: usize, dv: usize| {
+                        let mut i = [0; 3];
+                        i[axis] = end;
+                        i[u] = a + du;
+                        i[v] = b + dv;
+                        i
+                    };
+                    let q = [at(0, 0), at(1, 0), at(1, 1), at(0, 1)].map(&mut vertex);
+                    // u x v is +axis: counter-clockwise at the far end, reversed at the near.
+                    if end == 0 {
+                        triangles.push([q[0], q[2], q[1]]);
+                        triangles.push([q[0], q[3], q[2]]);
+                    } else {
+                        triangles.push([q[0], q[1], q[2]]);
+                        triangles.push([q[0], q[2], q[3]]);
+                    }
+                }
+            }
+        }
+    }
+    RenderSurface::new(positions, triangles, "closed box").unwrap()
+}
+
+/// Why `triangles` is not a closed, consistently oriented surface: an edge not used exactly
+/// once each way round (a directed edge used twice is a flipped triangle; one never used the
+/// other way is a hole). `None` when it is.
+pub fn not_closed(triangles: &[[u32; 3]]) -> Option<String> {
+    let mut directed = std::collections::HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+        }
+    }
+    let mut bad: Vec<_> = directed
+        .iter()
+        .filter(|(&(a, b), &n)| n != 1 || directed.get(&(b, a)) != Some(&1))
+        .map(|(e, n)| (*e, *n))
+        .collect();
+    bad.sort_unstable();
+    (!bad.is_empty()).then(|| {
+        format!(
+            "{} of {} directed edges are not matched once the other way, e.g. {:?}",
+            bad.len(),
+            directed.len(),
+            &bad[..bad.len().min(6)]
+        )
+    })
+}
+
+/// The volume enclosed by `triangles` at `positions` (positive for an outward surface).
+pub fn enclosed_volume(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| nalgebra::Vector3::from(positions[v as usize]));
+            a.dot(&b.cross(&c)) / 6.0
+        })
+        .sum()
 }

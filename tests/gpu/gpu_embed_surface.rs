@@ -143,3 +143,76 @@ fn device_surface_follows_its_side_after_a_rebind(
     }
     assert!(rebound > 40, "{kind:?}: {rebound} rebound");
 }
+
+/// A closed surface cut right through, split and capped after each sweep: the embedding grows
+/// by the crossings' vertices, and only those and the vertices whose binding changed go up
+/// (within the buffers' room); with the pieces pulled apart on the device, the grown vertex
+/// buffer equals its twin and the float64 evaluation, every drawn triangle moving with one
+/// piece.
+#[test]
+fn device_surface_grows_with_the_caps() {
+    use lancet::cut::CutMethod;
+    use lancet::surface::{Capper, Rebinder};
+
+    let Some(ctx) = common::gpu() else { return };
+    let mut cutter = cut_box::cutter(CutMethod::Subdivide);
+    let mut packed = cutter.model().pack(cutter.mesh()).unwrap();
+    let kind = LayoutKind::Edges;
+    let mut engine = GpuEngine::with_context(ctx, &packed, SimConfig::new(1e-5), kind).unwrap();
+    let surface = cut_box::closed_box([0.001; 3], [0.049, 0.039, 0.029], [10, 8, 6]);
+    let own = surface.vertex_count();
+    let mut e = Embedding::new(cutter.mesh(), &surface).unwrap();
+    let mut rebinder = Rebinder::new(cutter.mesh(), &e);
+    let mut capper = Capper::new(own, &surface.triangles);
+    engine.set_render_surface(&e).unwrap();
+    let mut triangles = Vec::new();
+    for sweep in cut_box::sweeps(3) {
+        let before = engine.bound_vertices(&e).unwrap();
+        let (outcome, _) = cut_box::cut_once(&mut cutter, &sweep, Some((&mut rebinder, &mut e)));
+        triangles = capper.cut(&mut e, cutter.mesh(), &sweep).triangles;
+        packed.apply(&outcome.diff).unwrap();
+        engine.patch(&packed, &outcome.diff).unwrap();
+        let after = engine.bound_vertices(&e).unwrap();
+        let changed = after
+            .iter()
+            .enumerate()
+            .filter(|(v, b)| before.get(*v) != Some(b))
+            .count();
+        assert!(after.len() > own, "the cut added vertices");
+        assert_eq!(
+            engine.set_render_surface(&e).unwrap(),
+            48 * changed as u64,
+            "only the changed and added vertices go up"
+        );
+    }
+    assert!(cut_box::not_closed(&triangles).is_none());
+    let pulled = cut_box::Pulled::apart(cutter.mesh());
+    engine.set_state(&pulled.x, &vec![[0.0; 3]; pulled.x.len()]);
+    let got = engine.read_render_surface().unwrap();
+    assert_eq!(got.len(), e.len());
+    let bound = engine.bound_vertices(&e).unwrap();
+    let want = embed_surface_cpu(&bound, &engine.raw_state().unwrap().0);
+    let f64_want = e.evaluate(&pulled.x);
+    let exact = common::rounds_like_cpu();
+    for (v, (g, w)) in got.iter().zip(&want).enumerate() {
+        if exact {
+            assert_eq!(g.map(f32::to_bits), w.map(f32::to_bits), "vertex {v}");
+        }
+        for c in 0..3 {
+            assert!((g[c] as f64 - f64_want[v][c]).abs() < 2e-8, "vertex {v}");
+        }
+    }
+    let moved = |v: u32| {
+        nalgebra::Vector3::from(
+            [0, 1, 2].map(|c| got[v as usize][c] as f64 - e.rest[v as usize][c]),
+        )
+    };
+    for t in &triangles {
+        for k in 1..3 {
+            assert!(
+                (moved(t[0]) - moved(t[k])).norm() < 1e-8,
+                "triangle {t:?} stretched across the opening"
+            );
+        }
+    }
+}

@@ -9,6 +9,7 @@ mod cut_box;
 #[path = "../common/splitmix.rs"]
 mod splitmix;
 
+mod surface_cap;
 mod surface_cut;
 mod surface_embed;
 mod surface_read;

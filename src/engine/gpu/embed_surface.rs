@@ -6,7 +6,9 @@
 //! The engine holds the pass ([`GpuEngine::set_render_surface`]); it keeps a bind group per
 //! state buffer it has seen, so that it always binds the state buffer of the current phase,
 //! whatever a patch reallocated. After a cut only the bound vertices that changed (rebound, or
-//! bound to nodes a patch moved) are written.
+//! bound to nodes a patch moved) and those it added (the crossings and caps of
+//! [`crate::surface::cap`], appended) are written: the buffers have room for a first few cuts'
+//! vertices, and grow to the next size class when a cut outgrows them.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -35,6 +37,8 @@ pub struct EmbedPass {
     bound: wgpu::Buffer,
     vertices: wgpu::Buffer,
     count: u32,
+    /// Vertices the buffers have room for.
+    capacity: usize,
     /// What the device's bound vertices hold: a change writes only the vertices that differ.
     host: Vec<BoundVertex>,
     /// Bind groups made for the displacement buffers seen so far (the state alternates between
@@ -53,7 +57,7 @@ impl EmbedPass {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let (bound_buf, vertices) = Self::buffers(ctx, bound)?;
+        let (bound_buf, vertices, capacity) = Self::buffers(ctx, bound, Sizing::Headroom)?;
         let mut pass = EmbedPass {
             pipeline,
             layout,
@@ -61,6 +65,7 @@ impl EmbedPass {
             bound: bound_buf,
             vertices,
             count: 0,
+            capacity,
             host: bound.to_vec(),
             bind_groups: Vec::new(),
         };
@@ -68,14 +73,21 @@ impl EmbedPass {
         Ok(pass)
     }
 
-    fn buffers(ctx: &GpuContext, bound: &[BoundVertex]) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+    /// The bound vertices' buffer holding `bound` with room by `sizing`, the vertex buffer for
+    /// as many, and how many that is.
+    fn buffers(
+        ctx: &GpuContext,
+        bound: &[BoundVertex],
+        sizing: Sizing,
+    ) -> Result<(wgpu::Buffer, wgpu::Buffer, usize)> {
         let bound_buf = buffers::storage_buffer(
             ctx,
             "render surface bindings",
             bytemuck::cast_slice(bound),
-            Sizing::Exact,
+            sizing,
         )?;
-        let bytes = (bound.len().max(1) * 16) as u64;
+        let capacity = bound_buf.size() as usize / std::mem::size_of::<BoundVertex>();
+        let bytes = (capacity.max(1) * 16) as u64;
         buffers::check_binding(ctx, "render surface vertices", bytes)?;
         let vertices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("render surface vertices"),
@@ -85,29 +97,41 @@ impl EmbedPass {
                 | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        Ok((bound_buf, vertices))
+        Ok((bound_buf, vertices, capacity))
     }
 
-    /// Replace the bound vertices (a new surface, a cut's rebinding, or the same after a patch
-    /// moved node slots): with the count unchanged, only the runs of vertices that differ from
-    /// what the device holds are written; new buffers otherwise. Returns the bytes written.
+    /// Replace the bound vertices (a new surface, a cut's rebinding and caps, or the same after
+    /// a patch moved node slots): within the buffers' room, only the runs of vertices that
+    /// differ from what the device holds, and those past its count, are written; new buffers
+    /// (the next size class) otherwise. Returns the bytes written.
     pub fn set_bound(&mut self, ctx: &GpuContext, bound: &[BoundVertex]) -> Result<u64> {
         let size = std::mem::size_of::<BoundVertex>();
         let written;
-        if bound.len() as u32 != self.count {
-            (self.bound, self.vertices) = Self::buffers(ctx, bound)?;
+        if bound.len() > self.capacity {
+            (self.bound, self.vertices, self.capacity) =
+                Self::buffers(ctx, bound, Sizing::SizeClass)?;
             self.bind_groups.clear();
             written = std::mem::size_of_val(bound) as u64;
         } else {
             let mut total = 0;
+            let common = bound.len().min(self.host.len());
+            if bound.len() > common {
+                ctx.queue.write_buffer(
+                    &self.bound,
+                    (common * size) as u64,
+                    bytemuck::cast_slice(&bound[common..]),
+                );
+                total += (bound.len() - common) * size;
+            }
+            let head = &bound[..common];
             let mut v = 0;
-            while v < bound.len() {
+            while v < head.len() {
                 if bound[v] == self.host[v] {
                     v += 1;
                     continue;
                 }
                 let run = v;
-                while v < bound.len() && bound[v] != self.host[v] {
+                while v < head.len() && bound[v] != self.host[v] {
                     v += 1;
                 }
                 ctx.queue.write_buffer(
