@@ -20,6 +20,7 @@
 //! - [`grid`]: the uniform grid that finds a vertex's tet and nearest boundary face without
 //!   testing every tet.
 
+#[cfg(feature = "cut")]
 pub mod cap;
 pub mod colour;
 pub mod embed;
@@ -34,6 +35,7 @@ pub mod rebind;
 #[cfg(all(feature = "formats", feature = "vtu"))]
 pub mod vtp;
 
+#[cfg(feature = "cut")]
 pub use cap::{Capped, Capper};
 pub use embed::{Binding, Embedding};
 #[cfg(feature = "cut")]
