@@ -5,13 +5,36 @@
 - ``World`` holds the tissue, its tools, cutting and contact: pose the tools, ``step()``, read
   the forces and ``positions`` (a NumPy array).
 - ``read_mesh(path)`` reads a tetrahedral mesh (``nodes`` and ``tets`` as NumPy arrays).
-- ``lancet.sweep`` runs scenes over parameter grids, serially or on a Dask cluster.
+- ``bench(cubes=..., engines=..., layouts=...)`` times the engines and GPU layouts (the rows of
+  ``lancet bench --json``); ``accuracy(path, ladder=...)`` measures error against run time on a
+  scene (``lancet report accuracy --json``).
+- ``lancet.sweep`` runs scenes, benchmarks and accuracy ladders over parameter grids, serially
+  or on a Dask cluster.
 
 Errors of the library are raised as ``LancetError`` with the library's message.
 """
 
-from ._lancet import LancetError, Mesh, World, __version__, read_mesh, run_scene
+from ._lancet import (
+    LancetError,
+    Mesh,
+    World,
+    __version__,
+    accuracy,
+    bench,
+    read_mesh,
+    run_scene,
+)
 
-__all__ = ["LancetError", "Mesh", "World", "__version__", "read_mesh", "run_scene", "sweep"]
+__all__ = [
+    "LancetError",
+    "Mesh",
+    "World",
+    "__version__",
+    "accuracy",
+    "bench",
+    "read_mesh",
+    "run_scene",
+    "sweep",
+]
 
 from . import sweep  # noqa: E402  (after the extension, which it uses)

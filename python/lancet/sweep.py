@@ -16,6 +16,17 @@ fields to override (dotted paths, as ``run_scene`` takes them) and the run optio
 Each result is the job and the run's summary (``expectations_passed``, ``max_displacement``,
 ``energy``, ``steps_per_s``, ...), or the job and the error message where the run failed, so a
 sweep never stops at one bad combination.
+
+A job's ``kind`` says what it runs: ``"run"`` (the default: the scene, as above),
+``"accuracy"`` (error against run time on the scene, ``lancet.accuracy``; options ``engines``,
+``layouts``, ``ladder``, ``implicit_ladder``) or ``"bench"`` (the engines and layouts timed on
+cubes or the peers' preset, ``lancet.bench``; options ``cubes``, ``engines``, ``layouts``,
+``steps``, ``integrator``, ``preset``; no scene). Their results carry ``report`` instead of
+``summary``::
+
+    jobs = sweep.grid(kind="accuracy", scenes=[None], ladder=[[1.0, 0.5], [0.25]],
+                      overrides={"steps": [200]})
+    jobs += sweep.grid(kind="bench", cubes=[[6], [10]], layouts=[["connectivity", "edges"]])
 """
 
 from __future__ import annotations
@@ -28,17 +39,31 @@ from typing import Any, Iterable, Mapping, Optional, Sequence
 #: Run options a job may carry besides its overrides (the options of ``run_scene``).
 RUN_OPTIONS = ("engine", "steps", "cut_method")
 
+#: The options of each kind of job (the keyword arguments of the function that runs it).
+OPTIONS = {
+    "run": RUN_OPTIONS,
+    "accuracy": ("engines", "layouts", "ladder", "implicit_ladder"),
+    "bench": ("cubes", "engines", "layouts", "steps", "integrator", "preset"),
+}
+
 
 def grid(
     scenes: Sequence[Optional[str]] = (None,),
     overrides: Optional[Mapping[str, Sequence[Any]]] = None,
+    kind: str = "run",
     **options: Sequence[Any],
 ) -> list[dict]:
-    """The jobs of every combination of ``scenes``, each override's values and each run
-    option's values (``engine=[...]``, ``steps=[...]``, ``cut_method=[...]``)."""
-    unknown = set(options) - set(RUN_OPTIONS)
+    """The jobs of every combination of ``scenes``, each override's values and each option's
+    values (``engine=[...]``, ``steps=[...]``, ``cut_method=[...]`` for runs; see ``OPTIONS``
+    for the other kinds). A benchmark takes no scene and no overrides."""
+    if kind not in OPTIONS:
+        raise ValueError(f"unknown kind {kind!r}: use one of {sorted(OPTIONS)}")
+    allowed = OPTIONS[kind]
+    unknown = set(options) - set(allowed)
     if unknown:
-        raise ValueError(f"unknown run options {sorted(unknown)}: use {RUN_OPTIONS}")
+        raise ValueError(f"unknown {kind} options {sorted(unknown)}: use {allowed}")
+    if kind == "bench" and (overrides or list(scenes) != [None]):
+        raise ValueError("a benchmark runs generated meshes: give it no scenes or overrides")
     overrides = dict(overrides or {})
     keys = list(overrides)
     option_keys = list(options)
@@ -48,6 +73,7 @@ def grid(
             for option_values in itertools.product(*(options[k] for k in option_keys)):
                 jobs.append(
                     {
+                        "kind": kind,
                         "scene": None if scene is None else os.fspath(scene),
                         "overrides": dict(zip(keys, values)),
                         **dict(zip(option_keys, option_values)),
@@ -57,16 +83,29 @@ def grid(
 
 
 def run_job(job: Mapping[str, Any]) -> dict:
-    """Run one job in this process and return ``{"job": job, "summary": ...}``, or
-    ``{"job": job, "error": message}`` when the run could not be made."""
+    """Run one job in this process and return ``{"job": job, "summary": ...}`` (a run) or
+    ``{"job": job, "report": ...}`` (accuracy, bench), or ``{"job": job, "error": message}``
+    when it could not be made."""
     from . import _lancet
 
-    kwargs = {k: job[k] for k in RUN_OPTIONS if job.get(k) is not None}
+    kind = job.get("kind", "run")
+    if kind not in OPTIONS:
+        return {"job": dict(job), "error": f"unknown kind {kind!r}: use one of {sorted(OPTIONS)}"}
+    kwargs = {k: job[k] for k in OPTIONS[kind] if job.get(k) is not None}
+    overrides = job.get("overrides") or None
     try:
-        summary = _lancet.run_scene(job.get("scene"), overrides=job.get("overrides") or None, **kwargs)
+        if kind == "run":
+            return {
+                "job": dict(job),
+                "summary": _lancet.run_scene(job.get("scene"), overrides=overrides, **kwargs),
+            }
+        if kind == "accuracy":
+            report = _lancet.accuracy(job.get("scene"), overrides=overrides, **kwargs)
+        else:
+            report = _lancet.bench(**kwargs)
     except (_lancet.LancetError, ValueError) as e:
         return {"job": dict(job), "error": str(e)}
-    return {"job": dict(job), "summary": summary}
+    return {"job": dict(job), "report": report}
 
 
 def run(jobs: Iterable[Mapping[str, Any]], client=None, executor=None) -> list[dict]:

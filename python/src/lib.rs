@@ -14,6 +14,7 @@ use pyo3::types::PyDict;
 
 use lancet::scene::{run_scene as run, RunOptions, Scene};
 
+mod reports;
 mod world;
 
 create_exception!(
@@ -200,6 +201,8 @@ fn _lancet(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("LancetError", m.py().get_type::<LancetError>())?;
     m.add_function(wrap_pyfunction!(run_scene, m)?)?;
     m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(reports::bench, m)?)?;
+    m.add_function(wrap_pyfunction!(reports::accuracy, m)?)?;
     m.add_class::<Mesh>()?;
     m.add_class::<world::World>()?;
     Ok(())

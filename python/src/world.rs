@@ -45,7 +45,8 @@ pub(crate) fn cut_method(name: &str) -> PyResult<CutMethod> {
     }
 }
 
-fn integrator(name: &str) -> PyResult<Integrator> {
+/// `"verlet"`, `"symplectic_euler"`, `"backward_euler"`.
+pub(crate) fn integrator(name: &str) -> PyResult<Integrator> {
     match name.to_ascii_lowercase().replace(['_', '-'], "").as_str() {
         "verlet" => Ok(Integrator::Verlet),
         "symplecticeuler" => Ok(Integrator::SymplecticEuler),
