@@ -22,8 +22,8 @@
 //! count in the reaction force like normal ones ([`ToolForce::friction`] is their part), so
 //! node by node the tangential force is at most `friction` times the normal force.
 //!
-//! Under backward Euler on a CPU engine ([`Simulation::takes_contact_constraints`]) contact also
-//! enters the solve: every free node a tool pushed is held, at the next step, on the plane
+//! With [`ContactSettings::in_solve`], under backward Euler on a CPU engine
+//! ([`Simulation::takes_contact_constraints`]), contact also enters the solve: every free node a tool pushed is held, at the next step, on the plane
 //! through where the correction left it, normal to the push
 //! ([`crate::physics::NodeConstraint`], Baraff and Witkin's filtering), and so is a node held
 //! at the step just taken whose constraint pushed (a positive force) while it is still among
@@ -60,6 +60,12 @@ pub struct ContactSettings {
     pub iterations: usize,
     /// Coulomb friction coefficient between tools and tissue (0: frictionless, the default).
     pub friction: f64,
+    /// Under backward Euler on a CPU engine, hold the pushed nodes on the tools inside the
+    /// implicit solve and read the tools' forces from those constraints (see the module
+    /// documentation); ignored by explicit schemes and the GPU engine. Off by default: a world
+    /// coupled to a haptic device does not yet settle with it (its proxy keeps drifting along
+    /// the surface), so the world's contact keeps correcting positions.
+    pub in_solve: bool,
 }
 
 impl Default for ContactSettings {
@@ -68,6 +74,7 @@ impl Default for ContactSettings {
             skin: 1e-5,
             iterations: 8,
             friction: 0.0,
+            in_solve: false,
         }
     }
 }
@@ -170,7 +177,10 @@ pub fn resolve_contacts_excluding(
         })
         .collect();
     // In the solve: the forces of the constraints held over the step just taken.
-    let in_solve = sim.takes_contact_constraints();
+    let in_solve = settings.in_solve && sim.takes_contact_constraints();
+    if !in_solve && !sim.contact_constraints().is_empty() {
+        sim.set_contact_constraints(&[])?;
+    }
     let was_held: Vec<(NodeConstraint, f64)> = if in_solve {
         let held: Vec<(NodeConstraint, f64)> = sim
             .contact_constraints()

@@ -50,7 +50,11 @@ fn pose(depth: f64) -> Isometry3<f64> {
 /// The probe lowered from 1 mm above the top to 1 mm into it over 0.15 s, then held to 0.4 s
 /// (the block settles within about 0.05 s); the force it read at the last step.
 fn press(sim: &mut Simulation) -> Vector3<f64> {
-    let s = ContactSettings::default();
+    // Contact inside the implicit solve (explicitly, position correction as always).
+    let s = ContactSettings {
+        in_solve: true,
+        ..ContactSettings::default()
+    };
     let dt = sim.config().dt;
     let steps = (0.4 / dt).round() as usize;
     let mut tool = Tool::new(ToolShape::Sphere { radius: RADIUS }, pose(-1e-3)).unwrap();
