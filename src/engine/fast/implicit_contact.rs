@@ -141,9 +141,9 @@ pub(super) fn constrain(
         );
         let ap = &imp.ap[..];
         over_blocks(&mut imp.nodes, &mut imp.partials, |start, out| {
-            for (k, node) in out.iter_mut().enumerate() {
-                for c in 0..3 {
-                    node.b[c] -= ap[start + k][c];
+            for (node, a) in out.iter_mut().zip(&ap[start..]) {
+                for (b, a) in node.b.iter_mut().zip(a).take(3) {
+                    *b -= a;
                 }
             }
             [0.0; 2]
@@ -171,8 +171,8 @@ pub(super) fn impulses(imp: &mut Implicit, g: &Graph, p: Params, first: bool) {
     if first {
         for hold in &imp.held.list {
             let y = &mut imp.cg[hold.rank as usize].y;
-            for c in 0..3 {
-                y[c] += hold.normal[c] * hold.z;
+            for (y, n) in y.iter_mut().zip(hold.normal) {
+                *y += n * hold.z;
             }
         }
     }
