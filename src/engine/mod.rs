@@ -88,6 +88,19 @@ pub trait Engine: Send {
     fn bytes_per_solver_iteration(&self) -> Option<u64> {
         None
     }
+    /// Hold `constraints`' nodes on their tools' planes inside the implicit solve at the next
+    /// steps ([`crate::physics::contact_constraint`]), replacing any set before; `false` (the
+    /// default: the explicit schemes and the GPU engine) where the engine cannot, and contact
+    /// must correct positions instead. Node indices are checked by the caller.
+    fn set_contact_constraints(&mut self, constraints: &[crate::physics::NodeConstraint]) -> bool {
+        let _ = constraints;
+        false
+    }
+    /// The normal force each constraint put on its node in the last step, N (positive pushes
+    /// along its normal), in the order they were set; empty where none was.
+    fn contact_constraint_forces(&self) -> Vec<f64> {
+        Vec::new()
+    }
     /// The engine's arrays and the bytes one step must move at least (each array it reads or
     /// writes, once): the numerator of the memory-bandwidth floor.
     fn memory(&self) -> EngineMemory;

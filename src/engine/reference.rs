@@ -142,6 +142,14 @@ impl Engine for ReferenceEngine {
         }
     }
 
+    fn set_contact_constraints(&mut self, constraints: &[crate::physics::NodeConstraint]) -> bool {
+        self.integrator.set_contact_constraints(constraints)
+    }
+
+    fn contact_constraint_forces(&self) -> Vec<f64> {
+        self.integrator.contact_constraint_forces()
+    }
+
     fn positions(&self) -> Vec<V3> {
         self.state.x.clone()
     }

@@ -20,7 +20,14 @@
 //! ([`SolverSettings::warm_start`]), stopping at a relative residual or an iteration cap. With
 //! [`Linearization::Definite`] (the default) the system is symmetric positive definite for any
 //! `h`, which conjugate gradients need.
+//!
+//! Nodes a tool holds ([`NodeConstraint`], set by [`TimeIntegrator::set_contact_constraints`])
+//! are filtered as Baraff and Witkin filter them: their normal velocity change is prescribed so
+//! that they end the step on the tool's plane, the solve runs on the rest, and the force the tool
+//! put on each is read from the residual the filter removed (see
+//! [`super::contact_constraint`]).
 
+use super::contact_constraint::{project_out, NodeConstraint};
 use super::force_model::{dot, ForceModel, Linearization, Mat3, Vec3};
 use super::time_integrator::{NodeState, Nodes, TimeIntegrator};
 use nalgebra::Matrix3;
@@ -115,6 +122,10 @@ pub struct BackwardEuler {
     /// The last step's velocity change: the next step's first guess with
     /// [`SolverSettings::warm_start`].
     last_dv: Vec<Vec3>,
+    /// The nodes held on tools' planes at the next steps.
+    constraints: Vec<NodeConstraint>,
+    /// The normal force each constraint put on its node in the last step, N.
+    constraint_forces: Vec<f64>,
 }
 
 impl BackwardEuler {
@@ -124,6 +135,8 @@ impl BackwardEuler {
             settings,
             stats: SolverStats::default(),
             last_dv: Vec::new(),
+            constraints: Vec::new(),
+            constraint_forces: Vec::new(),
         }
     }
 
@@ -134,7 +147,8 @@ impl BackwardEuler {
 }
 
 /// The system `A w = (1 + h alpha) M w - h D w - h^2 K w` at positions `x`, with fixed nodes
-/// projected out, and its block-Jacobi preconditioner.
+/// projected out, and its block-Jacobi preconditioner; constrained nodes are filtered by the
+/// solve.
 struct System<'a> {
     forces: &'a dyn ForceModel,
     nodes: &'a Nodes<'a>,
@@ -146,6 +160,8 @@ struct System<'a> {
     /// Scratch for `K w` and `D w`, kept across the solver's iterations.
     kw: Vec<Vec3>,
     dw: Vec<Vec3>,
+    /// Per node, the normal of the plane it is held on (filtered out of the solve).
+    normals: Vec<Option<Vec3>>,
 }
 
 impl<'a> System<'a> {
@@ -155,6 +171,7 @@ impl<'a> System<'a> {
         x: &'a [Vec3],
         h: f64,
         lin: Linearization,
+        normals: Vec<Option<Vec3>>,
     ) -> Self {
         let n = x.len();
         let (mut k, mut d) = (vec![[[0.0; 3]; 3]; n], vec![[[0.0; 3]; 3]; n]);
@@ -184,6 +201,16 @@ impl<'a> System<'a> {
             inverse_diagonal,
             kw: vec![[0.0; 3]; n],
             dw: vec![[0.0; 3]; n],
+            normals,
+        }
+    }
+
+    /// `S w`: each constrained node's normal part removed.
+    fn filter(&self, w: &mut [Vec3]) {
+        for (w, n) in w.iter_mut().zip(&self.normals) {
+            if let Some(n) = n {
+                *w = project_out(*w, *n);
+            }
         }
     }
 
@@ -211,9 +238,10 @@ impl<'a> System<'a> {
         }
     }
 
-    /// Solve `A y = b` by preconditioned conjugate gradients from the guess in `y` (zero on
-    /// the fixed nodes); returns the iterations and the final relative residual (to `|b|`,
-    /// whatever the guess).
+    /// Solve `S A S y = b` by preconditioned conjugate gradients from the guess in `y` (zero on
+    /// the fixed nodes; `b` and the guess filtered by the caller), the preconditioner filtered
+    /// too; returns the iterations and the final relative residual (to `|b|`, whatever the
+    /// guess).
     fn solve(&mut self, b: &[Vec3], y: &mut [Vec3], settings: &SolverSettings) -> (u32, f64) {
         let n = b.len();
         let norm = |v: &[Vec3]| v.iter().map(|a| dot(*a, *a)).sum::<f64>().sqrt();
@@ -224,6 +252,7 @@ impl<'a> System<'a> {
         }
         let (mut z, mut ap) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         self.apply(y, &mut ap);
+        self.filter(&mut ap);
         let mut r: Vec<Vec3> = (0..n)
             .map(|i| [0, 1, 2].map(|c| b[i][c] - ap[i][c]))
             .collect();
@@ -231,11 +260,13 @@ impl<'a> System<'a> {
             return (0, norm(&r) / b_norm);
         }
         self.precondition(&r, &mut z);
+        self.filter(&mut z);
         let mut p = z.clone();
         let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| dot(*a, *b)).sum();
         let mut residual = 1.0;
         for iteration in 1..=settings.max_iterations {
             self.apply(&p, &mut ap);
+            self.filter(&mut ap);
             let pap: f64 = p.iter().zip(&ap).map(|(a, b)| dot(*a, *b)).sum();
             if pap <= 0.0 {
                 // Not positive definite along `p` (an exact linearisation under compression):
@@ -254,6 +285,7 @@ impl<'a> System<'a> {
                 return (iteration, residual);
             }
             self.precondition(&r, &mut z);
+            self.filter(&mut z);
             let rz_next: f64 = r.iter().zip(&z).map(|(a, b)| dot(*a, *b)).sum();
             let beta = rz_next / rz;
             rz = rz_next;
@@ -264,6 +296,48 @@ impl<'a> System<'a> {
             }
         }
         (settings.max_iterations, residual)
+    }
+}
+
+impl System<'_> {
+    /// Solve for the velocity change `y` whose constrained nodes' normal parts are `z` (zero
+    /// elsewhere): conjugate gradients on `S A S w = S (b - A z)` from the filtered guess in
+    /// `y`, then `y = w + z`. Without constraints, the plain solve.
+    fn solve_filtered(
+        &mut self,
+        b: &[Vec3],
+        y: &mut [Vec3],
+        z: &[Vec3],
+        settings: &SolverSettings,
+    ) -> (u32, f64) {
+        if self.normals.iter().all(Option::is_none) {
+            return self.solve(b, y, settings);
+        }
+        let mut az = vec![[0.0; 3]; b.len()];
+        self.apply(z, &mut az);
+        let mut reduced: Vec<Vec3> = b
+            .iter()
+            .zip(&az)
+            .map(|(b, a)| [0, 1, 2].map(|c| b[c] - a[c]))
+            .collect();
+        self.filter(&mut reduced);
+        self.filter(y);
+        let result = self.solve(&reduced, y, settings);
+        for (y, z) in y.iter_mut().zip(z) {
+            *y = [0, 1, 2].map(|c| y[c] + z[c]);
+        }
+        result
+    }
+
+    /// `A y - b`: on a constrained node, the impulse the constraint gave it over the step
+    /// (along its normal); on a free node, the solve's residual.
+    fn impulse(&mut self, y: &[Vec3], b: &[Vec3]) -> Vec<Vec3> {
+        let mut ay = vec![[0.0; 3]; y.len()];
+        self.apply(y, &mut ay);
+        ay.iter()
+            .zip(b)
+            .map(|(a, b)| [0, 1, 2].map(|c| a[c] - b[c]))
+            .collect()
     }
 }
 
@@ -291,6 +365,16 @@ impl TimeIntegrator for BackwardEuler {
         Some(self.stats)
     }
 
+    fn set_contact_constraints(&mut self, constraints: &[NodeConstraint]) -> bool {
+        self.constraints = constraints.to_vec();
+        self.constraint_forces = vec![0.0; constraints.len()];
+        true
+    }
+
+    fn contact_constraint_forces(&self) -> Vec<f64> {
+        self.constraint_forces.clone()
+    }
+
     fn step(&mut self, forces: &dyn ForceModel, nodes: &Nodes, h: f64, state: &mut NodeState) {
         let n = state.x.len();
         let settings = self.settings;
@@ -303,6 +387,21 @@ impl TimeIntegrator for BackwardEuler {
                 }
             }
         }
+        // Constrained nodes: the plane's normal, and the normal velocity change that puts the
+        // node on the plane. A fixed node, an unknown node or a node listed again is skipped.
+        let mut normals: Vec<Option<Vec3>> = vec![None; n];
+        let mut z = vec![[0.0; 3]; n];
+        let mut used = vec![false; self.constraints.len()];
+        for (k, c) in self.constraints.iter().enumerate() {
+            let i = c.node as usize;
+            if i >= n || nodes.fixed[i] || normals[i].is_some() || !c.is_valid() {
+                continue;
+            }
+            normals[i] = Some(c.normal);
+            let s = c.velocity_change(state.x[i], state.v[i], h);
+            z[i] = c.normal.map(|a| a * s);
+            used[k] = true;
+        }
         // The first iterate is Baraff and Witkin's: linearised at the start of the step.
         let mut rhs = total_force(forces, nodes, &state.x, &state.v);
         let mut kv = vec![[0.0; 3]; n];
@@ -310,10 +409,23 @@ impl TimeIntegrator for BackwardEuler {
         for i in (0..n).filter(|&i| !nodes.fixed[i]) {
             rhs[i] = [0, 1, 2].map(|c| h * (rhs[i][c] + h * kv[i][c]));
         }
-        let mut system = System::new(forces, nodes, &state.x, h, settings.linearization);
-        self.record(system.solve(&rhs, &mut dv, &settings));
+        let mut system = System::new(
+            forces,
+            nodes,
+            &state.x,
+            h,
+            settings.linearization,
+            normals.clone(),
+        );
+        self.record(system.solve_filtered(&rhs, &mut dv, &z, &settings));
+        let mut impulse = if used.iter().any(|&u| u) {
+            system.impulse(&dv, &rhs)
+        } else {
+            Vec::new()
+        };
         // Further Newton iterations on `g(y) = M (y - v) - h F(x + h y, y)`, `y = v + dv`.
         let mut delta = vec![[0.0; 3]; n];
+        let no_change = vec![[0.0; 3]; n];
         for _ in 1..settings.newton_iterations.max(1) {
             delta.iter_mut().for_each(|d| *d = [0.0; 3]);
             let y: Vec<Vec3> = (0..n)
@@ -331,13 +443,31 @@ impl TimeIntegrator for BackwardEuler {
                     [0, 1, 2].map(|c| h * f[i][c] - nodes.mass[i] * dv[i][c])
                 })
                 .collect();
-            let mut system = System::new(forces, nodes, &xk, h, settings.linearization);
-            self.record(system.solve(&minus_g, &mut delta, &settings));
+            let mut system = System::new(
+                forces,
+                nodes,
+                &xk,
+                h,
+                settings.linearization,
+                normals.clone(),
+            );
+            self.record(system.solve_filtered(&minus_g, &mut delta, &no_change, &settings));
+            if !impulse.is_empty() {
+                // The constraint's impulse is the last linearisation's residual.
+                impulse = system.impulse(&delta, &minus_g);
+            }
             for i in 0..n {
                 for c in 0..3 {
                     dv[i][c] += delta[i][c];
                 }
             }
+        }
+        for (k, c) in self.constraints.iter().enumerate() {
+            self.constraint_forces[k] = if used[k] {
+                dot(c.normal, impulse[c.node as usize]) / h
+            } else {
+                0.0
+            };
         }
         for i in (0..n).filter(|&i| !nodes.fixed[i]) {
             let v = [0, 1, 2].map(|c| state.v[i][c] + dv[i][c]);

@@ -54,7 +54,14 @@ fn conjugate_gradients_reach_the_dense_direct_solution() {
         };
         // Far above the explicit bound (about 1e-4 s here).
         let h = 1e-2;
-        let mut system = System::new(&forces, &nodes, &x, h, Linearization::Definite);
+        let mut system = System::new(
+            &forces,
+            &nodes,
+            &x,
+            h,
+            Linearization::Definite,
+            vec![None; n],
+        );
         // The dense matrix of the free degrees of freedom, column by column from the products.
         let free: Vec<usize> = (0..3 * n).filter(|d| !fixed[d / 3]).collect();
         let mut dense = DMatrix::<f64>::zeros(free.len(), free.len());

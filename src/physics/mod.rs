@@ -29,6 +29,7 @@
 //! way.
 
 pub mod backward_euler;
+pub mod contact_constraint;
 pub mod corotational;
 pub mod element_forces;
 pub mod force_model;
@@ -48,6 +49,7 @@ mod force_model_tests;
 mod tensor_mass_tests;
 
 pub use backward_euler::{BackwardEuler, Preconditioner, SolverSettings, SolverStats};
+pub use contact_constraint::NodeConstraint;
 pub use corotational::Corotational;
 pub use element_forces::{element_energy, ElementForces};
 pub use force_model::{ForceModel, Linearization, Mat3, Vec3};

@@ -13,6 +13,7 @@
 //! `x+ = x + (x - x-) + h^2 a` is `x+ = x + h v + h^2 a` with `v+ = (x+ - x) / h`.
 
 use super::backward_euler::{BackwardEuler, SolverSettings, SolverStats};
+use super::contact_constraint::NodeConstraint;
 use super::force_model::{ForceModel, Vec3};
 use super::Integrator;
 
@@ -56,6 +57,18 @@ pub trait TimeIntegrator: Send {
     /// What an iterative solver did so far (`None` for a scheme that solves nothing).
     fn solver_stats(&self) -> Option<SolverStats> {
         None
+    }
+    /// Hold `constraints`' nodes on their planes at the next steps, inside the solve
+    /// ([`super::contact_constraint`]); `false` (the default, the explicit schemes) where the
+    /// scheme cannot, and the caller must correct positions instead.
+    fn set_contact_constraints(&mut self, constraints: &[NodeConstraint]) -> bool {
+        let _ = constraints;
+        false
+    }
+    /// The normal force each constraint put on its node in the last step, N, in the order they
+    /// were set (empty where none was).
+    fn contact_constraint_forces(&self) -> Vec<f64> {
+        Vec::new()
     }
 }
 

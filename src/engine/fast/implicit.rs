@@ -32,6 +32,10 @@
 //! every one of the tens of iterations that share one geometry.) The two ends of a spring see
 //! exactly opposite spring vectors, so `S_ij = S_ji` bit for bit and the system is symmetric.
 //!
+//! Nodes a tool holds are filtered out of the solve along the tool's normal as the float64
+//! integrator filters them (`implicit_contact.rs`), and each constraint's force is read from
+//! the impulse the filter removed.
+//!
 //! Determinism: every dot product is summed in float64, node by node within blocks of
 //! [`BLOCK`] nodes and then block by block in block order, so that one thread and many give
 //! the same bits. Nothing is allocated per step or per iteration: the scratch keeps room like
@@ -41,6 +45,11 @@ use super::kernels::spring_vector;
 use super::{FastEngine, Graph, Params, BLOCK, P};
 use crate::model::room::spare;
 use crate::physics::{Linearization, Preconditioner, SolverSettings, SolverStats};
+pub(in crate::engine::fast) use contact::Held;
+use contact::{constrain, impulses};
+
+#[path = "implicit_contact.rs"]
+mod contact;
 
 /// A symmetric 3x3 matrix as `[xx, yy, zz, xy, xz, yz]`.
 type Sym = [f32; 6];
@@ -92,6 +101,8 @@ pub(super) struct Implicit {
     vk: Vec<P>,
     /// Per block of nodes: the two float64 partial sums of the pass that just ran.
     partials: Vec<[f64; 2]>,
+    /// The nodes held on tools' planes, and the constraints' forces.
+    pub(super) held: Held,
 }
 
 impl Implicit {
@@ -114,6 +125,7 @@ impl Implicit {
             xk: room(nodes),
             vk: room(nodes),
             partials: room(nodes.div_ceil(BLOCK)),
+            held: Held::default(),
         }
     }
 
@@ -206,14 +218,18 @@ impl FastEngine {
             settings.linearization,
             Lin::Start(&self.x, &self.second),
         );
+        let bb = constrain(imp, g, params, Some((&self.x, &self.second)), bb);
         let result = solve(imp, g, settings, bb, settings.warm_start);
         imp.record(result);
+        impulses(imp, g, params, true);
         update_dv(imp, params, &self.x, &self.second, true);
         for _ in 1..settings.newton_iterations.max(1) {
             // Newton on `g(y) = M (y - v) - h F(u + h y, y)` at `y = v + dv`.
             let bb = assemble(imp, g, params, settings.linearization, Lin::Iterate);
+            let bb = constrain(imp, g, params, None, bb);
             let result = solve(imp, g, settings, bb, false);
             imp.record(result);
+            impulses(imp, g, params, false);
             update_dv(imp, params, &self.x, &self.second, false);
         }
         let dv = &imp.dv;
@@ -386,9 +402,10 @@ fn solve(
         ap,
         dv,
         partials,
+        held,
         ..
     } = imp;
-    let (nodes, blocks) = (&nodes[..], &blocks[..]);
+    let (nodes, blocks, held) = (&nodes[..], &blocks[..], &*held);
     if bb == 0.0 {
         cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
@@ -404,7 +421,7 @@ fn solve(
             }
             [0.0; 2]
         });
-        product(g, blocks, nodes, p, ap, partials);
+        product(g, blocks, nodes, p, ap, partials, Some(held));
     }
     let (p0, ap0) = (&p[..], &ap[..]);
     let [rr, mut rz] = over_blocks(cg, partials, |start, out| {
@@ -418,6 +435,8 @@ fn solve(
             };
         }
         precondition(start, out, nodes, blocks, g, sgs);
+        held.filter(start, out, |it| &mut it.r);
+        held.filter(start, out, |it| &mut it.z);
         out.iter().fold([0.0; 2], |s, it| {
             [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
         })
@@ -428,14 +447,14 @@ fn solve(
     }
     direction(p, cg, partials, None);
     for iteration in 1..=settings.max_iterations {
-        let [pap, _] = product(g, blocks, nodes, p, ap, partials);
+        let [pap, _] = product(g, blocks, nodes, p, ap, partials, Some(held));
         if pap <= 0.0 {
             // Not positive definite along `p` (an exact linearisation under compression):
             // stop with what has been reached, as the float64 integrator does.
             return (iteration, residual);
         }
         let alpha = (rz / pap) as f32;
-        let [rr, rz_next] = advance(cg, partials, nodes, blocks, g, sgs, p, ap, alpha);
+        let [rr, rz_next] = advance(cg, partials, nodes, blocks, g, sgs, held, p, ap, alpha);
         residual = rr.sqrt() / b_norm;
         if residual <= settings.tolerance {
             return (iteration, residual);
@@ -456,6 +475,7 @@ fn advance(
     blocks: &[Block],
     g: &Graph,
     sgs: bool,
+    held: &Held,
     p: &[P],
     ap: &[P],
     alpha: f32,
@@ -469,6 +489,7 @@ fn advance(
             }
         }
         precondition(start, out, nodes, blocks, g, sgs);
+        held.filter(start, out, |it| &mut it.z);
         out.iter().fold([0.0; 2], |s, it| {
             [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
         })
@@ -562,7 +583,8 @@ fn direction(p: &mut [P], cg: &[Iterate], partials: &mut [[f64; 2]], beta: Optio
 }
 
 /// `Ap` on the free nodes (zero on the fixed ones, where `p` is zero too: their right-hand
-/// side is zero and their preconditioner the identity); returns `(p . Ap, 0)`.
+/// side is zero and their preconditioner the identity), filtered by `held` where given;
+/// returns `(p . Ap, 0)`.
 fn product(
     g: &Graph,
     blocks: &[Block],
@@ -570,6 +592,7 @@ fn product(
     p: &[P],
     ap: &mut [P],
     partials: &mut [[f64; 2]],
+    held: Option<&Held>,
 ) -> [f64; 2] {
     over_blocks(ap, partials, |start, out| {
         let mut sum = 0.0f64;
@@ -591,6 +614,10 @@ fn product(
             }
             *o = [acc[0], acc[1], acc[2], 0.0];
             sum += dot64(p[i], *o);
+        }
+        if let Some(held) = held {
+            // `p` has no normal part on a constrained node, so `p . Ap` is unchanged.
+            held.filter(start, out, |o| o);
         }
         [sum, 0.0]
     })

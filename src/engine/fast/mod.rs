@@ -552,6 +552,20 @@ impl Engine for FastEngine {
         }
     }
 
+    fn set_contact_constraints(&mut self, constraints: &[crate::physics::NodeConstraint]) -> bool {
+        let Some(imp) = self.implicit.as_mut() else {
+            return false;
+        };
+        imp.held = implicit::Held::new(constraints, &self.rank, &self.graph.fixed, &self.rest);
+        true
+    }
+
+    fn contact_constraint_forces(&self) -> Vec<f64> {
+        self.implicit
+            .as_ref()
+            .map_or(Vec::new(), |imp| imp.held.forces.clone())
+    }
+
     fn positions(&self) -> Vec<[f64; 3]> {
         self.in_model_order(|i| self.position_at(i))
     }

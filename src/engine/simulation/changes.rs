@@ -115,6 +115,9 @@ impl Simulation {
         };
         debug_assert_eq!(self.model.node_count(), before + diff.added_nodes.len());
         self.node_springs = None;
+        // Contact constraints name model nodes, which a change keeps: a rebuilt or patched
+        // engine holds them again (a node that became fixed is skipped by the solve).
+        self.resend_contact_constraints();
         // A replay from a state kept before would not make this change: none from here.
         self.changes += 1;
         if let Some(watch) = &mut self.watch {

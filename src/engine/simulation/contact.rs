@@ -1,8 +1,9 @@
 //! The surface and what reads or moves nodes for contact: the boundary triangles, the broad
-//! phases, reads of a few nodes, the nodes near a blade (read ahead with a step), and position
-//! corrections.
+//! phases, reads of a few nodes, the nodes near a blade (read ahead with a step), position
+//! corrections, and the contact constraints the implicit solve holds.
 
 use super::*;
+use crate::physics::NodeConstraint;
 
 impl Simulation {
     /// Set the tissue's boundary triangles (dense model indices, e.g.
@@ -310,5 +311,99 @@ impl Simulation {
             work += spring_energy(s, after(a), after(b)) - spring_energy(s, at(a), at(b));
         }
         Ok(work)
+    }
+}
+
+/// Tool contact inside the implicit solve ([`crate::physics::contact_constraint`]).
+impl Simulation {
+    /// Hold `constraints`' nodes on their tools' planes inside the implicit solve from the next
+    /// step on, replacing those set before (an empty list releases every node). Returns whether
+    /// the engine takes them: backward Euler on the reference and fast engines does; the
+    /// explicit schemes and the GPU engine do not (`false`, nothing set), and contact must
+    /// correct positions instead. A node out of range, a normal that is not a finite unit
+    /// vector or an offset that is not finite is an error, and nothing changes.
+    pub fn set_contact_constraints(&mut self, constraints: &[NodeConstraint]) -> Result<bool> {
+        let n = self.model.node_count();
+        for (k, c) in constraints.iter().enumerate() {
+            if c.node as usize >= n {
+                return Err(crate::engine::bad_node(c.node, n));
+            }
+            if !c.is_valid() {
+                return Err(Error::Options(format!(
+                    "contact constraint {k} (node {}): its normal {:?} must be a finite unit \
+                     vector and its offset {} finite",
+                    c.node, c.normal, c.offset
+                )));
+            }
+        }
+        if !self.engine.set_contact_constraints(constraints) {
+            return Ok(false);
+        }
+        self.contact_constraints = constraints.to_vec();
+        Ok(true)
+    }
+
+    /// Whether the engine holds contact constraints inside its solve (see
+    /// [`Simulation::set_contact_constraints`]): backward Euler on a CPU engine.
+    pub fn takes_contact_constraints(&self) -> bool {
+        self.config.integrator.is_implicit() && self.kind() != crate::engine::EngineKind::Gpu
+    }
+
+    /// The constraints set by [`Simulation::set_contact_constraints`].
+    pub fn contact_constraints(&self) -> &[NodeConstraint] {
+        &self.contact_constraints
+    }
+
+    /// The normal force each constraint put on its node in the last step, N (positive: the tool
+    /// pushed the node along the constraint's normal), in the order they were set; the tool
+    /// feels the opposite. Empty where none is set.
+    pub fn contact_constraint_forces(&self) -> Vec<f64> {
+        if self.contact_constraints.is_empty() {
+            return Vec::new();
+        }
+        self.engine.contact_constraint_forces()
+    }
+
+    /// Give a new or patched engine the constraints again.
+    pub(super) fn resend_contact_constraints(&mut self) {
+        if !self.contact_constraints.is_empty()
+            && !self
+                .engine
+                .set_contact_constraints(&self.contact_constraints)
+        {
+            self.contact_constraints.clear();
+        }
+    }
+
+    /// The constrained nodes' positions before a run's steps (empty without constraints).
+    pub(super) fn constrained_positions(&self) -> Result<Vec<[f64; 3]>> {
+        if self.contact_constraints.is_empty() {
+            return Ok(Vec::new());
+        }
+        let nodes: Vec<u32> = self.contact_constraints.iter().map(|c| c.node).collect();
+        self.engine.node_positions(&nodes)
+    }
+
+    /// Count the work the constraints did on the tissue over the steps just taken (their last
+    /// step's normal forces times each node's normal motion from `before`) into the divergence
+    /// check's reference, as a position correction's work is counted: a tool pressing through
+    /// the solve brings energy in.
+    pub(super) fn count_constraint_work(&mut self, before: &[[f64; 3]]) -> Result<()> {
+        if before.is_empty() {
+            return Ok(());
+        }
+        let nodes: Vec<u32> = self.contact_constraints.iter().map(|c| c.node).collect();
+        let after = self.engine.node_positions(&nodes)?;
+        let forces = self.engine.contact_constraint_forces();
+        let work: f64 = self
+            .contact_constraints
+            .iter()
+            .zip(forces)
+            .zip(before.iter().zip(&after))
+            .map(|((c, f), (a, b))| f * (0..3).map(|k| c.normal[k] * (b[k] - a[k])).sum::<f64>())
+            .sum();
+        self.start_energy += work;
+        self.energy_scale = self.base_scale + (self.start_energy - self.base_energy).max(0.0);
+        Ok(())
     }
 }

@@ -257,6 +257,9 @@ pub struct Simulation {
     /// How reads of nodes near a blade were served, over every engine this simulation had (a
     /// new time step rebuilds it).
     near_reads: NearReads,
+    /// The nodes held on tools' planes inside the implicit solve
+    /// ([`Simulation::set_contact_constraints`]).
+    contact_constraints: Vec<crate::physics::NodeConstraint>,
 }
 
 /// A state kept by a check, to replay from.
@@ -401,6 +404,7 @@ impl Simulation {
             node_springs: None,
             near_ahead: None,
             near_reads: NearReads::default(),
+            contact_constraints: Vec::new(),
             note,
             watch: None,
             steps_since_inversion: 0,
@@ -468,8 +472,10 @@ impl Simulation {
             if done + chunk as u64 == steps {
                 self.hand_prefetch();
             }
+            let held = self.constrained_positions()?;
             self.engine.step(chunk);
             self.steps += chunk as u64;
+            self.count_constraint_work(&held)?;
             done += chunk as u64;
             self.steps_since_exact += chunk as u64;
             self.steps_since_inversion += chunk as u64;
