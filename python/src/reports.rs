@@ -66,7 +66,11 @@ pub(crate) fn bench<'py>(
         None => None,
         Some("damped") => Some(Preset::Damped),
         Some("undamped") => Some(Preset::Undamped),
-        Some(p) => return Err(value_err(format!("preset `{p}`: choose damped or undamped"))),
+        Some(p) => {
+            return Err(value_err(format!(
+                "preset `{p}`: choose damped or undamped"
+            )))
+        }
     };
     let meshes: Vec<BenchMesh> = match (&cubes, opts.preset) {
         (Some(c), _) => c.iter().map(|&n| BenchMesh::Cube(n)).collect(),

@@ -31,6 +31,7 @@
 pub mod broad;
 #[cfg(feature = "collide")]
 pub mod narrow;
+#[cfg(feature = "collide")]
 pub mod self_broad;
 #[cfg(feature = "collide")]
 pub mod self_narrow;

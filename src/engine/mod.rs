@@ -240,6 +240,7 @@ pub trait DeviceEngine: Send {
     /// Broad phase of the surface given to [`DeviceEngine::set_surface`] against itself, on the
     /// device: pairs of surface triangles (t < u, sorted) sharing no node whose boxes, widened
     /// by `margin / 2` (m), overlap.
+    #[cfg(feature = "collide")]
     fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>>;
     /// A cheap divergence probe reduced on the device (a few bytes read back instead of the
     /// state).

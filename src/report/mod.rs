@@ -5,6 +5,7 @@ pub mod accuracy;
 pub mod bandwidth;
 pub mod bench;
 #[cfg(all(feature = "gpu", feature = "collide"))]
+#[cfg(feature = "collide")]
 pub mod collide_bench;
 #[cfg(feature = "cut")]
 pub mod cut_bench;

@@ -257,7 +257,8 @@ impl Embedding {
     }
 
     /// Append a vertex at rest position `x`, not bound yet (its weights zero: it stays at the
-    /// origin until bound), and return its index.
+    /// origin until bound), and return its index. (The caps a cut adds.)
+    #[cfg(feature = "cut")]
     pub(super) fn push(&mut self, x: Point3<f64>) -> u32 {
         self.nodes.push([0; 4]);
         self.weights.push([0.0; 4]);
@@ -268,6 +269,7 @@ impl Embedding {
     }
 
     /// Keep only the first `n` vertices.
+    #[cfg(feature = "cut")]
     pub(super) fn truncate(&mut self, n: usize) {
         self.nodes.truncate(n);
         self.weights.truncate(n);

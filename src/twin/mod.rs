@@ -43,6 +43,7 @@
 
 pub mod accumulate_fixed;
 pub mod accumulate_float;
+#[cfg(feature = "collide")]
 pub mod broad_self;
 pub mod broad_tool;
 pub mod device_copy;

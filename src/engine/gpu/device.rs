@@ -30,6 +30,7 @@ impl DeviceEngine for GpuEngine {
         GpuEngine::cull_tools(self, boxes).map(|r| r.candidates)
     }
 
+    #[cfg(feature = "collide")]
     fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>> {
         GpuEngine::cull_self(self, margin).map(|r| r.pairs)
     }

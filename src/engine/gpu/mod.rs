@@ -9,6 +9,7 @@
 //! positions (and velocities) are read back, when asked for.
 
 pub mod atomic_edges;
+#[cfg(feature = "collide")]
 pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;

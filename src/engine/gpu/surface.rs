@@ -2,6 +2,7 @@
 //! phases and the nodes near a blade, kept in step with the layout through patches and edits.
 
 use super::*;
+#[cfg(feature = "collide")]
 use crate::collide::self_broad::GridParams;
 
 /// What changed under the surface culler since it last saw the layout. A patch moves a node
@@ -29,6 +30,7 @@ pub(super) struct SurfaceCulling {
     pub(super) near: nodes_near::NodesNear,
     /// The self-contact broad phase and the margin it culls at, once asked for. It shares
     /// `tool`'s triangles and rest positions and follows every edit of them.
+    #[cfg(feature = "collide")]
     pub(super) self_contact: Option<(f64, broad_self::SelfCuller)>,
     /// Self-contact cullers built (pipelines compiled): one per engine, whatever the edits.
     pub(super) self_builds: usize,
@@ -36,6 +38,7 @@ pub(super) struct SurfaceCulling {
 
 /// The self-contact grid after an edit left `triangles` triangles: the same cell and margin,
 /// a hash table of at least twice as many buckets as triangles (never smaller than before).
+#[cfg(feature = "collide")]
 fn edited_grid(grid: GridParams, triangles: usize) -> GridParams {
     let table = (2 * triangles).next_power_of_two().max(256) as u32;
     let table = table.max(grid.table);
@@ -87,6 +90,7 @@ impl GpuEngine {
                 s.triangles = triangles.to_vec();
                 s.at_nodes = surface_nodes::TrianglesAtNodes::of(triangles, n);
                 // A whole new surface: the grid is made for it, the passes kept.
+                #[cfg(feature = "collide")]
                 if let Some((margin, culler)) = &mut s.self_contact {
                     let grid = GridParams::for_surface(&self.rest, triangles, *margin);
                     culler.regrid(&self.ctx, grid, &s.tool, &self.state)?;
@@ -100,6 +104,7 @@ impl GpuEngine {
                     at_nodes: surface_nodes::TrianglesAtNodes::of(triangles, n),
                     tool,
                     near,
+                    #[cfg(feature = "collide")]
                     self_contact: None,
                     self_builds: 0,
                 });
@@ -218,6 +223,7 @@ impl GpuEngine {
         );
         // The self-contact culler reads the tool culler's buffers, which the edit wrote: it
         // follows the surface's size and binds afresh.
+        #[cfg(feature = "collide")]
         if let Some((_, culler)) = &mut s.self_contact {
             let grid = edited_grid(culler.grid(), triangles.len());
             culler.regrid(&self.ctx, grid, &s.tool, &self.state)?;
@@ -364,6 +370,7 @@ impl GpuEngine {
     /// share no node and whose boxes, widened by `margin / 2` (m), overlap at the current
     /// state. The passes are built at the first call; a new margin makes a new grid for the
     /// same passes, and surface edits (cuts) update the culler in place.
+    #[cfg(feature = "collide")]
     pub fn cull_self(&mut self, margin: f64) -> Result<broad_self::SelfCullResult> {
         self.refresh_surface()?;
         let Some(s) = &mut self.surface else {

@@ -140,6 +140,7 @@ impl Simulation {
     /// hash runs on the device and only the pairs come back; elsewhere its CPU twin
     /// ([`crate::twin::broad_self::self_pairs_cpu`]) runs over the current positions. Either
     /// way no pair the float64 brute force finds is missed.
+    #[cfg(feature = "collide")]
     pub fn cull_self(&mut self, margin: f64) -> Result<Vec<[u32; 2]>> {
         use crate::collide::self_broad::GridParams;
         use crate::twin::broad_self::self_pairs_cpu;
