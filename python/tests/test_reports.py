@@ -15,9 +15,11 @@ def test_bench_times_each_engine_and_the_fast_one_stays_on_float64():
     for r in rows.values():
         assert r["nodes"] == 4 ** 3 and r["ms_per_step"] > 0.0
         assert r["bytes_per_step"] > 0 and r["floor_ratio"] > 0.0
-    # The float64 engine is the reference; float32 after 20 steps is within its rounding.
+    # The float64 engine is the reference. Float32 differs by its rounding only: relative to
+    # the small displacement of a few dozen steps (positions of 1 cm rounded at 6e-8 against
+    # micrometres of motion) that is 1e-5 to 1e-4; a wrong force would be off by order one.
     assert rows["cpu-reference-f64"]["error_vs_reference"] == 0.0
-    assert 0.0 < rows["cpu-fast-f32"]["error_vs_reference"] < 1e-5
+    assert 0.0 < rows["cpu-fast-f32"]["error_vs_reference"] < 1e-3
     assert report["bandwidth"]["bytes_per_s"] > 0.0
 
 
