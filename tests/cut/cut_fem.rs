@@ -33,34 +33,9 @@ fn scene_text(seed: u64) -> String {
     scene_with([x0, y0, 0.04], [x1, y1, depth])
 }
 
-/// The box with the blade's edge moving from `from` to `to` over 20 ms.
+/// The box with the blade's edge moving from `from` to `to` over 20 ms, for 400 steps.
 fn scene_with(from: [f64; 3], to: [f64; 3]) -> String {
-    let ([x0, y0, z0], [x1, y1, z1]) = (from, to);
-    format!(
-        r#"Scene(
-    name: "finite-element cuts",
-    mesh: Box((cells: (4, 4, 4), size: (0.03, 0.03, 0.03))),
-    material: (
-        stiffness: Material(youngs_modulus: 1e4, poisson_ratio: 0.3),
-        mass: Density(1000.0),
-        damping: StiffnessProportional(1e-3),
-    ),
-    gravity: (0.0, -9.81, 0.0),
-    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 1.0, 0.0), tolerance: 1e-9)],
-    dt: BoundFraction(0.8),
-    steps: 400,
-    engine: Reference,
-    tools: [(
-        name: "scalpel",
-        shape: Blade(width: 0.1, length: 0.1, thickness: 2e-4),
-        trajectory: Keyframes([
-            (time: 0.0, translation: ({x0}, {y0}, {z0})),
-            (time: 0.02, translation: ({x1}, {y1}, {z1})),
-        ]),
-    )],
-    cut: Some((methods: [Separate, Remove, Subdivide], check: true, time_step: Substep)),
-)"#
-    )
+    crate::fem_cut::scene(from, to, 400)
 }
 
 /// `scene`'s tools and cuts (by `method`, every cut checked) stepped through a world of `mesh`

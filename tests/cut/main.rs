@@ -5,6 +5,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/fem_cut.rs"]
+mod fem_cut;
 #[path = "../common/models.rs"]
 mod models;
 #[path = "../common/splitmix.rs"]

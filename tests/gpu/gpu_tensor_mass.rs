@@ -231,32 +231,6 @@ fn what_the_gpu_does_not_run_is_refused_with_a_reason() {
     );
 }
 
-/// A 3 cm box of 4 x 4 x 4 cells hanging from its y = 0 face, Rayleigh-damped, a blade
-/// sweeping down through it and across over 20 ms (as `tests/cut/cut_fem.rs` cuts it).
-const CUT_SCENE: &str = r#"Scene(
-    name: "tensor-mass cuts on the GPU",
-    mesh: Box((cells: (4, 4, 4), size: (0.03, 0.03, 0.03))),
-    material: (
-        stiffness: Material(youngs_modulus: 1e4, poisson_ratio: 0.3),
-        mass: Density(1000.0),
-        damping: StiffnessProportional(1e-3),
-    ),
-    gravity: (0.0, -9.81, 0.0),
-    fixed: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 1.0, 0.0), tolerance: 1e-9)],
-    dt: BoundFraction(0.8),
-    steps: 40,
-    engine: Gpu,
-    tools: [(
-        name: "scalpel",
-        shape: Blade(width: 0.1, length: 0.1, thickness: 2e-4),
-        trajectory: Keyframes([
-            (time: 0.0, translation: (0.011, 0.012, 0.04)),
-            (time: 0.02, translation: (0.019, 0.021, -0.01)),
-        ]),
-    )],
-    cut: Some((methods: [Separate, Subdivide], check: true, time_step: Substep)),
-)"#;
-
 /// Cuts through a tensor-mass model on the GPU, in every layout: after every cut the engine's
 /// float64 tensors equal a rebuild from the cut mesh to 1e-12 and its blocks (host and device)
 /// a fresh assembly beside the patched layout to float32 rounding (the world's checks, through
@@ -274,7 +248,9 @@ fn a_cut_gpu_tensor_mass_model_equals_a_rebuilt_one(
     use lancet::world::WorldBuilder;
     let Some(_) = common::gpu() else { return };
     let path = std::path::Path::new("gpu_tensor_cuts.ron");
-    let scene = Scene::from_ron(CUT_SCENE, path).unwrap();
+    // The blade's edge sweeps down through the box and across over 20 ms (40 steps).
+    let text = crate::fem_cut::scene([0.011, 0.012, 0.04], [0.019, 0.021, -0.01], 40);
+    let scene = Scene::from_ron(&text, path).unwrap();
     let mesh = build_mesh(&scene, path).unwrap();
     let mconfig = model_config(&scene);
     let packed = lancet::SpringModel::build(&mesh, &mconfig)

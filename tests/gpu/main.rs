@@ -7,6 +7,8 @@
 mod common;
 #[path = "../common/cut_box.rs"]
 mod cut_box;
+#[path = "../common/fem_cut.rs"]
+mod fem_cut;
 #[path = "../common/models.rs"]
 mod models;
 #[path = "../common/read_ahead.rs"]
