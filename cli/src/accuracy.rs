@@ -119,11 +119,29 @@ pub(crate) fn print_model_error(m: &lancet::report::model_error::ModelErrorRepor
             r.solve_s
         );
     }
+    for x in &m.extrapolated {
+        println!(
+            "{:<14} {:>14} {:>8} {:>12.4e} {:>8.2}%  (Richardson over the last three meshes, \
+             order {:.2})",
+            x.force_model,
+            "no end",
+            "",
+            x.tip_m,
+            100.0 * x.relative_error,
+            x.order
+        );
+    }
     println!(
         "error: (tip - analytic) / analytic of the static answer (float64); negative: stiffer \
          than the beam. The time-step error above is against the same model, this against \
          elasticity."
     );
+    if !m.extrapolated.is_empty() {
+        println!(
+            "no end: where the last three meshes converge to; trust it once they converge at \
+             the element's order (2 for linear tets), not on coarse meshes."
+        );
+    }
 }
 
 /// Write the plots; their paths (and a note when the PNG has no text) as JSON.

@@ -57,6 +57,39 @@ pub struct ModelErrorReport {
     pub analytic_tip_m: f64,
     /// One row per force model and refinement.
     pub rows: Vec<ModelErrorRow>,
+    /// Per force model with three or more meshes: the limit its last three meshes converge
+    /// to, so that a user sees how much of the error is the mesh and how much the model.
+    pub extrapolated: Vec<Extrapolated>,
+}
+
+/// Richardson extrapolation of one force model's tip deflection over its last three meshes
+/// (each with twice the cells of the one before), with the order of convergence they show.
+#[derive(Debug, Clone, Serialize)]
+pub struct Extrapolated {
+    /// "springs", "tensor-mass" or "corotational".
+    pub force_model: String,
+    /// Observed order `p` of `tip(h) = tip_0 + c h^p`.
+    pub order: f64,
+    /// The extrapolated tip deflection `tip_0`, m.
+    pub tip_m: f64,
+    /// `(tip_0 - analytic) / analytic`: what is left when the mesh is refined without end.
+    pub relative_error: f64,
+}
+
+/// Richardson extrapolation of three values at mesh sizes `h`, `h/2`, `h/4`: the limit and
+/// the observed order, if the three converge monotonically (else `None`: no order to read).
+///
+/// With `t(h) = t_0 + c h^p`, the differences `t(h) - t(h/2)` and `t(h/2) - t(h/4)` stand
+/// in the ratio `2^p`, and `t_0 = t(h/4) + (t(h/4) - t(h/2)) / (2^p - 1)`.
+pub fn richardson(coarse: f64, middle: f64, fine: f64) -> Option<(f64, f64)> {
+    let d1 = middle - coarse;
+    let d2 = fine - middle;
+    let ratio = d1 / d2;
+    if !(ratio.is_finite() && ratio > 1.0) {
+        return None;
+    }
+    let order = ratio.log2();
+    Some((fine + d2 / (ratio - 1.0), order))
 }
 
 /// The beam a scene describes, with its material and load.
@@ -228,7 +261,29 @@ pub fn model_error(
             });
         }
     }
+    let extrapolated = models
+        .iter()
+        .filter_map(|kind| {
+            let name = kind.to_string();
+            let tips: Vec<f64> = rows
+                .iter()
+                .filter(|r| r.force_model == name)
+                .map(|r| r.tip_m)
+                .collect();
+            let [.., a, b, c] = tips[..] else {
+                return None;
+            };
+            let (tip, order) = richardson(a, b, c)?;
+            Some(Extrapolated {
+                force_model: name,
+                order,
+                tip_m: tip,
+                relative_error: (tip - analytic) / analytic,
+            })
+        })
+        .collect();
     Ok(ModelErrorReport {
+        extrapolated,
         analytic: format!(
             "Timoshenko cantilever under its own weight: {} x {} x {} m, E {} Pa, nu {}, {} kg/m^3",
             case.length, case.width, case.height, case.e, case.nu, case.density

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use lancet::physics::ForceModelKind;
-use lancet::report::model_error::model_error;
+use lancet::report::model_error::{model_error, richardson};
 use lancet::scene::Scene;
 use lancet::Error;
 
@@ -33,6 +33,8 @@ fn the_cantilever_model_error_is_against_timoshenko_and_shrinks_with_refinement(
         report.analytic_tip_m
     );
     assert_eq!(report.rows.len(), 6);
+    // Two meshes give no order of convergence to extrapolate with.
+    assert!(report.extrapolated.is_empty(), "{:?}", report.extrapolated);
     let row = |model: &str, along: usize| {
         report
             .rows
@@ -83,4 +85,22 @@ fn a_scene_without_an_analytic_answer_is_refused_with_the_reason() {
         Err(Error::Unsupported(why)) => assert!(why.contains("Beam"), "{why}"),
         other => panic!("not refused: {other:?}"),
     }
+}
+
+#[test]
+fn richardson_extrapolation_recovers_the_limit_and_order_of_a_power_law() {
+    // t(h) = t0 + c h^p at h = 1, 1/2, 1/4, for orders between first and second.
+    for (t0, c, p) in [(-3.8e-3, 2.0e-3, 2.0), (1.0, -0.5, 1.0), (0.25, 0.1, 1.58)] {
+        let t = |h: f64| t0 + c * h.powf(p);
+        let (limit, order) = richardson(t(1.0), t(0.5), t(0.25)).unwrap();
+        assert!(
+            (limit - t0).abs() < 1e-12 * t0.abs().max(1.0),
+            "{limit} {t0}"
+        );
+        assert!((order - p).abs() < 1e-9, "{order} {p}");
+    }
+    // Values that do not converge monotonically have no order to read.
+    assert!(richardson(1.0, 0.5, 0.75).is_none());
+    assert!(richardson(1.0, 0.9, 0.5).is_none());
+    assert!(richardson(1.0, 1.0, 1.0).is_none());
 }
