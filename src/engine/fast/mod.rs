@@ -28,6 +28,7 @@ mod implicit;
 mod kernels;
 use kernels::*;
 mod patch;
+mod sliced;
 mod threads;
 pub use threads::on_threads;
 
@@ -39,8 +40,10 @@ use crate::model::{PackedModel, PackedSpring};
 type P = [f32; 4];
 
 /// Nodes per parallel task: large enough that scheduling costs little next to the work
-/// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores.
+/// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores;
+/// a whole number of slices of the sliced layout (`sliced.rs`).
 const BLOCK: usize = 1024;
+const _: () = assert!(BLOCK % sliced::LANES == 0);
 
 /// Nodes per task of a scan for the nodes near a blade made with a step.
 #[cfg(feature = "parallel")]
@@ -90,6 +93,9 @@ struct Graph {
 /// Float32 node-centric engine.
 pub struct FastEngine {
     graph: Graph,
+    /// The springs as the explicit step reads them, eight nodes a SIMD vector (built from
+    /// `graph` and kept up to date with it by `patch`).
+    sliced: sliced::Sliced,
     params: Params,
     integrator: Integrator,
     /// Whether any spring has damping: the undamped kernel skips the neighbours' velocities.
@@ -149,6 +155,7 @@ impl FastEngine {
             rank[old as usize] = new as u32;
         }
         let graph = build_graph(model, &order, &rank);
+        let sliced = sliced::Sliced::build(&graph);
         let h = config.dt as f32;
         let g = model.gravity;
         let params = Params {
@@ -170,6 +177,7 @@ impl FastEngine {
             damped: model.springs().iter().any(|s| s.damping != 0.0),
             wide: wide_simd(),
             graph,
+            sliced,
             params,
             integrator: config.integrator,
             x_next: zeros(),
@@ -240,7 +248,7 @@ impl FastEngine {
 
     /// One step of position Verlet on (displacement, last step); then swap old and new.
     fn step_verlet(&mut self) {
-        let (g, p) = (&self.graph, self.params);
+        let (g, sl, p) = (&self.graph, &self.sliced, self.params);
         let (x, d) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(
@@ -251,15 +259,15 @@ impl FastEngine {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
                     (true, true) => unsafe {
-                        wide::verlet_block::<true>(g, p, x, d, start, xo, dout)
+                        wide::verlet_block::<true>(g, sl, p, x, d, start, xo, dout)
                     },
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: as above.
                     (false, true) => unsafe {
-                        wide::verlet_block::<false>(g, p, x, d, start, xo, dout)
+                        wide::verlet_block::<false>(g, sl, p, x, d, start, xo, dout)
                     },
-                    (true, _) => verlet_block::<true>(g, p, x, d, start, xo, dout),
-                    (false, _) => verlet_block::<false>(g, p, x, d, start, xo, dout),
+                    (true, _) => verlet_block::<true>(g, sl, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false>(g, sl, p, x, d, start, xo, dout),
                 }
             },
         );
@@ -269,19 +277,21 @@ impl FastEngine {
 
     /// One step of symplectic Euler; then swap old and new.
     fn step_euler(&mut self) {
-        let (g, p) = (&self.graph, self.params);
+        let (g, sl, p) = (&self.graph, &self.sliced, self.params);
         let (x, v) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
             match (damped, wide) {
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-                (true, true) => unsafe { wide::euler_block::<true>(g, p, x, v, start, xo, vo) },
+                (true, true) => unsafe { wide::euler_block::<true>(g, sl, p, x, v, start, xo, vo) },
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: as above.
-                (false, true) => unsafe { wide::euler_block::<false>(g, p, x, v, start, xo, vo) },
-                (true, _) => euler_block::<true>(g, p, x, v, start, xo, vo),
-                (false, _) => euler_block::<false>(g, p, x, v, start, xo, vo),
+                (false, true) => unsafe {
+                    wide::euler_block::<false>(g, sl, p, x, v, start, xo, vo)
+                },
+                (true, _) => euler_block::<true>(g, sl, p, x, v, start, xo, vo),
+                (false, _) => euler_block::<false>(g, sl, p, x, v, start, xo, vo),
             }
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
@@ -459,6 +469,11 @@ impl Engine for FastEngine {
                 self.graph.damping.len() as u64 * 4,
             ),
             ("row bounds".to_string(), n * 8),
+            (
+                "step's slices (8 nodes a vector)".to_string(),
+                self.sliced.groups.len() as u64 * self.sliced.group_bytes() as u64
+                    + self.sliced.slices.len() as u64 * 8,
+            ),
             ("order and rank".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
             ("fixed flags".to_string(), n),
@@ -477,22 +492,30 @@ impl Engine for FastEngine {
         if let Some(imp) = &self.implicit {
             buffers.extend(imp.buffers());
         }
-        // A step streams the adjacency once, reads the current state and writes the next;
-        // neighbours' state is re-read from cache, not memory, when the order is local. With
-        // finite elements, the element arrays replace the adjacency in the step.
+        // A step streams the sliced springs once (padding lanes included), reads the current
+        // state and writes the next; neighbours' state is re-read from cache, not memory, when
+        // the order is local. With finite elements, the element arrays replace the springs in
+        // the step.
         let state = 4 * n * p;
         let bytes_per_step = match &self.elements {
             Some(e) => {
                 buffers.extend(e.buffers());
                 e.bytes_per_step() + n * 5 + state
             }
-            None => slots * entry + n * 8 + n * 5 + state,
+            None => {
+                let live = self.sliced.groups.len() - self.sliced.holes;
+                live as u64 * self.sliced.group_bytes() as u64
+                    + self.sliced.slices.len() as u64 * 8
+                    + n * 5
+                    + state
+            }
         };
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
                 buffers,
                 self.graph.holes as u64
-                    * (entry + if self.graph.damping.is_empty() { 0 } else { 4 }),
+                    * (entry + if self.graph.damping.is_empty() { 0 } else { 4 })
+                    + self.sliced.padding_bytes(slots as usize - self.graph.holes),
                 n as usize,
                 (slots as usize - self.graph.holes) / 2,
             ),
@@ -767,16 +790,6 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
         fixed: order.iter().map(|&o| model.fixed[o as usize]).collect(),
     }
 }
-
-/// No spring damping: the kernel reads displacements only.
-const UNDAMPED: u8 = 0;
-/// Spring damping with velocities stored (symplectic Euler), or steps `h v` (Verlet, which
-/// scales their difference by `1 / h`).
-const DAMPED_VELOCITY: u8 = 1;
-
-/// Springs are evaluated four at a time in lane arrays, so that the square roots, divisions
-/// and products compile to SIMD instructions; the gather of neighbours stays scalar.
-const LANES: usize = 4;
 
 fn to_p(v: [f64; 3]) -> P {
     [v[0] as f32, v[1] as f32, v[2] as f32, 0.0]

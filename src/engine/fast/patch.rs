@@ -26,7 +26,7 @@ enum RowEdit {
 
 impl FastEngine {
     /// (capacity, length, bytes per entry) of every array a patch can grow.
-    fn capacities(&self) -> [(usize, usize, usize); 13] {
+    fn capacities(&self) -> [(usize, usize, usize); 16] {
         fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
             (v.capacity(), v.len(), std::mem::size_of::<T>())
         }
@@ -37,6 +37,9 @@ impl FastEngine {
             of(&g.rows),
             of(&g.inv_mass),
             of(&g.fixed),
+            of(&self.sliced.slices),
+            of(&self.sliced.groups),
+            of(&self.sliced.damping),
             of(&self.order),
             of(&self.rank),
             of(&self.rest),
@@ -94,6 +97,15 @@ impl FastEngine {
         }
         if self.graph.fixed != fresh.fixed {
             out.push("fast engine: fixed flags differ from a rebuild".into());
+        }
+        if let Some(b) = self
+            .sliced
+            .first_difference(&super::sliced::Sliced::build(&fresh))
+        {
+            out.push(format!(
+                "fast engine: the step's slice {b} (nodes from internal {}) differs from a rebuild",
+                b * super::sliced::LANES
+            ));
         }
         out
     }
@@ -191,8 +203,10 @@ impl FastEngine {
         let damped = !self.graph.damping.is_empty();
         let mut moved = 0usize;
         let edited = edits.len();
+        let mut touched = Vec::with_capacity(edited);
         for (node, list) in edits {
             let i = self.rank[node as usize] as usize;
+            touched.push(i);
             let mut row: BTreeMap<u32, (Entry, f32)> = {
                 let [start, end] = self.graph.rows[i];
                 (start as usize..end as usize)
@@ -256,6 +270,9 @@ impl FastEngine {
         if self.graph.holes * 4 > self.graph.adj.len() {
             moved += self.graph.compact();
         }
+        // The step's layout: the slices of the edited rows and of the new nodes.
+        let (groups, _) = self.sliced.patch(&self.graph, touched);
+        written += groups as u64 * self.sliced.group_bytes() as u64;
         // What a rebuild writes: every array the engine holds (as `memory` counts them) but
         // the holes.
         let per_entry = entry + if damped { 4 } else { 0 };
