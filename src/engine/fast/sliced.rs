@@ -228,6 +228,7 @@ pub(super) type V3 = [[f32; LANES]; 3];
 /// times it, `w` scaled by `w_scale`. A zero-length spring (padding, or coincident nodes) has
 /// no direction and gives nothing, as in the reference engine.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn group_force<const DAMPED: bool>(
     grp: &Group,
     c: &[f32; LANES],
