@@ -1,9 +1,11 @@
 //! The fast float32 CPU engine: node-centric gather, nodes reordered for locality,
 //! multi-threaded over blocks of nodes (feature `parallel`).
 //!
-//! Every node owns its row of an adjacency in which each spring appears twice, once in the row
-//! of each end (rows as (start, end) pairs, so that a cut can rewrite a row where it is or move
-//! it to the end: `patch.rs`). A node sums the forces of its row and integrates itself in the same pass,
+//! Every node owns its row of springs, each spring appearing twice, once in the row of each
+//! end; the rows are stored once, eight nodes' rows side by side a SIMD vector (`sliced.rs`),
+//! which the step reads directly and everything else (a cut's patch, `patch.rs`; backward
+//! Euler, `implicit.rs`; the finite elements' rows) reads a row at a time out of its lane. A
+//! node sums the forces of its row and integrates itself in the same pass,
 //! so that threads write disjoint nodes and need no atomics; the price is that every spring's
 //! length is computed twice. Positions are read from buffers nobody writes during the pass:
 //! both integrators write the new displacements and second states (Verlet's last step
@@ -19,9 +21,9 @@
 //! previous displacement, so its velocity is never the difference of two rounded states, and
 //! both integrators keep what rounding `u + step` loses (`physics::Compensation`): far below
 //! the stable bound a step is a few ulps of the displacement, and without both most of it
-//! would be rounded away (see `tests/engine/float32_precision.rs`). Spring vectors are `e_ij + (u_j - u_i)`, the rest edge vector `e_ij`
-//! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
-//! precision of each edge).
+//! would be rounded away (see `tests/engine/float32_precision.rs`). Spring vectors are
+//! `e_ij + (u_j - u_i)`, the rest edge vector `e_ij` stored with the spring end (rounded once
+//! from float64, so the rest shape keeps float32 precision of each edge).
 
 mod elements;
 mod implicit;
@@ -49,9 +51,8 @@ const _: () = assert!(BLOCK % sliced::LANES == 0);
 #[cfg(feature = "parallel")]
 const NEAR_BLOCK: usize = 8192;
 
-/// One spring as seen from one of its ends.
+/// One spring as seen from one of its ends (stored lane by lane in `sliced::Group`).
 #[derive(Debug, Clone, Copy)]
-#[repr(C, align(32))]
 struct Entry {
     /// The other end, internal index.
     other: u32,
@@ -76,16 +77,9 @@ struct Params {
 
 /// Read-only model data in internal order.
 struct Graph {
-    /// Each node's row of `adj`, as (start, end). Rows are laid out in node order when built;
-    /// a patch rewrites a row in place when it does not grow and appends it otherwise, leaving
-    /// a hole (`holes` entries in all) until the next rebuild.
-    rows: Vec<[u32; 2]>,
-    adj: Vec<Entry>,
-    /// Entries of `adj` no row uses.
-    holes: usize,
-    /// Damping along each spring of `adj`, N s/m, kept apart so that the undamped kernel
-    /// streams 24-byte entries (empty when no spring is damped).
-    damping: Vec<f32>,
+    /// Every node's springs, as the explicit step reads them and everything else reads rows
+    /// out of them (`sliced.rs`).
+    springs: sliced::Sliced,
     inv_mass: Vec<f32>,
     fixed: Vec<bool>,
 }
@@ -93,9 +87,6 @@ struct Graph {
 /// Float32 node-centric engine.
 pub struct FastEngine {
     graph: Graph,
-    /// The springs as the explicit step reads them, eight nodes a SIMD vector (built from
-    /// `graph` and kept up to date with it by `patch`).
-    sliced: sliced::Sliced,
     params: Params,
     integrator: Integrator,
     /// Whether any spring has damping: the undamped kernel skips the neighbours' velocities.
@@ -155,7 +146,6 @@ impl FastEngine {
             rank[old as usize] = new as u32;
         }
         let graph = build_graph(model, &order, &rank);
-        let sliced = sliced::Sliced::build(&graph);
         let h = config.dt as f32;
         let g = model.gravity;
         let params = Params {
@@ -177,7 +167,6 @@ impl FastEngine {
             damped: model.springs().iter().any(|s| s.damping != 0.0),
             wide: wide_simd(),
             graph,
-            sliced,
             params,
             integrator: config.integrator,
             x_next: zeros(),
@@ -198,7 +187,7 @@ impl FastEngine {
             engine.implicit = Some(implicit::Implicit::new(
                 config.solver,
                 n,
-                engine.graph.adj.len(),
+                engine.graph.springs.live,
             ));
         }
         engine.order.reserve(spare(n));
@@ -248,7 +237,7 @@ impl FastEngine {
 
     /// One step of position Verlet on (displacement, last step); then swap old and new.
     fn step_verlet(&mut self) {
-        let (g, sl, p) = (&self.graph, &self.sliced, self.params);
+        let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, d) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(
@@ -277,7 +266,7 @@ impl FastEngine {
 
     /// One step of symplectic Euler; then swap old and new.
     fn step_euler(&mut self) {
-        let (g, sl, p) = (&self.graph, &self.sliced, self.params);
+        let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, v) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
@@ -364,7 +353,7 @@ impl FastEngine {
 
     /// Number of entries of the adjacency: twice the number of springs.
     pub fn adjacency_len(&self) -> usize {
-        self.graph.adj.len()
+        self.graph.springs.live
     }
 
     /// Largest `|internal index of a node - internal index of a neighbour|` (the bandwidth the
@@ -373,9 +362,9 @@ impl FastEngine {
         (0..self.node_count())
             .flat_map(|i| {
                 self.graph
+                    .springs
                     .row(i)
-                    .iter()
-                    .map(move |e| i.abs_diff(e.other as usize))
+                    .map(move |(e, _)| i.abs_diff(e.other as usize))
             })
             .max()
             .unwrap_or(0)
@@ -459,20 +448,13 @@ impl Engine for FastEngine {
 
     fn memory(&self) -> super::EngineMemory {
         let n = self.x.len() as u64;
-        let slots = self.graph.adj.len() as u64;
-        let entry = std::mem::size_of::<Entry>() as u64;
+        let sl = &self.graph.springs;
         let p = std::mem::size_of::<P>() as u64;
+        let springs = sl.groups.len() as u64 * sl.group_bytes() as u64 + sl.index_bytes();
         let mut buffers = vec![
-            ("adjacency".to_string(), slots * entry),
             (
-                "adjacency damping".to_string(),
-                self.graph.damping.len() as u64 * 4,
-            ),
-            ("row bounds".to_string(), n * 8),
-            (
-                "step's slices (8 nodes a vector)".to_string(),
-                self.sliced.groups.len() as u64 * self.sliced.group_bytes() as u64
-                    + self.sliced.slices.len() as u64 * 8,
+                "springs (slices of 8 nodes, a node a lane)".to_string(),
+                springs,
             ),
             ("order and rank".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
@@ -503,21 +485,16 @@ impl Engine for FastEngine {
                 e.bytes_per_step() + n * 5 + state
             }
             None => {
-                let live = self.sliced.groups.len() - self.sliced.holes;
-                live as u64 * self.sliced.group_bytes() as u64
-                    + self.sliced.slices.len() as u64 * 8
-                    + n * 5
-                    + state
+                let live = sl.groups.len() - sl.holes;
+                live as u64 * sl.group_bytes() as u64 + sl.index_bytes() + n * 5 + state
             }
         };
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
                 buffers,
-                self.graph.holes as u64
-                    * (entry + if self.graph.damping.is_empty() { 0 } else { 4 })
-                    + self.sliced.padding_bytes(slots as usize - self.graph.holes),
+                sl.padding_bytes(),
                 n as usize,
-                (slots as usize - self.graph.holes) / 2,
+                sl.live / 2,
             ),
             bytes_per_step,
         }
@@ -690,53 +667,6 @@ impl Engine for FastEngine {
     }
 }
 
-impl Graph {
-    fn row(&self, i: usize) -> &[Entry] {
-        let [start, end] = self.rows[i];
-        &self.adj[start as usize..end as usize]
-    }
-
-    /// Slide every row down over the holes, in the order the rows lie in (each moves to a
-    /// place at or before its own, so nothing is overwritten before it is moved); nothing is
-    /// allocated but the list of row starts. Rows keep the order they lie in, so a row a cut
-    /// moved to the end stays there (a rebuild would put it back among its node's neighbours,
-    /// but allocates a new adjacency). The number of entries moved.
-    fn compact(&mut self) -> usize {
-        if self.holes == 0 {
-            return 0;
-        }
-        let mut moved = 0;
-        let mut by_start: Vec<(u32, u32)> = self
-            .rows
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r[0], i as u32))
-            .collect();
-        by_start.sort_unstable();
-        let damped = !self.damping.is_empty();
-        let mut to = 0usize;
-        for (_, i) in by_start {
-            let [start, end] = self.rows[i as usize];
-            let (start, len) = (start as usize, (end - start) as usize);
-            if start != to {
-                self.adj.copy_within(start..start + len, to);
-                if damped {
-                    self.damping.copy_within(start..start + len, to);
-                }
-                moved += len;
-            }
-            self.rows[i as usize] = [to as u32, (to + len) as u32];
-            to += len;
-        }
-        self.adj.truncate(to);
-        if damped {
-            self.damping.truncate(to);
-        }
-        self.holes = 0;
-        moved
-    }
-}
-
 /// Spring `s` as seen from its end `end` (0 or 1), whose other end has internal index `other`,
 /// with its damping. The rest edge vector is formed in float64 from the first end to the second
 /// and negated for the second, so both ends (and a patch) round it the same way.
@@ -752,37 +682,22 @@ fn entry_of(s: &PackedSpring, end: usize, other: u32, rest: &[[f64; 3]]) -> (Ent
     (e, s.damping as f32)
 }
 
-/// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
+/// The springs in internal order, each row sorted by neighbour so that a row walks memory
 /// forwards.
 fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     let n = model.node_count();
-    let mut rows_of: Vec<Vec<(Entry, f32)>> = vec![Vec::new(); n];
+    let mut rows: Vec<sliced::Row> = vec![Vec::new(); n];
     for s in model.springs() {
         let (a, b) = (rank[s.nodes[0] as usize], rank[s.nodes[1] as usize]);
-        rows_of[a as usize].push(entry_of(s, 0, b, &model.rest));
-        rows_of[b as usize].push(entry_of(s, 1, a, &model.rest));
+        rows[a as usize].push(entry_of(s, 0, b, &model.rest));
+        rows[b as usize].push(entry_of(s, 1, a, &model.rest));
     }
-    // Holes are compacted in place before the adjacency grows, so only live rows use the
-    // room (see `model::room::spare`).
-    let mut rows = Vec::with_capacity(n + spare(n));
-    let entries = 2 * model.springs().len();
-    let mut adj = Vec::with_capacity(entries + spare(entries));
-    let damped = model.springs().iter().any(|s| s.damping != 0.0);
-    let mut damping = Vec::with_capacity(if damped { adj.capacity() } else { 0 });
-    for mut r in rows_of {
+    for r in &mut rows {
         r.sort_by_key(|(e, _)| e.other);
-        let start = adj.len() as u32;
-        adj.extend(r.iter().map(|(e, _)| *e));
-        if damped {
-            damping.extend(r.iter().map(|(_, c)| *c));
-        }
-        rows.push([start, adj.len() as u32]);
     }
+    let damped = model.springs().iter().any(|s| s.damping != 0.0);
     Graph {
-        rows,
-        holes: 0,
-        adj,
-        damping,
+        springs: sliced::Sliced::build(&rows, damped),
         inv_mass: order
             .iter()
             .map(|&o| (1.0 / model.mass[o as usize]) as f32)
