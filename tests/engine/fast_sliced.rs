@@ -135,3 +135,38 @@ fn the_sliced_layout_steps_as_the_reference_on_slivers_and_after_patches() {
         }
     }
 }
+
+/// Each spring end is stored once, in the sliced layout, and the valence sort keeps the slices'
+/// padding small: on the peer benchmark's five-tet grid (a small one) and on a six-tet box,
+/// damped, the engine's memory is its node arrays (four 16-byte state buffers, order and rank,
+/// inverse mass, fixed flag, row length, slice bounds) plus at most 28 bytes a spring end
+/// (24 of spring, 4 of damping) and the padding, which is under a tenth of the spring bytes.
+/// A second, row-wise copy of the springs (36 bytes an end) would double the spring bytes.
+#[test]
+fn each_spring_end_is_stored_once_with_little_padding() {
+    use lancet::mesh::generate::{BoxGrid, TetSplit};
+    use lancet::report::bench::Preset;
+    for split in [TetSplit::Five, TetSplit::Six] {
+        let mut grid = BoxGrid::cube_cells([12, 8, 8], Preset::CELL);
+        grid.split = split;
+        let mesh = grid.build().unwrap();
+        let model = Preset::Damped.model(&mesh).unwrap();
+        let fast = FastEngine::new(&model, SimConfig::new(Preset::DT));
+        let mem = fast.memory().stats;
+        let n = model.node_count() as u64;
+        let ends = 2 * model.springs().len() as u64;
+        let node_bytes = n * (4 * 16 + 8 + 4 + 1 + 4) + n.div_ceil(8) * 8;
+        let spring_bytes = mem.total - node_bytes;
+        let live = ends * 28;
+        assert!(
+            spring_bytes >= live && spring_bytes - mem.padding == live,
+            "{split:?}: {spring_bytes} B of springs, {} B of padding, {live} B of spring ends",
+            mem.padding
+        );
+        assert!(
+            mem.padding * 10 < spring_bytes,
+            "{split:?}: padding {} B of {spring_bytes} B of springs",
+            mem.padding
+        );
+    }
+}

@@ -13,8 +13,8 @@
 
 use std::collections::BTreeMap;
 
-use super::{build_graph, entry_of, Entry, FastEngine, P};
 use super::sliced::{Row, LANES};
+use super::{build_graph, entry_of, Entry, FastEngine, P};
 use crate::engine::PatchCost;
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
 use crate::twin::move_state::mix_state;
@@ -66,10 +66,14 @@ impl FastEngine {
         let (a, b) = (&self.graph.springs, &fresh.springs);
         let n = a.nodes();
         if n != b.nodes() {
-            out.push(format!("fast engine: {n} rows, a rebuild has {}", b.nodes()));
+            out.push(format!(
+                "fast engine: {n} rows, a rebuild has {}",
+                b.nodes()
+            ));
             return out;
         }
-        let row_differs = |i: usize| a.len(i) != b.len(i) || !a.row(i).map(bits).eq(b.row(i).map(bits));
+        let row_differs =
+            |i: usize| a.len(i) != b.len(i) || !a.row(i).map(bits).eq(b.row(i).map(bits));
         if let Some(i) = (0..n).find(|&i| row_differs(i)) {
             out.push(format!(
                 "fast engine: the row of node {} differs from a rebuild",
@@ -320,7 +324,8 @@ mod tests {
                         c.to_bits(),
                     )
                 };
-                let (x, y): (Vec<_>, Vec<_>) = (a.row(i).map(bits).collect(), b.row(i).map(bits).collect());
+                let (x, y): (Vec<_>, Vec<_>) =
+                    (a.row(i).map(bits).collect(), b.row(i).map(bits).collect());
                 assert_eq!(x, y, "row {i} after cut {k}");
             }
             assert_eq!(a.first_difference(b), None, "slices after cut {k}");

@@ -258,8 +258,7 @@ impl Sliced {
     pub fn padding_bytes(&self) -> u64 {
         let lanes = (self.groups.len() - self.holes) * LANES;
         let per_lane = (self.group_bytes() / LANES) as u64;
-        (self.holes * self.group_bytes()) as u64
-            + lanes.saturating_sub(self.live) as u64 * per_lane
+        (self.holes * self.group_bytes()) as u64 + lanes.saturating_sub(self.live) as u64 * per_lane
     }
 
     /// Bytes per group, damping included where kept.
