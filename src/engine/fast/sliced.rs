@@ -236,7 +236,7 @@ impl Sliced {
             let [start, end] = s.slices[b];
             let lens = s.lens[b * LANES..((b + 1) * LANES).min(s.lens.len())]
                 .iter()
-                .map(|&l| l as u32);
+                .copied();
             lens.chain((start as usize..end as usize).flat_map(|k| {
                 let g = &s.groups[k];
                 let c = s.damping.get(k).copied().unwrap_or([0.0; LANES]);
@@ -302,7 +302,7 @@ impl Sliced {
         for k in 0..w {
             let grp = &mut self.groups[at + k];
             let mut c = [0.0f32; LANES];
-            for l in 0..LANES {
+            for (l, cl) in c.iter_mut().enumerate() {
                 // A node past the end points at node 0; its lane's result is never stored.
                 let own = if l < lanes.len() {
                     (b * LANES + l) as u32
@@ -317,7 +317,7 @@ impl Sliced {
                         }
                         grp.rest[l] = e.rest;
                         grp.k[l] = e.k;
-                        c[l] = *d;
+                        *cl = *d;
                     }
                     None => {
                         grp.other[l] = own;
