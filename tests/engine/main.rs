@@ -19,6 +19,7 @@ mod fast_fem;
 mod fast_implicit;
 mod fast_read_ahead;
 mod fast_simd;
+mod fast_sliced;
 mod float32_precision;
 mod layout_edges;
 mod layout_patch;

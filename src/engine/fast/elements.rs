@@ -290,9 +290,9 @@ impl Blocks {
     ) -> Vec<(Slot, M3)> {
         let o = order[i];
         graph
+            .springs
             .row(i)
-            .iter()
-            .filter_map(|e| {
+            .filter_map(|(e, _)| {
                 let q = order[e.other as usize];
                 let t = tm.edge_tensor(o, q)?;
                 let (k, c) = if o < q {
@@ -315,7 +315,7 @@ impl Blocks {
         let n = order.len();
         let mut b = Blocks {
             rows: Vec::with_capacity(n),
-            slots: Vec::with_capacity(graph.adj.len()),
+            slots: Vec::with_capacity(graph.springs.live),
             damping: Vec::new(),
             holes: 0,
         };

@@ -1,5 +1,6 @@
 //! Linearised backward Euler on the fast engine: the float32 twin of
-//! [`crate::physics::BackwardEuler`] over the engine's own adjacency rows.
+//! [`crate::physics::BackwardEuler`] over the engine's own spring rows (read out of the sliced
+//! layout, `sliced.rs`).
 //!
 //! A step solves, on the free nodes, the float64 integrator's equations
 //!
@@ -18,16 +19,16 @@
 //! need no refactorisation and no recolouring, and the blocks are independent of each other, so
 //! any number of threads gives the same bits.
 //!
-//! Once per linearisation every node walks its adjacency row and forms each spring's symmetric
+//! Once per linearisation every node walks its spring row and forms each spring's symmetric
 //! 3x3 block `S = h c u u^T + h^2 k (u u^T + t (I - u u^T))` (the float32 twin of
 //! [`crate::physics::spring_stiffness_block`], `t = 1 - L/l` clamped at zero by
 //! [`Linearization::Definite`], plus the spring's damping), its force, `K v` and its diagonal
-//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept in the row's range
-//! of the adjacency (the Gauss-Seidel sweep's lower part first), each with the other end's
-//! index (28 bytes an entry): a product
+//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept row by row, the rows
+//! laid end to end without the sliced layout's padding (the Gauss-Seidel sweep's lower part
+//! first in each row), each with the other end's index (28 bytes an entry): a product
 //! `A w_i = A_ii w_i - sum_j S_ij w_j` then streams them once, nothing is assembled into a
 //! global matrix, and a cut's patched rows are simply walked again at the next step. (A
-//! product that recomputed each block from the geometry would read the 32-byte entry, its
+//! product that recomputed each block from the geometry would read the 24-byte spring end, its
 //! damping and both ends' displacements and take a square root and a division per spring, in
 //! every one of the tens of iterations that share one geometry.) The two ends of a spring see
 //! exactly opposite spring vectors, so `S_ij = S_ji` bit for bit and the system is symmetric.
@@ -86,8 +87,11 @@ struct Iterate {
 pub(super) struct Implicit {
     settings: SolverSettings,
     stats: SolverStats,
-    /// Indexed like the adjacency, row by row: the blocks of each row's live entries in the
-    /// row's range, its lower part first (holes are never read).
+    /// Node `i`'s blocks are `blocks[starts[i]..starts[i + 1]]`: the rows of the sliced
+    /// springs laid end to end without padding, formed again at each step (a cut may have
+    /// changed any row's length).
+    starts: Vec<u32>,
+    /// Row by row: each spring end's block, the row's lower part first.
     blocks: Vec<Block>,
     nodes: Vec<NodeSystem>,
     cg: Vec<Iterate>,
@@ -116,6 +120,7 @@ impl Implicit {
         Implicit {
             settings,
             stats: SolverStats::default(),
+            starts: room(nodes + 1),
             blocks: room(entries),
             nodes: room(nodes),
             cg: room(nodes),
@@ -144,6 +149,10 @@ impl Implicit {
                 self.blocks.len() as u64 * std::mem::size_of::<Block>() as u64,
             ),
             (
+                "implicit: row starts".to_string(),
+                self.starts.len() as u64 * 4,
+            ),
+            (
                 "implicit: diagonal blocks and right-hand side".to_string(),
                 n * std::mem::size_of::<NodeSystem>() as u64,
             ),
@@ -167,9 +176,18 @@ impl Implicit {
             + n * 3 * p
     }
 
-    /// Size the scratch to `n` nodes and `entries` adjacency entries: only after a cut, and
-    /// within the room kept unless the cut added more.
-    fn fit(&mut self, n: usize, entries: usize) {
+    /// Lay the rows of `g` end to end and size the scratch to its nodes and spring ends: the
+    /// sizes change only after a cut, and within the room kept unless the cut added more.
+    fn fit(&mut self, g: &Graph) {
+        let n = g.springs.nodes();
+        self.starts.resize(n + 1, 0);
+        let mut at = 0u32;
+        for i in 0..n {
+            self.starts[i] = at;
+            at += g.springs.len(i) as u32;
+        }
+        self.starts[n] = at;
+        let entries = at as usize;
         if self.nodes.len() != n || self.blocks.len() != entries {
             self.blocks.resize(entries, Block::default());
             for v in [
@@ -202,11 +220,10 @@ impl Implicit {
 impl FastEngine {
     /// One linearised backward Euler step (and any further Newton iterations).
     pub(super) fn step_backward_euler(&mut self) {
-        let n = self.x.len();
         let Some(imp) = self.implicit.as_mut() else {
             unreachable!("an engine built for backward Euler has its solver scratch");
         };
-        imp.fit(n, self.graph.adj.len());
+        imp.fit(&self.graph);
         let (g, params) = (&self.graph, self.params);
         let settings = imp.settings;
         // The first iterate is Baraff and Witkin's: linearised at the start of the step, and
@@ -254,7 +271,7 @@ impl FastEngine {
     /// vectors it reads and writes); `None` for the explicit schemes. Set beside
     /// [`crate::engine::EngineMemory::bytes_per_step`], which counts the explicit step's.
     pub fn bytes_per_cg_iteration(&self) -> Option<u64> {
-        let live = self.graph.adj.len() - self.graph.holes;
+        let live = self.graph.springs.live;
         self.implicit.as_ref().map(|i| i.bytes_per_iteration(live))
     }
 
@@ -281,7 +298,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
         Lin::Iterate => (&imp.xk[..], &imp.vk[..], Some(&imp.dv[..])),
     };
     let blocks = SharedBlocks(imp.blocks.as_mut_ptr(), imp.blocks.len());
-    let damped = !g.damping.is_empty();
+    let starts = &imp.starts[..];
     let (h, h2) = (p.h, p.h * p.h);
     let definite = lin == Linearization::Definite;
     let [bb, _] = over_blocks(&mut imp.nodes, &mut imp.partials, |start, out| {
@@ -297,10 +314,9 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                 };
                 continue;
             }
-            let [first, end] = g.rows[i];
-            // SAFETY: rows are disjoint ranges of the adjacency (a patch moves a row, leaving
-            // a hole, and never shares entries), and node `i`'s row is written only here, by
-            // the one task that owns node `i`.
+            let (first, end) = (starts[i], starts[i + 1]);
+            // SAFETY: rows are disjoint, consecutive ranges (`Implicit::fit`), and node `i`'s
+            // row is written only here, by the one task that owns node `i`.
             let row_blocks = unsafe { blocks.row(first as usize, end as usize) };
             let (xi, vi) = (x[i], v[i]);
             let (mut f, mut kv, mut sum) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 6]);
@@ -316,7 +332,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                     row_blocks[last] = block;
                 }
             };
-            for (e_at, e) in g.row(i).iter().enumerate() {
+            for (e, c) in g.springs.row(i) {
                 let j = e.other as usize;
                 let d = spring_vector(e.edge, xi, x[j]);
                 let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -328,11 +344,6 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                 }
                 let inv = 1.0 / l2.sqrt();
                 let u = [d[0] * inv, d[1] * inv, d[2] * inv];
-                let c = if damped {
-                    g.damping[first as usize + e_at]
-                } else {
-                    0.0
-                };
                 let dvel = [0, 1, 2].map(|a| v[j][a] - vi[a]);
                 let along = dvel[0] * u[0] + dvel[1] * u[1] + dvel[2] * u[2];
                 // Tension over stiffness, `1 - L/l`: the elastic force is `k t d`.
@@ -395,6 +406,7 @@ fn solve(
 ) -> (u32, f64) {
     let sgs = settings.preconditioner != Preconditioner::BlockJacobi;
     let Implicit {
+        starts,
         blocks,
         nodes,
         cg,
@@ -405,7 +417,11 @@ fn solve(
         held,
         ..
     } = imp;
-    let (nodes, blocks, held) = (&nodes[..], &blocks[..], &*held);
+    let (nodes, held) = (&nodes[..], &*held);
+    let blocks = Rows {
+        starts: &starts[..],
+        blocks: &blocks[..],
+    };
     if bb == 0.0 {
         cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
@@ -472,7 +488,7 @@ fn advance(
     cg: &mut [Iterate],
     partials: &mut [[f64; 2]],
     nodes: &[NodeSystem],
-    blocks: &[Block],
+    blocks: Rows,
     g: &Graph,
     sgs: bool,
     held: &Held,
@@ -506,7 +522,7 @@ fn precondition(
     start: usize,
     out: &mut [Iterate],
     nodes: &[NodeSystem],
-    blocks: &[Block],
+    blocks: Rows,
     g: &Graph,
     sgs: bool,
 ) {
@@ -521,12 +537,8 @@ fn precondition(
     // Each row's lower part, then the rest (`assemble` put them so): each sweep reads only
     // its own part, and the two together read the row once.
     let parts = |i: usize| {
-        let [first, last] = g.rows[i];
-        let split = first as usize + nodes[i].lower as usize;
-        (
-            &blocks[first as usize..split],
-            &blocks[split..last as usize],
-        )
+        let row = blocks.row(i);
+        row.split_at(nodes[i].lower as usize)
     };
     // Forward: `(D - L) w = r`, `w` kept in `z`.
     for k in 0..out.len() {
@@ -587,7 +599,7 @@ fn direction(p: &mut [P], cg: &[Iterate], partials: &mut [[f64; 2]], beta: Optio
 /// returns `(p . Ap, 0)`.
 fn product(
     g: &Graph,
-    blocks: &[Block],
+    blocks: Rows,
     nodes: &[NodeSystem],
     p: &[P],
     ap: &mut [P],
@@ -602,11 +614,10 @@ fn product(
                 *o = [0.0; 4];
                 continue;
             }
-            let [first, end] = g.rows[i];
-            // The row is read through the blocks' own `other`: 28 bytes an entry, the graph's
-            // 32-byte entries are not touched.
+            // The row is read through the blocks' own `other`: 28 bytes an entry, the springs
+            // are not touched.
             let mut acc = sym_mul(&nodes[i].diag, p[i]);
-            for b in &blocks[first as usize..end as usize] {
+            for b in blocks.row(i) {
                 let q = sym_mul(&b.s, p[b.other as usize]);
                 for c in 0..3 {
                     acc[c] -= q[c];
@@ -699,6 +710,21 @@ fn for_pairs(a: &mut [P], b: &mut [P], f: impl Fn(usize, &mut [P], &mut [P]) + S
     #[cfg(not(feature = "parallel"))]
     for (i, (ca, cb)) in a.chunks_mut(BLOCK).zip(b.chunks_mut(BLOCK)).enumerate() {
         f(i * BLOCK, ca, cb);
+    }
+}
+
+/// The blocks, read row by row.
+#[derive(Clone, Copy)]
+struct Rows<'a> {
+    starts: &'a [u32],
+    blocks: &'a [Block],
+}
+
+impl<'a> Rows<'a> {
+    /// Node `i`'s blocks.
+    #[inline(always)]
+    fn row(&self, i: usize) -> &'a [Block] {
+        &self.blocks[self.starts[i] as usize..self.starts[i + 1] as usize]
     }
 }
 

@@ -8,7 +8,7 @@
 //! product) before the solve and the solution gains `z` after it, and one more product gives
 //! each constraint's impulse `n . (A dv - b)`.
 
-use super::{dot64, over_blocks, product, Implicit};
+use super::{dot64, over_blocks, product, Implicit, Rows};
 use crate::engine::fast::{Graph, Params, P};
 use crate::physics::NodeConstraint;
 
@@ -132,7 +132,10 @@ pub(super) fn constrain(
         }
         product(
             g,
-            &imp.blocks,
+            Rows {
+                starts: &imp.starts,
+                blocks: &imp.blocks,
+            },
             &imp.nodes,
             &imp.p,
             &mut imp.ap,
@@ -185,7 +188,10 @@ pub(super) fn impulses(imp: &mut Implicit, g: &Graph, p: Params, first: bool) {
     });
     product(
         g,
-        &imp.blocks,
+        Rows {
+            starts: &imp.starts,
+            blocks: &imp.blocks,
+        },
         &imp.nodes,
         &imp.p,
         &mut imp.ap,

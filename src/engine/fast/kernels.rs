@@ -1,71 +1,9 @@
-//! The fast engine's inner loops: the spring force of one adjacency entry, the Verlet and
-//! symplectic Euler updates of a block of nodes (AVX2/FMA where the processor has them, chosen
+//! The fast engine's inner loops: the spring forces of a slice of nodes (`sliced.rs`), the
+//! Verlet and symplectic Euler updates of a block of nodes (AVX2/FMA where the processor has them, chosen
 //! at run time), and the parallel iteration over blocks.
 
+use super::sliced::{group_force, Sliced, LANES as SLICE, V3};
 use super::*;
-
-/// The stored velocity of node `j` (symplectic Euler) or its last step, `h` times it (Verlet).
-#[inline(always)]
-pub(super) fn w_of<const DAMP: u8>(a: &[P], b: &[P], j: usize) -> [f32; 3] {
-    let _ = b;
-    [a[j][0], a[j][1], a[j][2]]
-}
-
-/// Total spring force on node `i` at displacements `x`: elastic `k (l - L) u` plus, when
-/// damped, `c ((w_j - w_i) . u) u * w_scale` with `w` from [`w_of`]. Coincident nodes have no
-/// direction and give nothing, as in the reference engine (their inverse length is set to 0,
-/// which also makes the padding lanes of a partial chunk, with `k = c = 0`, contribute 0).
-#[inline(always)]
-pub(super) fn spring_force<const DAMP: u8>(
-    g: &Graph,
-    x: &[P],
-    wa: &[P],
-    wb: &[P],
-    i: usize,
-    w_scale: f32,
-) -> [f32; 3] {
-    let ui = x[i];
-    let wi = w_of::<DAMP>(wa, wb, i);
-    let mut acc = [[0.0f32; LANES]; 3];
-    let first = g.rows[i][0] as usize;
-    for (n, chunk) in g.row(i).chunks(LANES).enumerate() {
-        let mut d = [[0.0f32; LANES]; 3];
-        let mut dw = [[0.0f32; LANES]; 3];
-        let (mut k, mut rest, mut c) = ([0.0f32; LANES], [0.0f32; LANES], [0.0f32; LANES]);
-        for (l, e) in chunk.iter().enumerate() {
-            let j = e.other as usize;
-            let v = spring_vector(e.edge, ui, x[j]);
-            (k[l], rest[l]) = (e.k, e.rest);
-            if DAMP != UNDAMPED {
-                c[l] = g.damping[first + n * LANES + l];
-            }
-            let wj = if DAMP != UNDAMPED {
-                w_of::<DAMP>(wa, wb, j)
-            } else {
-                [0.0; 3]
-            };
-            for a in 0..3 {
-                d[a][l] = v[a];
-                dw[a][l] = wj[a] - wi[a];
-            }
-        }
-        for l in 0..LANES {
-            let l2 = d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l];
-            let inv_raw = 1.0 / l2.sqrt();
-            let inv = if l2 > 0.0 { inv_raw } else { 0.0 };
-            // Force magnitude over length: multiplies the unnormalised `d`.
-            let mut s = k[l] * (1.0 - rest[l] * inv);
-            if DAMP != UNDAMPED {
-                let along = dw[0][l] * d[0][l] + dw[1][l] * d[1][l] + dw[2][l] * d[2][l];
-                s += c[l] * along * w_scale * inv * inv;
-            }
-            for a in 0..3 {
-                acc[a][l] += s * d[a][l];
-            }
-        }
-    }
-    acc.map(|lanes| lanes.iter().sum())
-}
 
 /// Whether the kernels may use AVX2 and FMA on this CPU.
 pub(super) fn wide_simd() -> bool {
@@ -83,11 +21,13 @@ pub(super) fn wide_simd() -> bool {
 /// those target features, so the lane arrays become 256-bit vectors and fused multiply-adds.
 #[cfg(target_arch = "x86_64")]
 pub(super) mod wide {
-    use super::{Graph, Params, P};
+    use super::{Graph, Params, Sliced, P};
 
     #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
     pub(in crate::engine::fast) fn verlet_block<const DAMPED: bool>(
         g: &Graph,
+        sl: &Sliced,
         p: Params,
         x: &[P],
         d: &[P],
@@ -95,12 +35,14 @@ pub(super) mod wide {
         xo: &mut [P],
         dout: &mut [P],
     ) {
-        super::verlet_block::<DAMPED>(g, p, x, d, start, xo, dout)
+        super::verlet_block::<DAMPED>(g, sl, p, x, d, start, xo, dout)
     }
 
     #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
     pub(in crate::engine::fast) fn euler_block<const DAMPED: bool>(
         g: &Graph,
+        sl: &Sliced,
         p: Params,
         x: &[P],
         v: &[P],
@@ -108,15 +50,44 @@ pub(super) mod wide {
         xo: &mut [P],
         vo: &mut [P],
     ) {
-        super::euler_block::<DAMPED>(g, p, x, v, start, xo, vo)
+        super::euler_block::<DAMPED>(g, sl, p, x, v, start, xo, vo)
     }
 }
 
-/// Verlet for nodes `start..`, on displacements `x` and last steps `d = x - x_prev`:
-/// `d+ = d + h^2 a(x, d / h)`, `x+ = x + d+` (compensated, [`advance`]).
+/// The spring forces on the nodes of slice `b` (eight lanes, one a node; lanes past the last
+/// node hold nothing useful), on displacements `x` with damping on the second state `w` scaled
+/// by `w_scale` (`1 / h` for Verlet's steps, 1 for velocities).
 #[inline(always)]
+fn slice_forces<const DAMPED: bool>(sl: &Sliced, x: &[P], w: &[P], b: usize, w_scale: f32) -> V3 {
+    let base = b * SLICE;
+    let mut ui = [[0.0f32; SLICE]; 3];
+    let mut wi = [[0.0f32; SLICE]; 3];
+    for l in 0..SLICE.min(x.len() - base) {
+        for a in 0..3 {
+            ui[a][l] = x[base + l][a];
+            if DAMPED {
+                wi[a][l] = w[base + l][a];
+            }
+        }
+    }
+    let mut acc = [[0.0f32; SLICE]; 3];
+    let [start, end] = sl.slices[b];
+    const NONE: [f32; SLICE] = [0.0; SLICE];
+    for k in start as usize..end as usize {
+        let c = if DAMPED { &sl.damping[k] } else { &NONE };
+        group_force::<DAMPED>(&sl.groups[k], c, x, w, &ui, &wi, w_scale, &mut acc);
+    }
+    acc
+}
+
+/// Verlet for nodes `start..` (`start` a multiple of the slice size), on displacements `x` and
+/// last steps `d = x - x_prev`: `d+ = d + h^2 a(x, d / h)`, `x+ = x + d+` (compensated,
+/// [`advance`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn verlet_block<const DAMPED: bool>(
     g: &Graph,
+    sl: &Sliced,
     p: Params,
     x: &[P],
     d: &[P],
@@ -124,36 +95,36 @@ pub(super) fn verlet_block<const DAMPED: bool>(
     xo: &mut [P],
     dout: &mut [P],
 ) {
-    for ((xo, dout), i) in xo.iter_mut().zip(dout.iter_mut()).zip(start..) {
-        let (xi, di) = (x[i], d[i]);
-        if g.fixed[i] {
-            *xo = xi;
-            *dout = [0.0; 4];
-            continue;
+    for (s, (xo, dout)) in xo.chunks_mut(SLICE).zip(dout.chunks_mut(SLICE)).enumerate() {
+        let b = start / SLICE + s;
+        let f = slice_forces::<DAMPED>(sl, x, d, b, p.inv_h);
+        for (l, (xo, dout)) in xo.iter_mut().zip(dout.iter_mut()).enumerate() {
+            let i = b * SLICE + l;
+            let (xi, di) = (x[i], d[i]);
+            if g.fixed[i] {
+                *xo = xi;
+                *dout = [0.0; 4];
+                continue;
+            }
+            let m = g.inv_mass[i];
+            let mut step = [0.0f32; 3];
+            for c in 0..3 {
+                let a = f[c][l] * m + p.gravity[c] - p.alpha * di[c] * p.inv_h;
+                dout[c] = di[c] + p.h2 * a;
+                step[c] = dout[c];
+            }
+            advance(xi, di, step, xo, dout);
         }
-        // Spring damping reads each neighbour's velocity `d / h`: a kernel of its own; without
-        // damping the plain one reads displacements only.
-        let f = if DAMPED {
-            spring_force::<DAMPED_VELOCITY>(g, x, d, d, i, p.inv_h)
-        } else {
-            spring_force::<UNDAMPED>(g, x, d, d, i, 0.0)
-        };
-        let m = g.inv_mass[i];
-        let mut step = [0.0f32; 3];
-        for c in 0..3 {
-            let a = f[c] * m + p.gravity[c] - p.alpha * di[c] * p.inv_h;
-            dout[c] = di[c] + p.h2 * a;
-            step[c] = dout[c];
-        }
-        advance(xi, di, step, xo, dout);
     }
 }
 
-/// Symplectic Euler for nodes `start..`: `v+ = v + h a(u, v)`, `u+ = u + h v+` (compensated,
-/// [`advance`]).
+/// Symplectic Euler for nodes `start..` (`start` a multiple of the slice size):
+/// `v+ = v + h a(u, v)`, `u+ = u + h v+` (compensated, [`advance`]).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn euler_block<const DAMPED: bool>(
     g: &Graph,
+    sl: &Sliced,
     p: Params,
     x: &[P],
     v: &[P],
@@ -161,26 +132,26 @@ pub(super) fn euler_block<const DAMPED: bool>(
     xo: &mut [P],
     vo: &mut [P],
 ) {
-    for ((xo, vo), i) in xo.iter_mut().zip(vo.iter_mut()).zip(start..) {
-        let (xi, vi) = (x[i], v[i]);
-        if g.fixed[i] {
-            *xo = xi;
-            *vo = [0.0; 4];
-            continue;
+    for (s, (xo, vo)) in xo.chunks_mut(SLICE).zip(vo.chunks_mut(SLICE)).enumerate() {
+        let b = start / SLICE + s;
+        let f = slice_forces::<DAMPED>(sl, x, v, b, 1.0);
+        for (l, (xo, vo)) in xo.iter_mut().zip(vo.iter_mut()).enumerate() {
+            let i = b * SLICE + l;
+            let (xi, vi) = (x[i], v[i]);
+            if g.fixed[i] {
+                *xo = xi;
+                *vo = [0.0; 4];
+                continue;
+            }
+            let m = g.inv_mass[i];
+            let mut step = [0.0f32; 3];
+            for c in 0..3 {
+                let a = f[c][l] * m + p.gravity[c] - p.alpha * vi[c];
+                vo[c] = vi[c] + p.h * a;
+                step[c] = p.h * vo[c];
+            }
+            advance(xi, vi, step, xo, vo);
         }
-        let f = if DAMPED {
-            spring_force::<DAMPED_VELOCITY>(g, x, v, v, i, 1.0)
-        } else {
-            spring_force::<UNDAMPED>(g, x, v, v, i, 1.0)
-        };
-        let m = g.inv_mass[i];
-        let mut step = [0.0f32; 3];
-        for c in 0..3 {
-            let a = f[c] * m + p.gravity[c] - p.alpha * vi[c];
-            vo[c] = vi[c] + p.h * a;
-            step[c] = p.h * vo[c];
-        }
-        advance(xi, vi, step, xo, vo);
     }
 }
 

@@ -1,9 +1,11 @@
 //! The fast float32 CPU engine: node-centric gather, nodes reordered for locality,
 //! multi-threaded over blocks of nodes (feature `parallel`).
 //!
-//! Every node owns its row of an adjacency in which each spring appears twice, once in the row
-//! of each end (rows as (start, end) pairs, so that a cut can rewrite a row where it is or move
-//! it to the end: `patch.rs`). A node sums the forces of its row and integrates itself in the same pass,
+//! Every node owns its row of springs, each spring appearing twice, once in the row of each
+//! end; the rows are stored once, eight nodes' rows side by side a SIMD vector (`sliced.rs`),
+//! which the step reads directly and everything else (a cut's patch, `patch.rs`; backward
+//! Euler, `implicit.rs`; the finite elements' rows) reads a row at a time out of its lane. A
+//! node sums the forces of its row and integrates itself in the same pass,
 //! so that threads write disjoint nodes and need no atomics; the price is that every spring's
 //! length is computed twice. Positions are read from buffers nobody writes during the pass:
 //! both integrators write the new displacements and second states (Verlet's last step
@@ -19,15 +21,16 @@
 //! previous displacement, so its velocity is never the difference of two rounded states, and
 //! both integrators keep what rounding `u + step` loses (`physics::Compensation`): far below
 //! the stable bound a step is a few ulps of the displacement, and without both most of it
-//! would be rounded away (see `tests/engine/float32_precision.rs`). Spring vectors are `e_ij + (u_j - u_i)`, the rest edge vector `e_ij`
-//! stored with the adjacency entry (rounded once from float64, so the rest shape keeps float32
-//! precision of each edge).
+//! would be rounded away (see `tests/engine/float32_precision.rs`). Spring vectors are
+//! `e_ij + (u_j - u_i)`, the rest edge vector `e_ij` stored with the spring end (rounded once
+//! from float64, so the rest shape keeps float32 precision of each edge).
 
 mod elements;
 mod implicit;
 mod kernels;
 use kernels::*;
 mod patch;
+mod sliced;
 mod threads;
 pub use threads::on_threads;
 
@@ -39,16 +42,37 @@ use crate::model::{PackedModel, PackedSpring};
 type P = [f32; 4];
 
 /// Nodes per parallel task: large enough that scheduling costs little next to the work
-/// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores.
+/// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores;
+/// a whole number of slices of the sliced layout (`sliced.rs`).
 const BLOCK: usize = 1024;
+const _: () = assert!(BLOCK % sliced::LANES == 0 && BLOCK % SIGMA == 0);
+
+/// Nodes per window of the valence sort that follows the locality order ([`sigma_sort`]):
+/// eight slices, so that a node moves at most 63 places from where reverse Cuthill–McKee put
+/// it.
+const SIGMA: usize = 64;
+
+/// Sort `order` by falling valence within windows of [`SIGMA`] nodes ("sigma sorting" of a
+/// sliced ELLPACK layout), stably: the eight nodes of a slice then have rows of nearly one
+/// length, so the slice pads less, while every node stays among its neighbours in memory.
+fn sigma_sort(order: &mut [u32], model: &PackedModel) {
+    let mut valence = vec![0u32; model.node_count()];
+    for s in model.springs() {
+        for &i in &s.nodes {
+            valence[i as usize] += 1;
+        }
+    }
+    for w in order.chunks_mut(SIGMA) {
+        w.sort_by_key(|&o| std::cmp::Reverse(valence[o as usize]));
+    }
+}
 
 /// Nodes per task of a scan for the nodes near a blade made with a step.
 #[cfg(feature = "parallel")]
 const NEAR_BLOCK: usize = 8192;
 
-/// One spring as seen from one of its ends.
+/// One spring as seen from one of its ends (stored lane by lane in `sliced::Group`).
 #[derive(Debug, Clone, Copy)]
-#[repr(C, align(32))]
 struct Entry {
     /// The other end, internal index.
     other: u32,
@@ -73,16 +97,9 @@ struct Params {
 
 /// Read-only model data in internal order.
 struct Graph {
-    /// Each node's row of `adj`, as (start, end). Rows are laid out in node order when built;
-    /// a patch rewrites a row in place when it does not grow and appends it otherwise, leaving
-    /// a hole (`holes` entries in all) until the next rebuild.
-    rows: Vec<[u32; 2]>,
-    adj: Vec<Entry>,
-    /// Entries of `adj` no row uses.
-    holes: usize,
-    /// Damping along each spring of `adj`, N s/m, kept apart so that the undamped kernel
-    /// streams 24-byte entries (empty when no spring is damped).
-    damping: Vec<f32>,
+    /// Every node's springs, as the explicit step reads them and everything else reads rows
+    /// out of them (`sliced.rs`).
+    springs: sliced::Sliced,
     inv_mass: Vec<f32>,
     fixed: Vec<bool>,
 }
@@ -139,7 +156,10 @@ impl FastEngine {
     /// Start at rest at the rest positions.
     pub fn new(model: &PackedModel, config: SimConfig) -> Self {
         let n = model.node_count();
-        let order = config.node_order.order(model).order;
+        let mut order = config.node_order.order(model).order;
+        if config.node_order == super::NodeOrdering::Locality {
+            sigma_sort(&mut order, model);
+        }
         let rest_inner = order
             .iter()
             .map(|&o| rest_f32(model.rest[o as usize]))
@@ -190,7 +210,7 @@ impl FastEngine {
             engine.implicit = Some(implicit::Implicit::new(
                 config.solver,
                 n,
-                engine.graph.adj.len(),
+                engine.graph.springs.live,
             ));
         }
         engine.order.reserve(spare(n));
@@ -240,7 +260,7 @@ impl FastEngine {
 
     /// One step of position Verlet on (displacement, last step); then swap old and new.
     fn step_verlet(&mut self) {
-        let (g, p) = (&self.graph, self.params);
+        let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, d) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(
@@ -251,15 +271,15 @@ impl FastEngine {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
                     (true, true) => unsafe {
-                        wide::verlet_block::<true>(g, p, x, d, start, xo, dout)
+                        wide::verlet_block::<true>(g, sl, p, x, d, start, xo, dout)
                     },
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: as above.
                     (false, true) => unsafe {
-                        wide::verlet_block::<false>(g, p, x, d, start, xo, dout)
+                        wide::verlet_block::<false>(g, sl, p, x, d, start, xo, dout)
                     },
-                    (true, _) => verlet_block::<true>(g, p, x, d, start, xo, dout),
-                    (false, _) => verlet_block::<false>(g, p, x, d, start, xo, dout),
+                    (true, _) => verlet_block::<true>(g, sl, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false>(g, sl, p, x, d, start, xo, dout),
                 }
             },
         );
@@ -269,19 +289,21 @@ impl FastEngine {
 
     /// One step of symplectic Euler; then swap old and new.
     fn step_euler(&mut self) {
-        let (g, p) = (&self.graph, self.params);
+        let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, v) = (&self.x, &self.second);
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
             match (damped, wide) {
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-                (true, true) => unsafe { wide::euler_block::<true>(g, p, x, v, start, xo, vo) },
+                (true, true) => unsafe { wide::euler_block::<true>(g, sl, p, x, v, start, xo, vo) },
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: as above.
-                (false, true) => unsafe { wide::euler_block::<false>(g, p, x, v, start, xo, vo) },
-                (true, _) => euler_block::<true>(g, p, x, v, start, xo, vo),
-                (false, _) => euler_block::<false>(g, p, x, v, start, xo, vo),
+                (false, true) => unsafe {
+                    wide::euler_block::<false>(g, sl, p, x, v, start, xo, vo)
+                },
+                (true, _) => euler_block::<true>(g, sl, p, x, v, start, xo, vo),
+                (false, _) => euler_block::<false>(g, sl, p, x, v, start, xo, vo),
             }
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
@@ -354,7 +376,7 @@ impl FastEngine {
 
     /// Number of entries of the adjacency: twice the number of springs.
     pub fn adjacency_len(&self) -> usize {
-        self.graph.adj.len()
+        self.graph.springs.live
     }
 
     /// Largest `|internal index of a node - internal index of a neighbour|` (the bandwidth the
@@ -363,9 +385,9 @@ impl FastEngine {
         (0..self.node_count())
             .flat_map(|i| {
                 self.graph
+                    .springs
                     .row(i)
-                    .iter()
-                    .map(move |e| i.abs_diff(e.other as usize))
+                    .map(move |(e, _)| i.abs_diff(e.other as usize))
             })
             .max()
             .unwrap_or(0)
@@ -449,16 +471,14 @@ impl Engine for FastEngine {
 
     fn memory(&self) -> super::EngineMemory {
         let n = self.x.len() as u64;
-        let slots = self.graph.adj.len() as u64;
-        let entry = std::mem::size_of::<Entry>() as u64;
+        let sl = &self.graph.springs;
         let p = std::mem::size_of::<P>() as u64;
+        let springs = sl.groups.len() as u64 * sl.group_bytes() as u64 + sl.index_bytes();
         let mut buffers = vec![
-            ("adjacency".to_string(), slots * entry),
             (
-                "adjacency damping".to_string(),
-                self.graph.damping.len() as u64 * 4,
+                "springs (slices of 8 nodes, a node a lane)".to_string(),
+                springs,
             ),
-            ("row bounds".to_string(), n * 8),
             ("order and rank".to_string(), n * 8),
             ("inverse masses".to_string(), n * 4),
             ("fixed flags".to_string(), n),
@@ -477,24 +497,27 @@ impl Engine for FastEngine {
         if let Some(imp) = &self.implicit {
             buffers.extend(imp.buffers());
         }
-        // A step streams the adjacency once, reads the current state and writes the next;
-        // neighbours' state is re-read from cache, not memory, when the order is local. With
-        // finite elements, the element arrays replace the adjacency in the step.
+        // A step streams the sliced springs once (padding lanes included), reads the current
+        // state and writes the next; neighbours' state is re-read from cache, not memory, when
+        // the order is local. With finite elements, the element arrays replace the springs in
+        // the step.
         let state = 4 * n * p;
         let bytes_per_step = match &self.elements {
             Some(e) => {
                 buffers.extend(e.buffers());
                 e.bytes_per_step() + n * 5 + state
             }
-            None => slots * entry + n * 8 + n * 5 + state,
+            None => {
+                let live = sl.groups.len() - sl.holes;
+                live as u64 * sl.group_bytes() as u64 + sl.index_bytes() + n * 5 + state
+            }
         };
         super::EngineMemory {
             stats: crate::layout::MemoryStats::new(
                 buffers,
-                self.graph.holes as u64
-                    * (entry + if self.graph.damping.is_empty() { 0 } else { 4 }),
+                sl.padding_bytes(),
                 n as usize,
-                (slots as usize - self.graph.holes) / 2,
+                sl.live / 2,
             ),
             bytes_per_step,
         }
@@ -667,53 +690,6 @@ impl Engine for FastEngine {
     }
 }
 
-impl Graph {
-    fn row(&self, i: usize) -> &[Entry] {
-        let [start, end] = self.rows[i];
-        &self.adj[start as usize..end as usize]
-    }
-
-    /// Slide every row down over the holes, in the order the rows lie in (each moves to a
-    /// place at or before its own, so nothing is overwritten before it is moved); nothing is
-    /// allocated but the list of row starts. Rows keep the order they lie in, so a row a cut
-    /// moved to the end stays there (a rebuild would put it back among its node's neighbours,
-    /// but allocates a new adjacency). The number of entries moved.
-    fn compact(&mut self) -> usize {
-        if self.holes == 0 {
-            return 0;
-        }
-        let mut moved = 0;
-        let mut by_start: Vec<(u32, u32)> = self
-            .rows
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (r[0], i as u32))
-            .collect();
-        by_start.sort_unstable();
-        let damped = !self.damping.is_empty();
-        let mut to = 0usize;
-        for (_, i) in by_start {
-            let [start, end] = self.rows[i as usize];
-            let (start, len) = (start as usize, (end - start) as usize);
-            if start != to {
-                self.adj.copy_within(start..start + len, to);
-                if damped {
-                    self.damping.copy_within(start..start + len, to);
-                }
-                moved += len;
-            }
-            self.rows[i as usize] = [to as u32, (to + len) as u32];
-            to += len;
-        }
-        self.adj.truncate(to);
-        if damped {
-            self.damping.truncate(to);
-        }
-        self.holes = 0;
-        moved
-    }
-}
-
 /// Spring `s` as seen from its end `end` (0 or 1), whose other end has internal index `other`,
 /// with its damping. The rest edge vector is formed in float64 from the first end to the second
 /// and negated for the second, so both ends (and a patch) round it the same way.
@@ -729,37 +705,22 @@ fn entry_of(s: &PackedSpring, end: usize, other: u32, rest: &[[f64; 3]]) -> (Ent
     (e, s.damping as f32)
 }
 
-/// The adjacency in internal order, each row sorted by neighbour so that a row walks memory
+/// The springs in internal order, each row sorted by neighbour so that a row walks memory
 /// forwards.
 fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
     let n = model.node_count();
-    let mut rows_of: Vec<Vec<(Entry, f32)>> = vec![Vec::new(); n];
+    let mut rows: Vec<sliced::Row> = vec![Vec::new(); n];
     for s in model.springs() {
         let (a, b) = (rank[s.nodes[0] as usize], rank[s.nodes[1] as usize]);
-        rows_of[a as usize].push(entry_of(s, 0, b, &model.rest));
-        rows_of[b as usize].push(entry_of(s, 1, a, &model.rest));
+        rows[a as usize].push(entry_of(s, 0, b, &model.rest));
+        rows[b as usize].push(entry_of(s, 1, a, &model.rest));
     }
-    // Holes are compacted in place before the adjacency grows, so only live rows use the
-    // room (see `model::room::spare`).
-    let mut rows = Vec::with_capacity(n + spare(n));
-    let entries = 2 * model.springs().len();
-    let mut adj = Vec::with_capacity(entries + spare(entries));
-    let damped = model.springs().iter().any(|s| s.damping != 0.0);
-    let mut damping = Vec::with_capacity(if damped { adj.capacity() } else { 0 });
-    for mut r in rows_of {
+    for r in &mut rows {
         r.sort_by_key(|(e, _)| e.other);
-        let start = adj.len() as u32;
-        adj.extend(r.iter().map(|(e, _)| *e));
-        if damped {
-            damping.extend(r.iter().map(|(_, c)| *c));
-        }
-        rows.push([start, adj.len() as u32]);
     }
+    let damped = model.springs().iter().any(|s| s.damping != 0.0);
     Graph {
-        rows,
-        holes: 0,
-        adj,
-        damping,
+        springs: sliced::Sliced::build(&rows, damped),
         inv_mass: order
             .iter()
             .map(|&o| (1.0 / model.mass[o as usize]) as f32)
@@ -767,16 +728,6 @@ fn build_graph(model: &PackedModel, order: &[u32], rank: &[u32]) -> Graph {
         fixed: order.iter().map(|&o| model.fixed[o as usize]).collect(),
     }
 }
-
-/// No spring damping: the kernel reads displacements only.
-const UNDAMPED: u8 = 0;
-/// Spring damping with velocities stored (symplectic Euler), or steps `h v` (Verlet, which
-/// scales their difference by `1 / h`).
-const DAMPED_VELOCITY: u8 = 1;
-
-/// Springs are evaluated four at a time in lane arrays, so that the square roots, divisions
-/// and products compile to SIMD instructions; the gather of neighbours stays scalar.
-const LANES: usize = 4;
 
 fn to_p(v: [f64; 3]) -> P {
     [v[0] as f32, v[1] as f32, v[2] as f32, 0.0]

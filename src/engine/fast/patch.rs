@@ -4,15 +4,16 @@
 //!
 //! New nodes are appended to the internal order (they sit apart from their neighbours in
 //! memory, which costs a few cache misses for a few nodes). A touched node's row is rebuilt
-//! from its old row and the diff; a row that does not grow is rewritten where it is, one that
-//! grows is appended to the adjacency and its old place becomes a hole. The adjacency is
-//! compacted in place (rows slid down over the holes, nothing allocated) when holes reach a
-//! quarter of it, or before a grown row would outgrow its capacity: growing a vector of
-//! megabytes copies it into fresh pages, a pause of 6-35 ms at 100,000 tets, where sliding
-//! the rows costs a memmove.
+//! from its old row (read out of its lane of the sliced springs) and the diff, and the slices
+//! of the touched rows are rewritten (`sliced.rs`): a slice that does not widen where it is,
+//! one that widens appended, its old place a hole. The slices are compacted in place (slid
+//! down over the holes, nothing allocated) when holes reach a quarter of them, or before a
+//! widened slice would outgrow their capacity: growing a vector of megabytes copies it into
+//! fresh pages, a pause of 6-35 ms at 100,000 tets, where sliding the slices costs a memmove.
 
 use std::collections::BTreeMap;
 
+use super::sliced::{Row, LANES};
 use super::{build_graph, entry_of, Entry, FastEngine, P};
 use crate::engine::PatchCost;
 use crate::model::{ModelDiff, PackedModel, PackedSpring};
@@ -26,15 +27,13 @@ enum RowEdit {
 
 impl FastEngine {
     /// (capacity, length, bytes per entry) of every array a patch can grow.
-    fn capacities(&self) -> [(usize, usize, usize); 13] {
+    fn capacities(&self) -> Vec<(usize, usize, usize)> {
         fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
             (v.capacity(), v.len(), std::mem::size_of::<T>())
         }
         let g = &self.graph;
-        [
-            of(&g.adj),
-            of(&g.damping),
-            of(&g.rows),
+        let mut out = g.springs.capacities().to_vec();
+        out.extend([
             of(&g.inv_mass),
             of(&g.fixed),
             of(&self.order),
@@ -45,47 +44,46 @@ impl FastEngine {
             of(&self.second),
             of(&self.x_next),
             of(&self.second_next),
-        ]
+        ]);
+        out
     }
 
-    /// How the patched graph differs from `model`'s built from scratch in the same internal
-    /// order: each row's springs (in row order, bit for bit), their damping, the inverse masses
-    /// and the fixed flags. Empty when they agree.
+    /// How the patched springs differ from `model`'s built from scratch in the same internal
+    /// order: each row's springs (in row order, bit for bit) and their damping, the slices
+    /// the step reads, the inverse masses and the fixed flags. Empty when they agree.
     pub(super) fn graph_differences(&self, model: &PackedModel) -> Vec<String> {
         let fresh = build_graph(model, &self.order, &self.rank);
-        let bits = |e: &Entry| {
+        let bits = |(e, c): (Entry, f32)| {
             (
                 e.other,
                 e.edge.map(f32::to_bits),
                 e.rest.to_bits(),
                 e.k.to_bits(),
+                c.to_bits(),
             )
         };
-        let damping = |g: &super::Graph, i: usize| -> Vec<u32> {
-            let [s, e] = g.rows[i];
-            g.damping
-                .get(s as usize..e as usize)
-                .map_or(Vec::new(), |d| d.iter().map(|c| c.to_bits()).collect())
-        };
         let mut out = Vec::new();
-        let n = self.graph.rows.len();
-        if n != fresh.rows.len() {
+        let (a, b) = (&self.graph.springs, &fresh.springs);
+        let n = a.nodes();
+        if n != b.nodes() {
             out.push(format!(
                 "fast engine: {n} rows, a rebuild has {}",
-                fresh.rows.len()
+                b.nodes()
             ));
             return out;
         }
-        let row_differs = |i: usize| {
-            let (a, b) = (self.graph.row(i), fresh.row(i));
-            a.len() != b.len()
-                || a.iter().zip(b).any(|(x, y)| bits(x) != bits(y))
-                || damping(&self.graph, i) != damping(&fresh, i)
-        };
+        let row_differs =
+            |i: usize| a.len(i) != b.len(i) || !a.row(i).map(bits).eq(b.row(i).map(bits));
         if let Some(i) = (0..n).find(|&i| row_differs(i)) {
             out.push(format!(
                 "fast engine: the row of node {} differs from a rebuild",
                 self.order[i]
+            ));
+        } else if let Some(s) = a.first_difference(b) {
+            // Rows agree but a slice's padding or layout does not.
+            out.push(format!(
+                "fast engine: the step's slice {s} (nodes from internal {}) differs from a rebuild",
+                s * LANES
             ));
         }
         let mass = |g: &super::Graph| g.inv_mass.iter().map(|m| m.to_bits()).collect::<Vec<_>>();
@@ -114,14 +112,13 @@ impl FastEngine {
                 .iter()
                 .chain(&diff.changed_springs)
                 .any(|s| s.damping != 0.0);
-        if damped_now && self.graph.damping.is_empty() {
+        if damped_now && !self.graph.springs.damped {
             return None;
         }
         let n0 = self.order.len();
         // What the arrays hold now, to report any that must grow (a copy into a new
         // allocation: the pause the room they keep is there to avoid).
         let before = self.capacities();
-        let entry = std::mem::size_of::<Entry>() as u64;
         let p = std::mem::size_of::<P>() as u64;
         let mut written = 0u64;
 
@@ -160,9 +157,7 @@ impl FastEngine {
             self.second_next.push([0.0; 4]);
             self.graph.inv_mass.push((1.0 / a.mass) as f32);
             self.graph.fixed.push(a.fixed);
-            let end = self.graph.adj.len() as u32;
-            self.graph.rows.push([end, end]);
-            written += 2 * p + 13;
+            written += 2 * p + 9;
         }
         for c in &diff.changed_nodes {
             let i = self.rank[c.node as usize] as usize;
@@ -188,20 +183,16 @@ impl FastEngine {
             edits.entry(a).or_default().push((b, RowEdit::Set(*s)));
             edits.entry(b).or_default().push((a, RowEdit::Set(*s)));
         }
-        let damped = !self.graph.damping.is_empty();
-        let mut moved = 0usize;
         let edited = edits.len();
+        let mut rows: BTreeMap<usize, Row> = BTreeMap::new();
         for (node, list) in edits {
             let i = self.rank[node as usize] as usize;
-            let mut row: BTreeMap<u32, (Entry, f32)> = {
-                let [start, end] = self.graph.rows[i];
-                (start as usize..end as usize)
-                    .map(|e| {
-                        let c = if damped { self.graph.damping[e] } else { 0.0 };
-                        (self.graph.adj[e].other, (self.graph.adj[e], c))
-                    })
-                    .collect()
-            };
+            let mut row: BTreeMap<u32, (Entry, f32)> = self
+                .graph
+                .springs
+                .row(i)
+                .map(|(e, c)| (e.other, (e, c)))
+                .collect();
             for (other, edit) in list {
                 let j = self.rank[other as usize];
                 match edit {
@@ -210,63 +201,27 @@ impl FastEngine {
                     }
                     RowEdit::Set(s) => {
                         let end = usize::from(s.nodes[0] != node);
-                        let (e, c) = entry_of(&s, end, j, &model.rest);
-                        row.insert(j, (e, c));
+                        row.insert(j, entry_of(&s, end, j, &model.rest));
                     }
                 }
             }
-            let [start, end] = self.graph.rows[i];
-            let (old_len, new_len) = ((end - start) as usize, row.len());
-            let at = if new_len <= old_len {
-                self.graph.holes += old_len - new_len;
-                start as usize
-            } else {
-                self.graph.holes += old_len;
-                let full = self.graph.adj.len() + new_len > self.graph.adj.capacity();
-                // Compact only where that makes real room: else grow (live rows outgrew it).
-                if full && self.graph.holes >= new_len.max(self.graph.adj.len() / 16) {
-                    // This row's old place becomes a hole too.
-                    self.graph.rows[i] = [start, start];
-                    moved += self.graph.compact();
-                }
-                let at = self.graph.adj.len();
-                let filler = Entry {
-                    other: 0,
-                    edge: [0.0; 3],
-                    rest: 0.0,
-                    k: 0.0,
-                };
-                self.graph.adj.resize(at + new_len, filler);
-                if damped {
-                    self.graph.damping.resize(at + new_len, 0.0);
-                }
-                at
-            };
-            for (slot, (e, c)) in row.into_values().enumerate() {
-                self.graph.adj[at + slot] = e;
-                if damped {
-                    self.graph.damping[at + slot] = c;
-                }
-            }
-            self.graph.rows[i] = [at as u32, (at + new_len) as u32];
-            written += new_len as u64 * (entry + if damped { 4 } else { 0 }) + 8;
+            rows.insert(i, row.into_values().collect());
         }
         self.damped = damped_now;
-
-        if self.graph.holes * 4 > self.graph.adj.len() {
-            moved += self.graph.compact();
-        }
+        // The slices of the edited rows and of the new nodes.
+        let springs = &mut self.graph.springs;
+        let (groups, moved) = springs.patch(self.order.len(), rows);
+        written += groups as u64 * springs.group_bytes() as u64 + edited as u64 * 4;
         // What a rebuild writes: every array the engine holds (as `memory` counts them) but
-        // the holes.
-        let per_entry = entry + if damped { 4 } else { 0 };
+        // the holes and padding.
         let stats = crate::engine::Engine::memory(self).stats;
         let layout_bytes = stats.total - stats.padding;
-        // Compaction moves entries within their arrays (and rewrites every row record);
+        // Compaction moves groups within their array (and rewrites every slice record);
         // growth copies an array whole into its new allocation.
-        let mut copied = moved as u64 * per_entry;
+        let springs = &self.graph.springs;
+        let mut copied = moved as u64 * springs.group_bytes() as u64;
         if moved > 0 {
-            // The records of the rows not edited (the edited ones are counted above).
-            written += self.graph.rows.len().saturating_sub(edited) as u64 * 8;
+            written += springs.slices.len() as u64 * 8;
         }
         let after = self.capacities();
         let mut grown = 0;
@@ -299,9 +254,9 @@ mod tests {
     use crate::model::{stable_time_step, Material, ModelConfig, SpringModel};
 
     /// Cut a damped box with `method` in several strokes; after each, the patched engine's
-    /// rows equal those of a graph built from the cut model in the engine's order, and the
-    /// patched engine steps bit for bit like one rebuilt that way with the same state. Some
-    /// patches compact the adjacency (in place).
+    /// rows and slices equal those of springs built from the cut model in the engine's order,
+    /// and the patched engine steps bit for bit like one rebuilt that way with the same state.
+    /// Some patches compact the slices (in place).
     fn patched_equals_rebuilt(method: CutMethod, integrator: Integrator) {
         let h = 0.01;
         let mesh = BoxGrid::cube_cells([6, 6, 3], h).build().unwrap();
@@ -339,49 +294,41 @@ mod tests {
             }
             cuts += 1;
             packed.apply(&outcome.diff).unwrap();
-            let capacity = engine.graph.adj.capacity();
+            let capacity = engine.graph.springs.groups.capacity();
             let cost = engine
                 .patch_in_place(&packed, &outcome.diff)
                 .expect("patched in place");
-            // A compaction moves entries within the adjacency, reallocating nothing.
+            // A compaction moves groups within their array, reallocating nothing.
             if cost.copied_bytes > 0 && cost.buffers_grown == 0 {
                 compactions += 1;
-                assert_eq!(engine.graph.adj.capacity(), capacity, "compacted in place");
+                assert_eq!(
+                    engine.graph.springs.groups.capacity(),
+                    capacity,
+                    "compacted in place"
+                );
             }
-            if engine.graph.adj.capacity() != capacity {
+            if engine.graph.springs.groups.capacity() != capacity {
                 assert!(cost.buffers_grown > 0, "growth is reported");
             }
             assert_eq!(engine.graph_differences(&packed), Vec::<String>::new());
             let fresh = build_graph(&packed, &engine.order, &engine.rank);
-            for i in 0..engine.order.len() {
-                let (a, b) = (engine.graph.row(i), fresh.row(i));
-                assert_eq!(a.len(), b.len(), "row {i} after cut {k}");
-                for (e, f) in a.iter().zip(b) {
-                    assert_eq!(
-                        (
-                            e.other,
-                            e.edge.map(f32::to_bits),
-                            e.rest.to_bits(),
-                            e.k.to_bits()
-                        ),
-                        (
-                            f.other,
-                            f.edge.map(f32::to_bits),
-                            f.rest.to_bits(),
-                            f.k.to_bits()
-                        ),
-                        "row {i} after cut {k}"
-                    );
-                }
-                let [s, _] = engine.graph.rows[i];
-                let [t, _] = fresh.rows[i];
-                for l in 0..a.len() {
-                    assert_eq!(
-                        engine.graph.damping[s as usize + l].to_bits(),
-                        fresh.damping[t as usize + l].to_bits()
-                    );
-                }
+            let (a, b) = (&engine.graph.springs, &fresh.springs);
+            assert_eq!(a.nodes(), b.nodes());
+            for i in 0..a.nodes() {
+                let bits = |(e, c): (super::Entry, f32)| {
+                    (
+                        e.other,
+                        e.edge.map(f32::to_bits),
+                        e.rest.to_bits(),
+                        e.k.to_bits(),
+                        c.to_bits(),
+                    )
+                };
+                let (x, y): (Vec<_>, Vec<_>) =
+                    (a.row(i).map(bits).collect(), b.row(i).map(bits).collect());
+                assert_eq!(x, y, "row {i} after cut {k}");
             }
+            assert_eq!(a.first_difference(b), None, "slices after cut {k}");
             assert_eq!(engine.graph.inv_mass, fresh.inv_mass);
             assert_eq!(engine.graph.fixed, fresh.fixed);
             // Same state in a rebuilt graph: the next steps agree bit for bit.
@@ -401,16 +348,18 @@ mod tests {
             assert!(compactions >= 1, "{cuts} cuts compacted nothing");
         }
         // The check that `lancet run --check` makes sees one wrong stiffness.
-        let [start, _] = engine.graph.rows[0];
-        engine.graph.adj[start as usize].k *= 1.5;
+        let sl = &mut engine.graph.springs;
+        assert!(sl.len(0) > 0);
+        let start = sl.slices[0][0] as usize;
+        sl.groups[start].k[0] *= 1.5;
         assert_eq!(engine.graph_differences(&packed).len(), 1);
     }
 
-    /// Rows moved to the end (as grown rows are), leaving holes, then compacted: every row
-    /// keeps its springs and damping bit for bit, the holes are gone, nothing is reallocated,
-    /// and the engine steps exactly like one that never moved a row.
+    /// Slices moved to the end (as widened slices are), leaving holes, then compacted: every
+    /// row keeps its springs and damping bit for bit, the holes are gone, nothing is
+    /// reallocated, and the engine steps exactly like one that never moved a slice.
     #[test]
-    fn compaction_keeps_every_row_in_place_of_the_holes() {
+    fn compaction_keeps_every_slice_in_place_of_the_holes() {
         let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
         let mut material = Material::elastic(5e3, 0.3, 1000.0);
         material.damping = crate::model::SpringDamping::StiffnessProportional(1e-4);
@@ -428,43 +377,39 @@ mod tests {
         let mut moved = FastEngine::new(&packed, sim_config);
         let mut still = FastEngine::new(&packed, sim_config);
         let rows = |e: &FastEngine| -> Vec<Vec<(u32, u32, u32)>> {
-            (0..e.graph.rows.len())
+            let sl = &e.graph.springs;
+            (0..sl.nodes())
                 .map(|i| {
-                    let [s, _] = e.graph.rows[i];
-                    e.graph
-                        .row(i)
-                        .iter()
-                        .enumerate()
-                        .map(|(l, x)| {
-                            (
-                                x.other,
-                                x.k.to_bits(),
-                                e.graph.damping[s as usize + l].to_bits(),
-                            )
-                        })
+                    sl.row(i)
+                        .map(|(x, c)| (x.other, x.k.to_bits(), c.to_bits()))
                         .collect()
                 })
                 .collect()
         };
         let before = rows(&moved);
-        let g = &mut moved.graph;
-        g.adj.reserve(g.adj.len());
+        let g = &mut moved.graph.springs;
+        g.groups.reserve(g.groups.len());
         g.damping.reserve(g.damping.len());
-        for i in (0..g.rows.len()).rev().step_by(3) {
-            let [s, e] = g.rows[i];
-            let at = g.adj.len() as u32;
-            g.adj.extend_from_within(s as usize..e as usize);
+        for b in (0..g.slices.len()).rev().step_by(3) {
+            let [s, e] = g.slices[b];
+            let at = g.groups.len() as u32;
+            g.groups.extend_from_within(s as usize..e as usize);
             g.damping.extend_from_within(s as usize..e as usize);
-            g.rows[i] = [at, at + e - s];
+            g.slices[b] = [at, at + e - s];
             g.holes += (e - s) as usize;
         }
-        let (len, holes, capacity, at) = (g.adj.len(), g.holes, g.adj.capacity(), g.adj.as_ptr());
+        let (len, holes, capacity, at) = (
+            g.groups.len(),
+            g.holes,
+            g.groups.capacity(),
+            g.groups.as_ptr(),
+        );
         assert!(holes > 0);
         assert!(g.compact() > 0);
         assert_eq!(g.holes, 0);
-        assert_eq!(g.adj.len(), len - holes);
+        assert_eq!(g.groups.len(), len - holes);
         assert_eq!(g.damping.len(), len - holes);
-        assert_eq!((g.adj.capacity(), g.adj.as_ptr()), (capacity, at));
+        assert_eq!((g.groups.capacity(), g.groups.as_ptr()), (capacity, at));
         assert_eq!(g.compact(), 0, "nothing left to slide");
         assert_eq!(rows(&moved), before);
         moved.step(40);
@@ -495,9 +440,10 @@ mod tests {
         assert!(!outcome.diff.added_nodes.is_empty());
         packed.apply(&outcome.diff).unwrap();
         // No room anywhere.
-        engine.graph.adj.shrink_to_fit();
+        engine.graph.springs.groups.shrink_to_fit();
         engine.x.shrink_to_fit();
-        let adj_bytes = (engine.graph.adj.len() * std::mem::size_of::<super::Entry>()) as u64;
+        let adj_bytes = (engine.graph.springs.groups.len()
+            * std::mem::size_of::<super::super::sliced::Group>()) as u64;
         let cost = engine.patch_in_place(&packed, &outcome.diff).unwrap();
         assert!(cost.buffers_grown >= 2, "{cost:?}");
         assert!(cost.copied_bytes >= adj_bytes, "{cost:?}");

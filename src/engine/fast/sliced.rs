@@ -1,0 +1,391 @@
+//! The fast engine's one spring layout: slices of [`LANES`] consecutive nodes, each slice's
+//! rows padded to its longest and stored column by column (a "sliced ELLPACK" layout), so that
+//! one SIMD lane evaluates one node's springs and the lanes of a group are eight nodes' k-th
+//! springs. A node's forces then sum in its own lane, in row order, with no horizontal
+//! reduction, and the square roots and divisions of eight springs are one instruction each.
+//! Everything else that reads a node's springs (the patch path, backward Euler's assembly, the
+//! finite elements' rows) reads its row out of its lane ([`Sliced::row`]); no row-wise copy
+//! of the springs is kept.
+//!
+//! Per spring end a group stores 24 bytes: the neighbour (u32), the rest edge vector and the
+//! rest length and stiffness (f32), plus 4 bytes of damping in a parallel array when any spring
+//! is damped; each node keeps its row length (4 bytes) so that a row is read without its
+//! padding. Padding lanes point at their own node with zero edge and zero stiffness, so they
+//! contribute exactly nothing (a zero-length spring has no direction: see [`group_force`]).
+//!
+//! A patch rewrites the slices of the rows it edits: in place when the slice does not widen,
+//! appended otherwise, leaving a hole; holes are compacted in place (slices slid down over
+//! them, nothing allocated) when they reach a quarter of the groups or before an appended
+//! slice would outgrow the room kept.
+
+use super::{Entry, P};
+
+/// Nodes per slice: one AVX2 vector of f32.
+pub(super) const LANES: usize = 8;
+
+/// The k-th spring of the eight nodes of a slice.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(32))]
+pub(super) struct Group {
+    /// The other end of each lane's spring, internal index (the lane's own node for padding).
+    pub other: [u32; LANES],
+    /// Rest vector from the lane's node to the other end, per axis, m.
+    pub edge: [[f32; LANES]; 3],
+    /// Rest length, m.
+    pub rest: [f32; LANES],
+    /// Stiffness, N/m (0 for padding).
+    pub k: [f32; LANES],
+}
+
+const BLANK: Group = Group {
+    other: [0; LANES],
+    edge: [[0.0; LANES]; 3],
+    rest: [0.0; LANES],
+    k: [0.0; LANES],
+};
+
+/// One node's row: its springs as seen from it, each with its damping, sorted by the other
+/// end.
+pub(super) type Row = Vec<(Entry, f32)>;
+
+/// Every node's springs, in slices.
+pub(super) struct Sliced {
+    /// Each slice's groups, as (start, end): `groups[start..end]`.
+    pub slices: Vec<[u32; 2]>,
+    pub groups: Vec<Group>,
+    /// Damping of each lane's spring, N s/m (empty when no spring is damped).
+    pub damping: Vec<[f32; LANES]>,
+    /// Each node's row length (the lanes of its slice past it are padding).
+    lens: Vec<u32>,
+    /// Spring ends in all rows: twice the springs.
+    pub live: usize,
+    /// Groups no slice uses.
+    pub holes: usize,
+    /// Whether `damping` is kept (fixed for the layout's life: the first damped spring of an
+    /// undamped model rebuilds the engine).
+    pub damped: bool,
+}
+
+impl Sliced {
+    /// The layout of the rows `rows` (node `i`'s row `rows[i]`), with room for cuts.
+    pub fn build(rows: &[Row], damped: bool) -> Self {
+        use crate::model::room::spare;
+        let n = rows.len();
+        let count = n.div_ceil(LANES);
+        let width = |b: usize| {
+            rows[b * LANES..((b + 1) * LANES).min(n)]
+                .iter()
+                .map(Vec::len)
+                .max()
+                .unwrap_or(0)
+        };
+        let total: usize = (0..count).map(width).sum();
+        let mut s = Sliced {
+            slices: Vec::with_capacity(count + spare(count)),
+            groups: Vec::with_capacity(total + spare(total)),
+            damping: Vec::with_capacity(if damped { total + spare(total) } else { 0 }),
+            lens: Vec::with_capacity(n + spare(n)),
+            live: 0,
+            holes: 0,
+            damped,
+        };
+        for b in 0..count {
+            let lanes = &rows[b * LANES..((b + 1) * LANES).min(n)];
+            let at = s.groups.len();
+            let w = width(b);
+            s.append(w);
+            s.write(b, at, w, lanes);
+            s.slices.push([at as u32, (at + w) as u32]);
+        }
+        s.lens = rows.iter().map(|r| row_len(r.len())).collect();
+        s.live = rows.iter().map(Vec::len).sum();
+        s
+    }
+
+    /// Nodes laid out.
+    pub fn nodes(&self) -> usize {
+        self.lens.len()
+    }
+
+    /// Node `i`'s row length.
+    #[inline(always)]
+    pub fn len(&self, i: usize) -> usize {
+        self.lens[i] as usize
+    }
+
+    /// Node `i`'s row, read out of its lane, in row order.
+    #[inline(always)]
+    pub fn row(&self, i: usize) -> impl Iterator<Item = (Entry, f32)> + '_ {
+        let (b, l) = (i / LANES, i % LANES);
+        let start = self.slices.get(b).map_or(0, |s| s[0] as usize);
+        let len = self.lens.get(i).map_or(0, |&n| n as usize);
+        (start..start + len).map(move |k| {
+            let g = &self.groups[k];
+            let e = Entry {
+                other: g.other[l],
+                edge: [g.edge[0][l], g.edge[1][l], g.edge[2][l]],
+                rest: g.rest[l],
+                k: g.k[l],
+            };
+            (e, if self.damped { self.damping[k][l] } else { 0.0 })
+        })
+    }
+
+    /// Set the rows of the nodes in `rows` (internal index to its new row) and lay out `n`
+    /// nodes (new nodes, past the old count, start with empty rows): the slices of edited
+    /// rows and of new nodes are rewritten, in place when they do not widen. Returns the
+    /// groups written and those compaction moved.
+    pub fn patch(
+        &mut self,
+        n: usize,
+        mut rows: std::collections::BTreeMap<usize, Row>,
+    ) -> (usize, usize) {
+        let count = n.div_ceil(LANES);
+        let mut dirty: Vec<usize> = rows.keys().map(|i| i / LANES).collect();
+        // Slices new nodes made or filled.
+        dirty.extend(self.lens.len() / LANES..count);
+        dirty.sort_unstable();
+        dirty.dedup();
+        self.lens.resize(n, 0);
+        let (mut written, mut moved) = (0, 0);
+        for b in dirty {
+            // The slice's rows, new or as they are, read out before it is rewritten.
+            let lanes: Vec<Row> = (b * LANES..((b + 1) * LANES).min(n))
+                .map(|i| rows.remove(&i).unwrap_or_else(|| self.row(i).collect()))
+                .collect();
+            for (l, r) in lanes.iter().enumerate() {
+                let i = b * LANES + l;
+                self.live = self.live + r.len() - self.len(i);
+                self.lens[i] = row_len(r.len());
+            }
+            let w = lanes.iter().map(Vec::len).max().unwrap_or(0);
+            let at = match self.slices.get(b) {
+                Some(&[start, end]) if (end - start) as usize >= w => {
+                    self.holes += (end - start) as usize - w;
+                    start as usize
+                }
+                old => {
+                    if let Some(&[start, end]) = old {
+                        self.holes += (end - start) as usize;
+                        // Its old place is a hole too, should compaction run now.
+                        self.slices[b] = [start, start];
+                    }
+                    let full = self.groups.len() + w > self.groups.capacity();
+                    // Compact only where that makes real room: else grow.
+                    if full && self.holes >= w.max(self.groups.len() / 16) {
+                        moved += self.compact();
+                    }
+                    let at = self.groups.len();
+                    self.append(w);
+                    at
+                }
+            };
+            self.write(b, at, w, &lanes);
+            let range = [at as u32, (at + w) as u32];
+            if b < self.slices.len() {
+                self.slices[b] = range;
+            } else {
+                self.slices.push(range);
+            }
+            written += w;
+        }
+        if self.holes * 4 > self.groups.len() {
+            moved += self.compact();
+        }
+        (written, moved)
+    }
+
+    /// Slide every slice down over the holes, in the order the slices lie in (each moves to a
+    /// place at or before its own, so nothing is overwritten before it is moved); nothing is
+    /// allocated but the list of slice starts. The number of groups moved.
+    pub fn compact(&mut self) -> usize {
+        if self.holes == 0 {
+            return 0;
+        }
+        let mut by_start: Vec<(u32, u32)> = self
+            .slices
+            .iter()
+            .enumerate()
+            .map(|(b, s)| (s[0], b as u32))
+            .collect();
+        by_start.sort_unstable();
+        let (mut to, mut moved) = (0usize, 0);
+        for (_, b) in by_start {
+            let [start, end] = self.slices[b as usize];
+            let (start, len) = (start as usize, (end - start) as usize);
+            if start != to {
+                self.groups.copy_within(start..start + len, to);
+                if self.damped {
+                    self.damping.copy_within(start..start + len, to);
+                }
+                moved += len;
+            }
+            self.slices[b as usize] = [to as u32, (to + len) as u32];
+            to += len;
+        }
+        self.groups.truncate(to);
+        self.damping.truncate(if self.damped { to } else { 0 });
+        self.holes = 0;
+        moved
+    }
+
+    /// The first slice whose groups differ from `other`'s, bit for bit (damping missing on one
+    /// side reads as zeros), or whose count or row lengths differ.
+    pub fn first_difference(&self, other: &Sliced) -> Option<usize> {
+        let bits = |s: &Sliced, b: usize| -> Vec<u32> {
+            let [start, end] = s.slices[b];
+            let lens = s.lens[b * LANES..((b + 1) * LANES).min(s.lens.len())]
+                .iter()
+                .copied();
+            lens.chain((start as usize..end as usize).flat_map(|k| {
+                let g = &s.groups[k];
+                let c = s.damping.get(k).copied().unwrap_or([0.0; LANES]);
+                let floats = g.edge.iter().chain([&g.rest, &g.k, &c]).flatten();
+                g.other
+                    .into_iter()
+                    .chain(floats.map(|f| f.to_bits()))
+                    .collect::<Vec<_>>()
+            }))
+            .collect()
+        };
+        let n = self.slices.len().max(other.slices.len());
+        (0..n).find(|&b| {
+            b >= self.slices.len() || b >= other.slices.len() || bits(self, b) != bits(other, b)
+        })
+    }
+
+    /// Bytes of groups no slice uses and of padding lanes.
+    pub fn padding_bytes(&self) -> u64 {
+        let lanes = (self.groups.len() - self.holes) * LANES;
+        let per_lane = (self.group_bytes() / LANES) as u64;
+        (self.holes * self.group_bytes()) as u64 + lanes.saturating_sub(self.live) as u64 * per_lane
+    }
+
+    /// Bytes per group, damping included where kept.
+    pub fn group_bytes(&self) -> usize {
+        std::mem::size_of::<Group>()
+            + if self.damped {
+                std::mem::size_of::<[f32; LANES]>()
+            } else {
+                0
+            }
+    }
+
+    /// Bytes of everything but the groups: the slice bounds and the row lengths.
+    pub fn index_bytes(&self) -> u64 {
+        self.slices.len() as u64 * 8 + self.lens.len() as u64 * 4
+    }
+
+    /// (capacity, length, bytes per item) of each array, for a patch's growth report.
+    pub fn capacities(&self) -> [(usize, usize, usize); 4] {
+        fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
+            (v.capacity(), v.len(), std::mem::size_of::<T>())
+        }
+        [
+            of(&self.slices),
+            of(&self.groups),
+            of(&self.damping),
+            of(&self.lens),
+        ]
+    }
+
+    fn append(&mut self, w: usize) {
+        self.groups.resize(self.groups.len() + w, BLANK);
+        if self.damped {
+            self.damping.resize(self.groups.len(), [0.0; LANES]);
+        }
+    }
+
+    /// Write slice `b`'s rows `lanes` (fewer than [`LANES`] in a last, partial slice) into
+    /// `w` groups from `at`, padding lanes with null springs.
+    fn write(&mut self, b: usize, at: usize, w: usize, lanes: &[Row]) {
+        for k in 0..w {
+            let grp = &mut self.groups[at + k];
+            let mut c = [0.0f32; LANES];
+            for (l, cl) in c.iter_mut().enumerate() {
+                // A node past the end points at node 0; its lane's result is never stored.
+                let own = if l < lanes.len() {
+                    (b * LANES + l) as u32
+                } else {
+                    0
+                };
+                match lanes.get(l).and_then(|r| r.get(k)) {
+                    Some((e, d)) => {
+                        grp.other[l] = e.other;
+                        for a in 0..3 {
+                            grp.edge[a][l] = e.edge[a];
+                        }
+                        grp.rest[l] = e.rest;
+                        grp.k[l] = e.k;
+                        *cl = *d;
+                    }
+                    None => {
+                        grp.other[l] = own;
+                        for a in 0..3 {
+                            grp.edge[a][l] = 0.0;
+                        }
+                        grp.rest[l] = 0.0;
+                        grp.k[l] = 0.0;
+                    }
+                }
+            }
+            if self.damped {
+                self.damping[at + k] = c;
+            }
+        }
+    }
+}
+
+/// A row length as stored (adjacency indices are u32 throughout the engine).
+fn row_len(n: usize) -> u32 {
+    n as u32
+}
+
+/// Eight lanes of three axes.
+pub(super) type V3 = [[f32; LANES]; 3];
+
+/// The spring force of one group on its eight nodes, added to `acc`: elastic `k (l - L) / l`
+/// times the spring vector `e + (u_j - u_i)`, plus, when `DAMPED`, `c ((w_j - w_i) . d) / l^2`
+/// times it, `w` scaled by `w_scale`. A zero-length spring (padding, or coincident nodes) has
+/// no direction and gives nothing, as in the reference engine.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn group_force<const DAMPED: bool>(
+    grp: &Group,
+    c: &[f32; LANES],
+    x: &[P],
+    w: &[P],
+    ui: &V3,
+    wi: &V3,
+    w_scale: f32,
+    acc: &mut V3,
+) {
+    let mut d = [[0.0f32; LANES]; 3];
+    let mut dw = [[0.0f32; LANES]; 3];
+    for l in 0..LANES {
+        let j = grp.other[l] as usize;
+        let uj = x[j];
+        for a in 0..3 {
+            d[a][l] = grp.edge[a][l] + (uj[a] - ui[a][l]);
+        }
+        if DAMPED {
+            let wj = w[j];
+            for a in 0..3 {
+                dw[a][l] = wj[a] - wi[a][l];
+            }
+        }
+    }
+    for l in 0..LANES {
+        let l2 = d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l];
+        let inv_raw = 1.0 / l2.sqrt();
+        let inv = if l2 > 0.0 { inv_raw } else { 0.0 };
+        let mut s = grp.k[l] * (1.0 - grp.rest[l] * inv);
+        if DAMPED {
+            let along = dw[0][l] * d[0][l] + dw[1][l] * d[1][l] + dw[2][l] * d[2][l];
+            s += c[l] * along * w_scale * inv * inv;
+        }
+        for a in 0..3 {
+            acc[a][l] += s * d[a][l];
+        }
+    }
+}
