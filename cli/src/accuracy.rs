@@ -209,7 +209,10 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
             print!("  {m}");
         }
         if let Some(c) = row.cg_iterations.filter(|c| c.capped > 0) {
-            print!("  warning: {} solves stopped at the iteration cap", c.capped);
+            print!(
+                "  warning: {} solves stopped at the iteration cap",
+                c.capped
+            );
         }
         println!();
     }

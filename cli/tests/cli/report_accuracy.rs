@@ -458,5 +458,8 @@ fn implicit_rows_solve_with_the_scene_solver_and_report_their_iterations() {
     let (d, c) = (of(&default), of(&capped));
     assert!(d.mean > 2.0 && d.capped == 0, "default settings: {d:?}");
     let steps = rows(&capped, "cpu-reference-f64-backward-euler")[0].steps;
-    assert!(c.mean <= 2.0 && c.capped == steps, "cap 2: {c:?} over {steps} steps");
+    assert!(
+        c.mean <= 2.0 && c.capped == steps,
+        "cap 2: {c:?} over {steps} steps"
+    );
 }
