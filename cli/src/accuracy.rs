@@ -205,17 +205,20 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
     }
     print_gpu_devices(r.rows.iter().map(|row| row.engine.as_str()));
     print!(
-        "{:<32} {:>8} {:>10} {:>8} {:>11}",
-        "series", "dt/bound", "dt (s)", "steps", "wall s/sim s"
+        "{:<32} {:>8} {:>10} {:>8} {:>11} {:>6}",
+        "series", "dt/bound", "dt (s)", "steps", "wall s/sim s", "CG it"
     );
     for k in 1..=r.sample_times.len() {
         print!(" {:>9} {:>9}", format!("relL2@t{k}"), format!("maxm@t{k}"));
     }
     println!();
     for row in &r.rows {
+        let cg = row
+            .cg_iterations
+            .map_or("-".to_string(), |c| format!("{:.1}", c.mean));
         print!(
-            "{:<32} {:>8.4} {:>10.3e} {:>8} {:>11.3e}",
-            row.series, row.dt_over_bound, row.dt, row.steps, row.wall_s_per_sim_s
+            "{:<32} {:>8.4} {:>10.3e} {:>8} {:>11.3e} {:>6}",
+            row.series, row.dt_over_bound, row.dt, row.steps, row.wall_s_per_sim_s, cg
         );
         for e in &row.errors {
             print!(" {:>9.2e} {:>9.2e}", e.relative_l2, e.max_error_m);
@@ -223,11 +226,18 @@ pub(crate) fn print_accuracy(r: &lancet::report::accuracy::AccuracyReport) {
         if let Some(m) = &row.diverged {
             print!("  {m}");
         }
+        if let Some(c) = row.cg_iterations.filter(|c| c.capped > 0) {
+            print!(
+                "  warning: {} solves stopped at the iteration cap",
+                c.capped
+            );
+        }
         println!();
     }
     println!(
         "relL2: |x - x_ref| / |x_ref - x_rest| over all nodes; maxm: largest nodal error, m; \
-         wall s/sim s: stepping time per simulated second"
+         wall s/sim s: stepping time per simulated second; CG it: conjugate-gradient \
+         iterations per solve (implicit rows)"
     );
 }
 

@@ -98,6 +98,10 @@ pub struct AccuracyOptions {
     /// CPU engines (GPU rows are skipped with the reason, as is backward Euler on the fast
     /// engine), its ladder in fractions of its own stable bound.
     pub force_model: crate::physics::ForceModelKind,
+    /// How the implicit series solve each step: [`scene_accuracy`] takes the scene's `solver`
+    /// (a stiff scene raises the iteration cap, which the default of 100 would otherwise cut
+    /// short at large steps).
+    pub solver: crate::physics::SolverSettings,
 }
 
 impl Default for AccuracyOptions {
@@ -119,6 +123,7 @@ impl Default for AccuracyOptions {
             batch: 500,
             initial_velocity: None,
             force_model: crate::physics::ForceModelKind::Springs,
+            solver: crate::physics::SolverSettings::default(),
         }
     }
 }
@@ -158,6 +163,19 @@ pub struct AccuracyRow {
     pub errors: Vec<SampleError>,
     /// The divergence message, if the run diverged.
     pub diverged: Option<String>,
+    /// For an implicit row: the conjugate-gradient iterations per linear solve (one solve a
+    /// step unless more Newton iterations are asked for) over the timed steps, mean and most;
+    /// where an implicit series' time goes.
+    pub cg_iterations: Option<CgIterations>,
+}
+
+/// What the implicit solver did over a row's timed steps.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CgIterations {
+    /// Mean conjugate-gradient iterations per solve.
+    pub mean: f64,
+    /// Solves that stopped above the tolerance (at the iteration cap).
+    pub capped: u64,
 }
 
 impl AccuracyRow {
@@ -322,6 +340,7 @@ struct Run {
     /// Simulated time reached, s (short of the last sample time if the run diverged).
     simulated_s: f64,
     diverged: Option<String>,
+    cg_iterations: Option<CgIterations>,
 }
 
 impl Run {
@@ -332,6 +351,7 @@ impl Run {
             stepping_s: 0.0,
             simulated_s: 0.0,
             diverged: None,
+            cg_iterations: None,
         }
     }
 
@@ -395,7 +415,8 @@ fn run_to(
     let zero = vec![[0.0; 3]; model.node_count()];
     sim.set_state(&model.rest, opts.initial_velocity.as_ref().unwrap_or(&zero))?;
     let dt = config.dt;
-    Ok(Run::new(engine, counts.len()).through(
+    let warm = sim.solver_stats();
+    let mut run = Run::new(engine, counts.len()).through(
         &mut sim,
         counts,
         opts.batch,
@@ -412,7 +433,18 @@ fn run_to(
             })
         },
         |sim, _| Ok(sim.positions()),
-    ))
+    );
+    // The solver's counts over the timed steps: the warm-up's taken off.
+    if let (Some(w), Some(end)) = (warm, sim.solver_stats()) {
+        let solves = end.solves - w.solves;
+        if solves > 0 {
+            run.cg_iterations = Some(CgIterations {
+                mean: (end.iterations - w.iterations) as f64 / solves as f64,
+                capped: end.capped - w.capped,
+            });
+        }
+    }
+    Ok(run)
 }
 
 /// The GPU series: one per layout, and for the edge layout one per accumulation variant
@@ -567,6 +599,7 @@ pub fn model_accuracy(
     let base = SimConfig {
         integrator,
         force_model: opts.force_model,
+        solver: opts.solver,
         ..SimConfig::new(bound.dt)
     };
 
@@ -693,6 +726,7 @@ pub fn model_accuracy(
                 wall_s_per_sim_s,
                 errors: errors_of(model, &times, &run.states, &reference.states),
                 diverged: run.diverged,
+                cg_iterations: run.cg_iterations,
             });
         }
     }
@@ -749,6 +783,7 @@ pub fn scene_accuracy(
         .pack(&mesh)?;
     let opts = &AccuracyOptions {
         force_model: scene.force_model,
+        solver: scene.solver,
         ..opts.clone()
     };
     let bound = scene.force_model.stable_time_step(&model)?.dt;

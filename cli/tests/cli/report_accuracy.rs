@@ -428,3 +428,38 @@ fn implicit_series_run_above_the_bound_and_converge_at_first_order() {
     let none = report.time_to_error(0.0);
     assert!(none.iter().all(|(_, t)| t.is_none()), "{none:?}");
 }
+
+/// The implicit series solve with the scene's `solver` settings (a stiff scene raises the cap
+/// the default 100 would cut its large steps short at) and report their conjugate-gradient
+/// iterations: a cap of 2 at a tolerance no solve meets stops every solve at 2 and counts
+/// each as capped; with the default settings the same rows take more than 2 and none is
+/// capped. Explicit rows report no iterations.
+#[test]
+fn implicit_rows_solve_with_the_scene_solver_and_report_their_iterations() {
+    let mut scene = tiny_box(10.0);
+    let opts = AccuracyOptions {
+        engines: vec![EngineKind::Reference],
+        implicit_ladder: vec![4.0],
+        times: vec![0.01],
+        ..cpu_options(&[1.0])
+    };
+    let default = run(&scene, &opts);
+    scene.solver.tolerance = 1e-14;
+    scene.solver.max_iterations = 2;
+    let capped = run(&scene, &opts);
+    for report in [&default, &capped] {
+        assert!(rows(report, "cpu-reference-f64")[0].cg_iterations.is_none());
+    }
+    let of = |r: &AccuracyReport| {
+        rows(r, "cpu-reference-f64-backward-euler")[0]
+            .cg_iterations
+            .expect("an implicit row reports its iterations")
+    };
+    let (d, c) = (of(&default), of(&capped));
+    assert!(d.mean > 2.0 && d.capped == 0, "default settings: {d:?}");
+    let steps = rows(&capped, "cpu-reference-f64-backward-euler")[0].steps;
+    assert!(
+        c.mean <= 2.0 && c.capped == steps,
+        "cap 2: {c:?} over {steps} steps"
+    );
+}
