@@ -178,7 +178,8 @@ enum Command {
         split: SplitArg,
         /// Force model every engine steps. Tensor-mass runs on every GPU layout too (the edge
         /// layout with the gather; atomic edge rows are skipped with the reason); corotational
-        /// runs on the CPU engines, its GPU rows skipped with the reason.
+        /// runs one element path on the GPU whatever the layout (a per-tet pass and a node
+        /// gather; atomic edge rows, which would time the same passes, are skipped).
         #[arg(long, value_enum, default_value = "springs", conflicts_with = "preset")]
         force_model: ForceModelArg,
         /// Print JSON on stdout.

@@ -45,6 +45,9 @@ pub struct TetElement {
     /// Rayleigh's stiffness-proportional damping `beta`, s: the element's damping matrix is
     /// `beta K`.
     pub beta: f64,
+    /// The Lamé constants `(lambda, mu)` of its material, Pa (what the GPU's per-tet pass
+    /// computes the stress from, instead of storing `stiffness`).
+    pub lame: (f64, f64),
 }
 
 /// The element stiffness of a tet with corners `p`, Young's modulus `e` and Poisson's ratio
@@ -145,6 +148,7 @@ impl TetElement {
             volume,
             stiffness,
             beta,
+            lame: lame(e, nu),
         })
     }
 

@@ -46,6 +46,7 @@ pub mod accumulate_float;
 #[cfg(feature = "collide")]
 pub mod broad_self;
 pub mod broad_tool;
+pub mod corotational;
 pub mod device_copy;
 pub mod edge_spring;
 pub mod embed_surface;

@@ -15,6 +15,7 @@ mod models;
 mod read_ahead;
 
 mod gpu_broad_phase;
+mod gpu_corotational;
 mod gpu_edges;
 mod gpu_embed_surface;
 mod gpu_health;

@@ -14,6 +14,7 @@ pub mod broad_self;
 pub mod broad_tool;
 pub mod buffers;
 pub mod context;
+pub mod corotational;
 pub mod embed_surface;
 pub mod health;
 pub mod host_buffers;
@@ -199,6 +200,9 @@ pub struct GpuEngine {
     /// The tensor-mass model and its passes, which replace the springs' force
     /// (`config.force_model` TensorMass); `None` for springs.
     tensor: Option<tensor_mass::TensorMassPasses>,
+    /// The corotational model and its passes, which replace the springs' force
+    /// (`config.force_model` Corotational); `None` otherwise.
+    corot: Option<corotational::CorotationalPasses>,
 }
 
 impl GpuEngine {
@@ -285,10 +289,15 @@ impl GpuEngine {
             Sizing::Headroom,
         )?;
         let tensor = tensor_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
+        let corot = corotational_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
         let mut uniform_data = uniform_data;
-        if let Some(t) = &tensor {
-            // The tensor blocks' stride follows the tets' damping, not the springs'.
-            uniform_data.damped = t.damped() as u32;
+        // The element passes read velocities where the tets are damped, not the springs.
+        let element_damping = tensor
+            .as_ref()
+            .map(|t| t.damped())
+            .or(corot.as_ref().map(|c| c.damped()));
+        if let Some(damped) = element_damping {
+            uniform_data.damped = damped as u32;
             ctx.queue
                 .write_buffer(&uniform, 0, bytemuck::bytes_of(&uniform_data));
         }
@@ -324,6 +333,7 @@ impl GpuEngine {
             host: host_buffers::HostBuffers::default(),
             patches: 0,
             tensor,
+            corot,
             ctx,
             config,
             layout,
@@ -496,6 +506,19 @@ impl GpuEngine {
         self.tensor.as_ref()
     }
 
+    /// The corotational model and its passes, when the engine runs that force model.
+    pub fn corotational(&self) -> Option<&corotational::CorotationalPasses> {
+        self.corot.as_ref()
+    }
+
+    /// The device's per-tet rotations of a corotational engine (unit quaternions, in the
+    /// model's tet order); empty for every other force model.
+    pub fn tet_rotations(&self) -> Result<Vec<[f32; 4]>> {
+        self.corot
+            .as_ref()
+            .map_or(Ok(Vec::new()), |c| c.rotations(&self.ctx))
+    }
+
     /// Whether a spring force has saturated the fixed-point accumulators (edge layout with
     /// [`Accumulation::AtomicFixed`]) since setup; false for every other layout and variant.
     pub fn fixed_point_overflowed(&self) -> Result<bool> {
@@ -507,7 +530,7 @@ impl GpuEngine {
 }
 
 /// The tensor-mass passes where `config` asks for that force model (explicit integrators
-/// only); `None` for springs. Corotational is refused: it has no GPU pass yet.
+/// only); `None` for the other force models.
 fn tensor_passes(
     ctx: &GpuContext,
     model: &PackedModel,
@@ -519,7 +542,7 @@ fn tensor_passes(
 ) -> Result<Option<tensor_mass::TensorMassPasses>> {
     use crate::physics::ForceModelKind;
     match config.force_model {
-        ForceModelKind::Springs => Ok(None),
+        ForceModelKind::Springs | ForceModelKind::Corotational => Ok(None),
         ForceModelKind::TensorMass if config.integrator.is_implicit() => {
             Err(crate::Error::Unsupported(
                 "the tensor-mass force model runs on the GPU layouts with the explicit \
@@ -532,12 +555,34 @@ fn tensor_passes(
         ForceModelKind::TensorMass => Ok(Some(tensor_mass::TensorMassPasses::new(
             ctx, model, layout, passes, uniform, state,
         )?)),
-        kind => Err(crate::Error::Unsupported(format!(
-            "the {kind} force model runs on the CPU engines only for now, not on the GPU \
-             layouts (TensorMass does): choose engine: Fast (--engine fast) or Reference \
-             (--engine reference)"
-        ))),
     }
+}
+
+/// The corotational passes where `config` asks for that force model (explicit integrators
+/// only, any layout: the element path is the same for all); `None` for the others.
+fn corotational_passes(
+    ctx: &GpuContext,
+    model: &PackedModel,
+    config: SimConfig,
+    layout: &PackedLayout,
+    passes: &Passes,
+    uniform: &wgpu::Buffer,
+    state: &StateBuffers,
+) -> Result<Option<corotational::CorotationalPasses>> {
+    if config.force_model != crate::physics::ForceModelKind::Corotational {
+        return Ok(None);
+    }
+    if config.integrator.is_implicit() {
+        return Err(crate::Error::Unsupported(
+            "the corotational force model runs on the GPU with the explicit integrators only \
+             (Verlet, SymplecticEuler): the GPU implicit solve takes the springs' stiffness as \
+             its Jacobian. Choose an explicit integrator, or engine: Fast or Reference"
+                .into(),
+        ));
+    }
+    Ok(Some(corotational::CorotationalPasses::new(
+        ctx, model, layout, passes, uniform, state,
+    )?))
 }
 
 /// The divergence probe over the inverse masses of `passes` and `state`.

@@ -72,6 +72,10 @@ impl GpuEngine {
             // The blocks' stride follows the tets' damping, not the springs'.
             self.uniform_data.damped = t.damped() as u32;
         }
+        if let Some(c) = self.corot.as_mut() {
+            tensor_bytes = c.patch(&self.ctx, model, diff, &self.layout)?;
+            self.uniform_data.damped = c.damped() as u32;
+        }
         let layout_bytes = self.layout.upload_bytes();
         let mut cost = PatchCost {
             uploaded_bytes: layout_bytes,
@@ -165,6 +169,10 @@ impl GpuEngine {
         self.rebind_implicit()?;
         if let Some(t) = self.tensor.as_mut() {
             t.rebind(&self.ctx, &self.passes, &self.uniform, &self.state)?;
+            cost.uploaded_bytes += tensor_bytes;
+        }
+        if let Some(c) = self.corot.as_mut() {
+            c.rebind(&self.ctx, &self.passes, &self.uniform, &self.state)?;
             cost.uploaded_bytes += tensor_bytes;
         }
         // Node indices and state buffers may have changed under the surface: the culler is

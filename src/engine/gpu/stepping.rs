@@ -29,6 +29,11 @@ impl Engine for GpuEngine {
             });
             for _ in 0..steps {
                 let d = self.dispatch;
+                if let Some(c) = &self.corot {
+                    c.record(&mut pass, self.phase, d.nodes);
+                    self.phase = (self.phase + 1) % self.state.phases();
+                    continue;
+                }
                 if let Some(t) = &self.tensor {
                     t.record(&mut pass, &self.passes, self.phase, d.springs, d.nodes);
                     self.phase = (self.phase + 1) % self.state.phases();
@@ -151,6 +156,9 @@ impl Engine for GpuEngine {
         if let Some(t) = &self.tensor {
             out.extend(t.differences(&self.ctx, model, &self.layout)?);
         }
+        if let Some(c) = &self.corot {
+            out.extend(c.differences(&self.ctx, model, &self.layout)?);
+        }
         Ok(out)
     }
 
@@ -163,6 +171,18 @@ impl Engine for GpuEngine {
             m.bytes_per_step += t.extra_bytes_per_step(&self.layout);
             let before = m.stats.total.max(1) as f64;
             for (name, bytes) in t.buffers() {
+                m.stats.total += bytes;
+                m.stats.buffers.push((name, bytes));
+            }
+            let grown = m.stats.total as f64 / before;
+            m.stats.bytes_per_node *= grown;
+            m.stats.bytes_per_spring *= grown;
+        }
+        if let Some(c) = &self.corot {
+            // The element path reads no spring: its own traffic replaces the springs' passes'.
+            m.bytes_per_step = c.bytes_per_step(self.layout.node_slots() as u64);
+            let before = m.stats.total.max(1) as f64;
+            for (name, bytes) in c.buffers() {
                 m.stats.total += bytes;
                 m.stats.buffers.push((name, bytes));
             }

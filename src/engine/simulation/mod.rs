@@ -68,15 +68,6 @@ fn make_engine(
     gpu: GpuOptions,
     host: &HostDevice,
 ) -> Result<Made> {
-    if config.force_model == crate::physics::ForceModelKind::Corotational && kind == EngineKind::Gpu
-    {
-        return Err(Error::Unsupported(format!(
-            "the {} force model runs on the CPU engines only for now, not on the GPU layouts \
-             (TensorMass does): choose engine: Fast (--engine fast) or Reference \
-             (--engine reference)",
-            config.force_model
-        )));
-    }
     let sgs = crate::physics::Preconditioner::SymmetricGaussSeidel;
     if config.integrator.is_implicit()
         && config.solver.preconditioner == sgs
@@ -121,17 +112,13 @@ fn make_engine(
 
 /// Why `Auto` runs a finite-element model on the fast CPU engine.
 fn auto_fem_note(kind: crate::physics::ForceModelKind) -> String {
-    match kind {
-        // Auto keeps the CPU: the GPU's tensor-mass passes are explicit and gather-only, and
-        // the fast engine runs every scheme; a program asks for them with engine: Gpu.
-        crate::physics::ForceModelKind::TensorMass => format!(
-            "Auto runs the {kind} force model on the fast CPU engine; choose engine: Gpu \
-             (--engine gpu) for its GPU layouts"
-        ),
-        _ => format!(
-            "the GPU layouts do not run the {kind} force model yet; running the fast CPU engine"
-        ),
-    }
+    // Auto keeps the CPU: the GPU's finite-element passes are explicit only (tensor-mass also
+    // gather-only on the edge layout), and the fast engine runs every scheme; a program asks
+    // for them with engine: Gpu.
+    format!(
+        "Auto runs the {kind} force model on the fast CPU engine; choose engine: Gpu \
+         (--engine gpu) for its GPU passes"
+    )
 }
 
 /// The GPU engine, on the host's device where the simulation was given one.
