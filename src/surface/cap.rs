@@ -17,6 +17,14 @@
 //!   opposite the crossed edge);
 //! - where neither does (the corners differ in side beyond the blade's reach), it stays.
 //!
+//! A corner **on the sweep** (within [`ON_SWEEP`] of its size: a blade along a row of render
+//! vertices, or along render edges) is split like a crossing, into a copy per side; each of its
+//! triangles takes the copy of the side its other corners lie on, or is split from it to the
+//! crossing of its opposite edge when they lie on either side. Where a slit ends along a render
+//! edge lying in the sweep, that edge is split at the sweep's boundary, one vertex both sides
+//! share. Each side's rim is then the edges between new vertices that only one of that side's
+//! triangles uses, so that a rim running along render edges is found like one across them.
+//!
 //! The new edges on each side form that side's rim: closed loops for a cut right through,
 //! paths from one slit end to the other for a partial cut, closed along the blade's edge
 //! between them. Each side's loops are projected on the sweep's best-fit plane and
@@ -34,15 +42,22 @@
 //! tet beyond its nearest face), so that each cap moves with its own side; a vertex of a split
 //! triangle that its rebinding left in a tet on the other side is bound the same way.
 //!
-//! **Several cuts.** A blade's successive strokes in one plane extend one cut: their sweeps are
+//! On a **curved sweep** (a blade turned during its stroke) the loops are still triangulated in
+//! the best-fit plane's coordinates, but with points of the sweep inside them (on a grid of half
+//! the rim's mean edge, each lifted onto the sweep along the plane's normal) so that the caps'
+//! triangles lie on the swept surface up to its bending over one of them.
+//!
+//! **Several cuts.** A blade's successive strokes in one plane, or each starting where the last
+//! ended (the blade's edge at the last step, turned or not), extend one cut: their sweeps are
 //! kept together, and after each cut the surface is split again from the surface as read, so
 //! that a slit grows rather than being capped at every step. A stroke in another plane starts a
 //! new cut, applied after the earlier ones to their result. The vertices of the surface as read
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
-//! **Limits.** A cut is capped on its sweep's best-fit plane: a blade turned during a stroke
-//! gets caps that are flat where its sweep is not. A rim the triangulation cannot take (two
-//! crossing points at the same place, loops crossing in the plane) is left open and counted in
+//! **Limits.** A curved sweep must project one to one on its best-fit plane (a blade turned by
+//! less than a right angle); while a turning blade is still inside (a partial cut) its rims can
+//! fail to triangulate and are left open. A rim the triangulation cannot take (two crossing
+//! points at the same place, loops crossing in the plane) is left open and counted in
 //! [`Capped::open`]. Vertices a carving dropped take their triangles out, which opens the
 //! surface there.
 
@@ -120,6 +135,15 @@ impl Capper {
     pub fn cut(&mut self, embedding: &mut Embedding, mesh: &TetMesh, sweep: &Sweep) -> Capped {
         let start = Instant::now();
         self.take(sweep);
+        let mut out = self.recap(embedding, mesh);
+        out.seconds = start.elapsed().as_secs_f64();
+        out
+    }
+
+    /// Split and cap the surface for every cut taken so far, rebinding the appended vertices in
+    /// `mesh` (the mesh as cut); `embedding`'s appended vertices are replaced.
+    pub fn recap(&mut self, embedding: &mut Embedding, mesh: &TetMesh) -> Capped {
+        let start = Instant::now();
         embedding.truncate(self.original);
         let binder = SideBinder::new(mesh);
         let mut out = Capped {
@@ -837,16 +861,17 @@ fn cap(
     Some((out, inner))
 }
 
-/// Points inside the polygons `polys` (by the even-odd rule) on a square grid of the mean
-/// polygon edge's spacing, none closer than a third of it to an edge (no sliver triangles, no
-/// point on a constraint).
+/// Points inside the polygons `polys` (by the even-odd rule) on a square grid of half the mean
+/// polygon edge's spacing, none closer than a third of that to an edge (no sliver triangles,
+/// no point on a constraint).
 fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
     let edges: Vec<(Point2<f64>, Point2<f64>)> = polys
         .iter()
         .flat_map(|p| (0..p.len()).map(move |k| (p[k], p[(k + 1) % p.len()])))
         .collect();
     let length = |(a, b): &(Point2<f64>, Point2<f64>)| (b.x - a.x).hypot(b.y - a.y);
-    let h = edges.iter().map(length).sum::<f64>() / edges.len().max(1) as f64;
+    // Half the mean edge: the caps' triangles about as large as the rim's own spacing.
+    let h = 0.5 * edges.iter().map(length).sum::<f64>() / edges.len().max(1) as f64;
     if h <= 0.0 {
         return Vec::new();
     }

@@ -15,3 +15,4 @@ mod surface_embed;
 mod surface_on_sweep;
 mod surface_read;
 mod surface_scene;
+mod surface_turning;
