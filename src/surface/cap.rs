@@ -17,6 +17,14 @@
 //!   opposite the crossed edge);
 //! - where neither does (the corners differ in side beyond the blade's reach), it stays.
 //!
+//! A corner **on the sweep** (within [`ON_SWEEP`] of its size: a blade along a row of render
+//! vertices, or along render edges) is split like a crossing, into a copy per side; each of its
+//! triangles takes the copy of the side its other corners lie on, or is split from it to the
+//! crossing of its opposite edge when they lie on either side. Where a slit ends along a render
+//! edge lying in the sweep, that edge is split at the sweep's boundary, one vertex both sides
+//! share. Each side's rim is then the edges between new vertices that only one of that side's
+//! triangles uses, so that a rim running along render edges is found like one across them.
+//!
 //! The new edges on each side form that side's rim: closed loops for a cut right through,
 //! paths from one slit end to the other for a partial cut, closed along the blade's edge
 //! between them. Each side's loops are projected on the sweep's best-fit plane and
@@ -34,22 +42,29 @@
 //! tet beyond its nearest face), so that each cap moves with its own side; a vertex of a split
 //! triangle that its rebinding left in a tet on the other side is bound the same way.
 //!
-//! **Several cuts.** A blade's successive strokes in one plane extend one cut: their sweeps are
+//! On a **curved sweep** (a blade turned during its stroke) the loops are still triangulated in
+//! the best-fit plane's coordinates, but with points of the sweep inside them (on a grid of half
+//! the rim's mean edge, each lifted onto the sweep along the plane's normal) so that the caps'
+//! triangles lie on the swept surface up to its bending over one of them.
+//!
+//! **Several cuts.** A blade's successive strokes in one plane, or each starting where the last
+//! ended (the blade's edge at the last step, turned or not), extend one cut: their sweeps are
 //! kept together, and after each cut the surface is split again from the surface as read, so
 //! that a slit grows rather than being capped at every step. A stroke in another plane starts a
 //! new cut, applied after the earlier ones to their result. The vertices of the surface as read
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
-//! **Limits.** A cut is capped on its sweep's best-fit plane: a blade turned during a stroke
-//! gets caps that are flat where its sweep is not. A rim the triangulation cannot take (two
-//! crossing points at the same place, loops crossing in the plane) is left open and counted in
+//! **Limits.** A curved sweep must project one to one on its best-fit plane (a blade turned by
+//! less than a right angle); while a turning blade is still inside (a partial cut) its rims can
+//! fail to triangulate and are left open. A rim the triangulation cannot take (two crossing
+//! points at the same place, loops crossing in the plane) is left open and counted in
 //! [`Capped::open`]. Vertices a carving dropped take their triangles out, which opens the
 //! surface there.
 
 use std::time::Instant;
 
 use nalgebra::{Point3, Vector3};
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
@@ -64,8 +79,12 @@ use crate::mesh::{TetKey, TetMesh, TET_FACES};
 #[derive(Debug, Clone)]
 struct CutPlane {
     triangles: Vec<[Point3<f64>; 3]>,
+    /// The unit normal and a point of the best-fit plane of `triangles`.
     normal: Vector3<f64>,
     origin: Point3<f64>,
+    /// The corners of the last stroke's triangles: where the next stroke of the same blade
+    /// starts.
+    last_stroke: Vec<Point3<f64>>,
 }
 
 /// What the last cut left drawn.
@@ -116,6 +135,15 @@ impl Capper {
     pub fn cut(&mut self, embedding: &mut Embedding, mesh: &TetMesh, sweep: &Sweep) -> Capped {
         let start = Instant::now();
         self.take(sweep);
+        let mut out = self.recap(embedding, mesh);
+        out.seconds = start.elapsed().as_secs_f64();
+        out
+    }
+
+    /// Split and cap the surface for every cut taken so far, rebinding the appended vertices in
+    /// `mesh` (the mesh as cut); `embedding`'s appended vertices are replaced.
+    pub fn recap(&mut self, embedding: &mut Embedding, mesh: &TetMesh) -> Capped {
+        let start = Instant::now();
         embedding.truncate(self.original);
         let binder = SideBinder::new(mesh);
         let mut out = Capped {
@@ -139,6 +167,16 @@ impl Capper {
         }
         let (normal, origin, size) = fit(tris);
         if let Some(last) = self.cuts.last_mut() {
+            // A stroke starting where the last one ended (the blade's edge at the last step,
+            // whether or not it turned since) extends the same cut, fitted again as a whole.
+            let bits = |p: &Point3<f64>| [p.x, p.y, p.z].map(f64::to_bits);
+            let ends: FxHashSet<[u64; 3]> = last.last_stroke.iter().map(bits).collect();
+            if tris.iter().flatten().any(|p| ends.contains(&bits(p))) {
+                last.triangles.extend_from_slice(tris);
+                (last.normal, last.origin, _) = fit(&last.triangles);
+                last.last_stroke = tris.iter().flatten().copied().collect();
+                return;
+            }
             let sine = last.normal.cross(&normal).norm();
             let offset = tris
                 .iter()
@@ -147,6 +185,7 @@ impl Capper {
                 .fold(0.0, f64::max);
             if sine < COPLANAR && offset <= COPLANAR * size {
                 last.triangles.extend_from_slice(tris);
+                last.last_stroke = tris.iter().flatten().copied().collect();
                 return;
             }
         }
@@ -154,6 +193,7 @@ impl Capper {
             triangles: tris.clone(),
             normal,
             origin,
+            last_stroke: tris.iter().flatten().copied().collect(),
         });
     }
 }
@@ -196,12 +236,22 @@ fn segment_hits(a: &Point3<f64>, b: &Point3<f64>, t: &[Point3<f64>; 3]) -> Optio
     inside.then_some(s)
 }
 
+/// How close to the sweep, relative to its largest extent, a render vertex counts as on it
+/// (a blade along a row of render vertices, up to rounding): it is then split like a crossing.
+pub const ON_SWEEP: f64 = 1e-8;
+
 /// The sweep's triangles, their bounds, and its boundary edges (used by one triangle).
 struct SweepIndex<'a> {
     plane: &'a CutPlane,
     lo: [f64; 3],
     hi: [f64; 3],
     edges: Vec<[Point3<f64>; 2]>,
+    /// How close to the sweep a point counts as on it, m.
+    tolerance: f64,
+    /// Its largest extent, m.
+    size: f64,
+    /// Whether it leaves its plane by more than the tolerance (a blade that turned).
+    curved: bool,
 }
 
 impl<'a> SweepIndex<'a> {
@@ -231,7 +281,10 @@ impl<'a> SweepIndex<'a> {
                 .copied()
                 .collect::<Vec<_>>(),
         );
-        let pad = 1e-9 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        let size = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        let tolerance = ON_SWEEP * size;
+        // A triangle with a corner on the sweep is near it.
+        let pad = 2.0 * tolerance;
         for k in 0..3 {
             lo[k] -= pad;
             hi[k] += pad;
@@ -241,7 +294,39 @@ impl<'a> SweepIndex<'a> {
             lo,
             hi,
             edges: edges.into_iter().map(|(_, e)| e).collect(),
+            tolerance,
+            size,
+            curved: plane
+                .triangles
+                .iter()
+                .flatten()
+                .any(|p| plane.normal.dot(&(p - plane.origin)).abs() > tolerance),
         }
+    }
+
+    /// The side of the sweep `p` lies on (that of its nearest triangle's plane, as
+    /// [`side_of`] says), `None` when it lies on the sweep (within the tolerance); and whether
+    /// it lies in that triangle's plane (on the sweep or beyond its boundary).
+    fn classify(&self, p: &Point3<f64>) -> (Option<bool>, bool) {
+        let Some((t, d2)) = self
+            .plane
+            .triangles
+            .iter()
+            .map(|t| {
+                let d = closest_on_triangle(p, &t[0], &t[1], &t[2]) - p;
+                (t, d.norm_squared())
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            return (Some(true), false);
+        };
+        let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        let height = normal.dot(&(p - t[0]));
+        let in_plane = height.abs() <= self.tolerance * normal.norm();
+        if d2 <= self.tolerance * self.tolerance {
+            return (None, true);
+        }
+        (Some(height >= 0.0), in_plane)
     }
 
     /// Whether a box meets the sweep's bounds.
@@ -362,8 +447,25 @@ impl Crossing {
     }
 }
 
+/// The two copies of a point on the sweep, one bound on each side (appended to `e`, bound once
+/// all are made).
+fn pair(e: &mut Embedding, new: &mut Vec<(u32, Option<bool>)>, x: Point3<f64>) -> Crossing {
+    let plus = e.push(x);
+    let minus = e.push(x);
+    new.push((plus, Some(true)));
+    new.push((minus, Some(false)));
+    Crossing { plus, minus }
+}
+
 /// Split the triangles `tris` of `e` at `plane`'s sweep and cap the openings; returns the
 /// triangles to draw.
+///
+/// A corner on the sweep (within [`ON_SWEEP`] of its size: a blade along a row of render
+/// vertices or edges) is split like a crossing, one copy per side; a triangle it belongs to
+/// takes the copy of the side its other corners lie on, or is split from it to the crossing of
+/// its opposite edge when they lie on either side. Each side's rim is then the edges between
+/// new vertices that only one of that side's triangles uses, so that a cut along render edges
+/// (whose rim runs along them) is found like one across them.
 fn split_and_cap(
     e: &mut Embedding,
     tris: Vec<[u32; 3]>,
@@ -374,14 +476,25 @@ fn split_and_cap(
     let index = SweepIndex::new(plane);
     let sweep = Sweep::from_triangles(plane.triangles.clone());
     let at = |e: &Embedding, v: u32| Point3::from(e.rest[v as usize]);
-    let mut sides: FxHashMap<u32, bool> = FxHashMap::default();
+    let first_new = e.len() as u32;
+    // Each vertex's side of the sweep, `None` on it.
+    let mut class: FxHashMap<u32, (Option<bool>, bool)> = FxHashMap::default();
+    // The shared vertex where the sweep's boundary crosses a render edge lying in the sweep
+    // from a corner on it to one beyond the blade's reach (a slit ending along render edges).
+    let mut tips: FxHashMap<(u32, u32), Option<u32>> = FxHashMap::default();
     let mut crossings: FxHashMap<(u32, u32), Option<Crossing>> = FxHashMap::default();
+    // The two copies of each vertex on the sweep.
+    let mut copies: FxHashMap<u32, Crossing> = FxHashMap::default();
     // Vertices to bind once all are made, with their side (`None`: shared by both).
     let mut new: Vec<(u32, Option<bool>)> = Vec::new();
     // Vertices of the surface that split triangles use, with their side.
     let mut kept: Vec<(u32, bool)> = Vec::new();
-    // Each side's rim, as the cap must run along it.
-    let mut rim: [Vec<(u32, u32)>; 2] = [Vec::new(), Vec::new()];
+    // The triangles made on one side of the opening, with that side: their edges between new
+    // vertices that the side uses once are its rim.
+    let mut sided: Vec<([u32; 3], bool)> = Vec::new();
+    // Rim edges through a corner of the surface (a slit ending at a corner), as the cap runs
+    // along them.
+    let mut extra: [Vec<(u32, u32)>; 2] = [Vec::new(), Vec::new()];
     let mut drawn = Vec::with_capacity(tris.len());
     for t in tris {
         let p = t.map(|v| at(e, v));
@@ -389,7 +502,116 @@ fn split_and_cap(
             drawn.push(t);
             continue;
         }
-        let s = t.map(|v| *sides.entry(v).or_insert_with(|| side_of(&sweep, &at(e, v))));
+        let cp = t.map(|v| *class.entry(v).or_insert_with(|| index.classify(&at(e, v))));
+        let c = cp.map(|c| c.0);
+        // A corner on the sweep and one in its plane beyond it, the third off the plane: the
+        // slit ends on their edge, where the sweep's boundary crosses it.
+        let slit_end = (c.iter().filter(|c| c.is_none()).count() == 1)
+            .then(|| {
+                let o = (0..3).find(|&k| c[k].is_none())?;
+                let (b, d) = ((o + 1) % 3, (o + 2) % 3);
+                match (cp[b].1, cp[d].1) {
+                    (true, false) => Some((o, b, d)),
+                    (false, true) => Some((o, d, b)),
+                    _ => None,
+                }
+            })
+            .flatten();
+        if let Some((o, q, m)) = slit_end {
+            let key = (t[o].min(t[q]), t[o].max(t[q]));
+            let tip = *tips.entry(key).or_insert_with(|| {
+                let x = index.boundary_through(&p)?;
+                let tip = e.push(x);
+                new.push((tip, None));
+                Some(tip)
+            });
+            if let Some(tip) = tip {
+                let side = c[m].expect("off the plane");
+                let oc = *copies
+                    .entry(t[o])
+                    .or_insert_with(|| pair(e, &mut new, p[o]));
+                let os = oc.on(side);
+                // The edge from the corner on the sweep to the one beyond it is split at the
+                // tip, the triangle in two, both on the side of its third corner.
+                let halves = if q == (o + 1) % 3 {
+                    [[os, tip, t[m]], [tip, t[q], t[m]]]
+                } else {
+                    [[os, t[m], tip], [tip, t[m], t[q]]]
+                };
+                for tri in halves {
+                    drawn.push(tri);
+                    sided.push((tri, side));
+                }
+                kept.push((t[m], side));
+                out.split += 1;
+                continue;
+            }
+        }
+        if c.contains(&None) {
+            let copy = |copies: &mut FxHashMap<u32, Crossing>,
+                        e: &mut Embedding,
+                        new: &mut Vec<(u32, Option<bool>)>,
+                        v: u32| {
+                *copies.entry(v).or_insert_with(|| pair(e, new, at(e, v)))
+            };
+            let (plus, minus) = (c.contains(&Some(true)), c.contains(&Some(false)));
+            let o = (0..3)
+                .find(|&k| c[k].is_none())
+                .expect("a corner on the sweep");
+            let (b, d) = ((o + 1) % 3, (o + 2) % 3);
+            let x = if plus && minus {
+                // One corner on the sweep, the others on either side: split from it to the
+                // crossing of the opposite edge.
+                let key = (t[b].min(t[d]), t[b].max(t[d]));
+                let (pb, pd) = (p[b], p[d]);
+                *crossings
+                    .entry(key)
+                    .or_insert_with(|| index.crossing(&pb, &pd).map(|x| pair(e, &mut new, x)))
+            } else {
+                None
+            };
+            if let Some(x) = x {
+                let (sb, sd) = (c[b].expect("off"), c[d].expect("off"));
+                let q = copy(&mut copies, e, &mut new, t[o]);
+                for (tri, side) in [
+                    ([q.on(sb), t[b], x.on(sb)], sb),
+                    ([q.on(sd), x.on(sd), t[d]], sd),
+                ] {
+                    drawn.push(tri);
+                    sided.push((tri, side));
+                }
+                kept.extend([(t[b], sb), (t[d], sd)]);
+                out.split += 1;
+                continue;
+            }
+            // On one side, touching the sweep (or lying in it: then with the piece it bounds,
+            // the side its outward normal points away from; or crossing it beyond the blade's
+            // reach: with the side of its centroid).
+            let centre = Point3::from((p[0].coords + p[1].coords + p[2].coords) / 3.0);
+            let side = match (plus, minus) {
+                (true, false) => true,
+                (false, true) => false,
+                (false, false) => {
+                    let n = (p[1] - p[0])
+                        .cross(&(p[2] - p[0]))
+                        .try_normalize(0.0)
+                        .unwrap_or_else(Vector3::zeros);
+                    side_of(&sweep, &(centre - n * (16.0 * index.tolerance)))
+                }
+                (true, true) => side_of(&sweep, &centre),
+            };
+            let mut tri = t;
+            for k in 0..3 {
+                match c[k] {
+                    None => tri[k] = copy(&mut copies, e, &mut new, t[k]).on(side),
+                    Some(_) => kept.push((t[k], side)),
+                }
+            }
+            drawn.push(tri);
+            sided.push((tri, side));
+            continue;
+        }
+        let s = c.map(|c| c.expect("off the sweep"));
         if s[0] == s[1] && s[1] == s[2] {
             drawn.push(t);
             continue;
@@ -402,14 +624,10 @@ fn split_and_cap(
                 continue;
             }
             let key = (a.min(b), a.max(b));
-            cross[k] = *crossings.entry(key).or_insert_with(|| {
-                let x = index.crossing(&at(e, a), &at(e, b))?;
-                let plus = e.push(x);
-                let minus = e.push(x);
-                new.push((plus, Some(true)));
-                new.push((minus, Some(false)));
-                Some(Crossing { plus, minus })
-            });
+            let (pa, pb) = (p[k], p[(k + 1) % 3]);
+            cross[k] = *crossings
+                .entry(key)
+                .or_insert_with(|| index.crossing(&pa, &pb).map(|x| pair(e, &mut new, x)));
         }
         let cut: Vec<usize> = (0..3).filter(|&k| cross[k].is_some()).collect();
         match cut.len() {
@@ -420,11 +638,14 @@ fn split_and_cap(
                 let (sl, so) = (s[l], !s[l]);
                 let p = cross[l].expect("crossed");
                 let q = cross[(l + 2) % 3].expect("crossed");
-                drawn.push([a, p.on(sl), q.on(sl)]);
-                drawn.push([p.on(so), b, c]);
-                drawn.push([p.on(so), c, q.on(so)]);
-                rim[sl as usize].push((q.on(sl), p.on(sl)));
-                rim[so as usize].push((p.on(so), q.on(so)));
+                for (tri, side) in [
+                    ([a, p.on(sl), q.on(sl)], sl),
+                    ([p.on(so), b, c], so),
+                    ([p.on(so), c, q.on(so)], so),
+                ] {
+                    drawn.push(tri);
+                    sided.push((tri, side));
+                }
                 kept.extend([(a, sl), (b, so), (c, so)]);
                 out.split += 1;
             }
@@ -439,18 +660,18 @@ fn split_and_cap(
                     Some(x) => {
                         let tip = e.push(x);
                         new.push((tip, None));
-                        drawn.push([a, p.on(sa), tip]);
-                        drawn.push([p.on(sb), b, tip]);
+                        for (tri, side) in [([a, p.on(sa), tip], sa), ([p.on(sb), b, tip], sb)] {
+                            drawn.push(tri);
+                            sided.push((tri, side));
+                        }
                         drawn.push([b, c, tip]);
                         drawn.push([c, a, tip]);
-                        rim[sa as usize].push((tip, p.on(sa)));
-                        rim[sb as usize].push((p.on(sb), tip));
                     }
                     None => {
                         drawn.push([a, p.on(sa), c]);
                         drawn.push([p.on(sb), b, c]);
-                        rim[sa as usize].push((c, p.on(sa)));
-                        rim[sb as usize].push((p.on(sb), c));
+                        extra[sa as usize].push((c, p.on(sa)));
+                        extra[sb as usize].push((p.on(sb), c));
                     }
                 }
                 kept.extend([(a, sa), (b, sb)]);
@@ -473,8 +694,25 @@ fn split_and_cap(
         }
     }
     for side in [true, false] {
-        match cap(e, &rim[side as usize], plane) {
-            Some(caps) => {
+        let edges: FxHashSet<(u32, u32)> = sided
+            .iter()
+            .filter(|(_, s)| *s == side)
+            .flat_map(|(t, _)| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .collect();
+        let mut rim: Vec<(u32, u32)> = edges
+            .iter()
+            .filter(|&&(a, b)| a >= first_new && b >= first_new && !edges.contains(&(b, a)))
+            .map(|&(a, b)| (b, a))
+            .chain(extra[side as usize].iter().copied())
+            .collect();
+        // The same loops every run.
+        rim.sort_unstable();
+        match cap(e, &rim, &index) {
+            Some((caps, inner)) => {
+                // Points of a curved sweep inside the rim: bound on this side like the rim's.
+                for v in inner {
+                    binder.bind(e, v as usize, Some(side), &sweep);
+                }
                 out.cap_triangles += caps.len();
                 drawn.extend(caps);
             }
@@ -488,9 +726,14 @@ fn split_and_cap(
 /// The cap of one side: its rim edges (as the cap runs along them) chained into loops, open
 /// paths closed from end to start, triangulated in the sweep's plane. `None` when the rim is
 /// not a set of simple loops the triangulation can take.
-fn cap(e: &Embedding, rim: &[(u32, u32)], plane: &CutPlane) -> Option<Vec<[u32; 3]>> {
+fn cap(
+    e: &mut Embedding,
+    rim: &[(u32, u32)],
+    index: &SweepIndex,
+) -> Option<(Vec<[u32; 3]>, Vec<u32>)> {
+    let plane = index.plane;
     if rim.is_empty() {
-        return Some(Vec::new());
+        return Some((Vec::new(), Vec::new()));
     }
     let mut next: FxHashMap<u32, u32> = FxHashMap::default();
     let mut ends: FxHashMap<u32, usize> = FxHashMap::default();
@@ -565,6 +808,26 @@ fn cap(e: &Embedding, rim: &[(u32, u32)], plane: &CutPlane) -> Option<Vec<[u32; 
         }
         polys.push(l.iter().map(|&v| flat(v)).collect());
     }
+    // On a curved sweep (a blade turned during its strokes) the cap follows it: points of the
+    // sweep inside the rim, about a rim edge apart, split the triangulation so that its
+    // triangles lie on the sweep up to its curvature over that distance, not on the plane.
+    let mut inner = Vec::new();
+    if index.curved {
+        for x in inner_points(&polys) {
+            let q = plane.origin + u * x.x + w * x.y;
+            let reach = n * (2.0 * index.size);
+            let Some(on) = index.crossing(&(q - reach), &(q + reach)) else {
+                continue;
+            };
+            let h = cdt.insert(x).ok()?;
+            if vertex_of.contains_key(&h) {
+                continue;
+            }
+            let v = e.push(on);
+            vertex_of.insert(h, v);
+            inner.push(v);
+        }
+    }
     // The cap runs along its rim: the loop with the largest area says which way round the
     // plane's counter-clockwise triangles must be taken.
     let area = |p: &[Point2<f64>]| {
@@ -595,7 +858,62 @@ fn cap(e: &Embedding, rim: &[(u32, u32)], plane: &CutPlane) -> Option<Vec<[u32; 
         let v = f.vertices().map(|h| vertex_of[&h.fix()]);
         out.push(if outer > 0.0 { v } else { [v[0], v[2], v[1]] });
     }
-    Some(out)
+    Some((out, inner))
+}
+
+/// Points inside the polygons `polys` (by the even-odd rule) on a square grid of half the mean
+/// polygon edge's spacing, none closer than a third of that to an edge (no sliver triangles,
+/// no point on a constraint).
+fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
+    let edges: Vec<(Point2<f64>, Point2<f64>)> = polys
+        .iter()
+        .flat_map(|p| (0..p.len()).map(move |k| (p[k], p[(k + 1) % p.len()])))
+        .collect();
+    let length = |(a, b): &(Point2<f64>, Point2<f64>)| (b.x - a.x).hypot(b.y - a.y);
+    // Half the mean edge: the caps' triangles about as large as the rim's own spacing.
+    let h = 0.5 * edges.iter().map(length).sum::<f64>() / edges.len().max(1) as f64;
+    if h <= 0.0 {
+        return Vec::new();
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in polys.iter().flatten() {
+        lo = [lo[0].min(p.x), lo[1].min(p.y)];
+        hi = [hi[0].max(p.x), hi[1].max(p.y)];
+    }
+    let to_edge = |c: Point2<f64>| {
+        edges
+            .iter()
+            .map(|&(a, b)| {
+                let (dx, dy) = (b.x - a.x, b.y - a.y);
+                let l2 = dx * dx + dy * dy;
+                let s = if l2 > 0.0 {
+                    (((c.x - a.x) * dx + (c.y - a.y) * dy) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (c.x - a.x - s * dx).hypot(c.y - a.y - s * dy)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let count = |k: usize| ((hi[k] - lo[k]) / h).floor() as usize;
+    let mut out = Vec::new();
+    for i in 0..=count(0) {
+        for j in 0..=count(1) {
+            // Centred in the bounds.
+            let c = Point2::new(
+                lo[0] + 0.5 * (hi[0] - lo[0] - count(0) as f64 * h) + i as f64 * h,
+                lo[1] + 0.5 * (hi[1] - lo[1] - count(1) as f64 * h) + j as f64 * h,
+            );
+            if polys
+                .iter()
+                .fold(false, |inside, p| inside ^ contains(p, c))
+                && to_edge(c) > h / 3.0
+            {
+                out.push(c);
+            }
+        }
+    }
+    out
 }
 
 /// Whether `c` lies inside the polygon `p` (crossing number).

@@ -78,6 +78,14 @@ pub fn sweeps_down_to(steps: usize, bottom: f64) -> Vec<Sweep> {
         .collect()
 }
 
+/// The sweeps of the upright blade between consecutive `poses` (a stroke of several steps).
+pub fn sweeps_between(poses: &[Isometry3<f64>]) -> Vec<Sweep> {
+    poses
+        .windows(2)
+        .map(|p| Sweep::of_blade(&BLADE, &p[0], &p[1]).unwrap())
+        .collect()
+}
+
 /// One sweep at rest; with `rebinder`, the embedding follows it.
 pub fn cut_once(
     cutter: &mut Cutter,

@@ -216,3 +216,80 @@ fn device_surface_grows_with_the_caps() {
         }
     }
 }
+
+/// The render surface's index buffer on the device, through the simulation a host steps: after
+/// each cut it holds exactly the capped triangles the host made (read back and compared), it
+/// grows with them, and neither a step without a cut nor the same triangles given again writes
+/// a byte of it.
+#[test]
+fn device_render_indices_follow_the_caps() {
+    use lancet::cut::CutMethod;
+    use lancet::engine::gpu::buffers::read_bytes;
+    use lancet::surface::{Capper, Rebinder};
+    use lancet::Simulation;
+
+    let Some(ctx) = common::gpu() else { return };
+    let mut cutter = cut_box::cutter(CutMethod::Separate);
+    let packed = cutter.model().pack(cutter.mesh()).unwrap();
+    let mut sim = Simulation::with_gpu_context(
+        packed,
+        ctx.clone(),
+        SimConfig::new(1e-5),
+        LayoutKind::Edges.into(),
+    )
+    .unwrap();
+    let surface = cut_box::closed_box([0.001; 3], [0.049, 0.039, 0.029], [10, 8, 6]);
+    let mut e = Embedding::new(cutter.mesh(), &surface).unwrap();
+    let mut rebinder = Rebinder::new(cutter.mesh(), &e);
+    let mut capper = Capper::new(e.len(), &surface.triangles);
+    assert!(sim.gpu_render_indices().unwrap().is_none(), "none set yet");
+    sim.set_render_surface(&e).unwrap();
+    // A triangle naming a vertex the surface does not have is refused, with the vertex named.
+    let bad = sim
+        .set_render_triangles(&[[0, 1, e.len() as u32]])
+        .unwrap_err()
+        .to_string();
+    assert!(bad.contains(&format!("vertex {}", e.len())), "{bad}");
+
+    // What the device's index buffer holds, and the bytes written to it so far.
+    let held = |sim: &mut Simulation| {
+        let i = sim.gpu_render_indices().unwrap().expect("set");
+        let bytes = read_bytes(&ctx, i.buffer, u64::from(i.count) * 4).unwrap();
+        let t: Vec<[u32; 3]> = bytemuck::cast_slice::<u8, u32>(&bytes)
+            .chunks(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        (t, i.uploaded)
+    };
+    sim.set_render_triangles(&surface.triangles).unwrap();
+    let (t, mut uploaded) = held(&mut sim);
+    assert_eq!(t, surface.triangles);
+    assert_eq!(uploaded, 12 * surface.triangles.len() as u64);
+    let mut grew = false;
+    for sweep in cut_box::sweeps(3) {
+        let (outcome, _) = cut_box::cut_once(&mut cutter, &sweep, Some((&mut rebinder, &mut e)));
+        let capped = capper.cut(&mut e, cutter.mesh(), &sweep);
+        sim.apply_with(&outcome.diff, true).unwrap();
+        sim.set_render_surface(&e).unwrap();
+        sim.set_render_triangles(&capped.triangles).unwrap();
+        let (t, now) = held(&mut sim);
+        assert_eq!(t, capped.triangles, "the device holds the capped surface");
+        assert!(
+            now > uploaded && now - uploaded <= 12 * capped.triangles.len() as u64,
+            "{} bytes written for {} triangles",
+            now - uploaded,
+            capped.triangles.len()
+        );
+        grew |= capped.triangles.len() > surface.triangles.len();
+        uploaded = now;
+        // No cut: a step, the same triangles again, another frame: nothing written.
+        sim.run(1).unwrap();
+        sim.set_render_triangles(&capped.triangles).unwrap();
+        let (t, now) = held(&mut sim);
+        assert_eq!(t, capped.triangles);
+        assert_eq!(now, uploaded, "written again without a cut");
+        let v = sim.gpu_render_vertices().unwrap().expect("set");
+        assert_eq!(v.count as usize, e.len());
+    }
+    assert!(grew, "the caps added triangles");
+}

@@ -12,5 +12,7 @@ mod splitmix;
 mod surface_cap;
 mod surface_cut;
 mod surface_embed;
+mod surface_on_sweep;
 mod surface_read;
 mod surface_scene;
+mod surface_turning;

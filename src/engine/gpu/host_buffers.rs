@@ -13,8 +13,9 @@
 //! again for the next one (a patch may replace a buffer that had to grow, and a change of time
 //! step may build a new engine).
 
+use super::buffers::Sizing;
 use super::embed_surface::EmbedPass;
-use super::GpuEngine;
+use super::{GpuContext, GpuEngine};
 use crate::error::{Error, Result};
 use crate::surface::Embedding;
 use crate::twin::embed_surface::BoundVertex;
@@ -36,6 +37,109 @@ pub struct DeviceIndices<'a> {
     pub buffer: &'a wgpu::Buffer,
     /// Indices in it (three per triangle).
     pub count: u32,
+    /// Bytes written to this index buffer (and the smaller ones it replaced) since the engine
+    /// was built: what keeping it up to date has cost, for a host that counts its uploads.
+    pub uploaded: u64,
+}
+
+/// An index buffer kept for a host: rewritten only when the triangles it holds change, and
+/// then only the triangles that differ from what it holds and those past its count; grown
+/// like the layout's buffers (room by [`Sizing::Headroom`] at first, then the next size class).
+struct IndexBuffer {
+    buffer: wgpu::Buffer,
+    /// The generation of the triangles it holds.
+    generation: u64,
+    /// What it holds.
+    held: Vec<[u32; 3]>,
+    /// Bytes written since it was first made.
+    uploaded: u64,
+}
+
+impl IndexBuffer {
+    /// Hold `triangles` (of `generation`) in `slot`, writing only what changed.
+    fn update<'a>(
+        slot: &'a mut Option<IndexBuffer>,
+        ctx: &GpuContext,
+        label: &str,
+        triangles: &[[u32; 3]],
+        generation: u64,
+    ) -> DeviceIndices<'a> {
+        let bytes = std::mem::size_of_val(triangles) as u64;
+        let fresh = matches!(slot, Some(b) if b.generation == generation);
+        if !fresh {
+            let fits = matches!(slot, Some(b) if b.buffer.size() >= bytes);
+            if !fits {
+                let sizing = if slot.is_some() {
+                    Sizing::SizeClass
+                } else {
+                    Sizing::Headroom
+                };
+                let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: sizing.size(ctx, bytes).next_multiple_of(4),
+                    usage: wgpu::BufferUsages::INDEX
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                let uploaded = slot.as_ref().map_or(0, |b| b.uploaded);
+                *slot = Some(IndexBuffer {
+                    buffer,
+                    generation,
+                    held: Vec::new(),
+                    uploaded,
+                });
+            }
+            let b = slot.as_mut().expect("made above");
+            b.uploaded += write_changed(ctx, &b.buffer, &b.held, triangles);
+            b.held.clear();
+            b.held.extend_from_slice(triangles);
+            b.generation = generation;
+        }
+        let b = slot.as_ref().expect("made above");
+        DeviceIndices {
+            buffer: &b.buffer,
+            count: (b.held.len() * 3) as u32,
+            uploaded: b.uploaded,
+        }
+    }
+}
+
+/// Write the runs of `new` that differ from `old` (what `buffer` holds) and the part past it
+/// into `buffer`; returns the bytes written.
+fn write_changed(
+    ctx: &GpuContext,
+    buffer: &wgpu::Buffer,
+    old: &[[u32; 3]],
+    new: &[[u32; 3]],
+) -> u64 {
+    let size = std::mem::size_of::<[u32; 3]>();
+    let mut written = 0;
+    let mut write = |from: usize, to: usize| {
+        ctx.queue.write_buffer(
+            buffer,
+            (from * size) as u64,
+            bytemuck::cast_slice(&new[from..to]),
+        );
+        written += ((to - from) * size) as u64;
+    };
+    let common = old.len().min(new.len());
+    let mut t = 0;
+    while t < common {
+        if new[t] == old[t] {
+            t += 1;
+            continue;
+        }
+        let run = t;
+        while t < common && new[t] != old[t] {
+            t += 1;
+        }
+        write(run, t);
+    }
+    if new.len() > common {
+        write(common, new.len());
+    }
+    written
 }
 
 /// What the engine keeps for hosts; everything is made at the first call that needs it.
@@ -43,9 +147,10 @@ pub struct DeviceIndices<'a> {
 pub(super) struct HostBuffers {
     /// The node-positions pass and the patch count it was bound at.
     nodes: Option<(EmbedPass, u64)>,
-    /// The boundary triangles' index buffer, its index count and the generation of the
-    /// triangles it holds.
-    indices: Option<(wgpu::Buffer, u32, u64)>,
+    /// The boundary triangles' index buffer.
+    indices: Option<IndexBuffer>,
+    /// The render surface's index buffer ([`GpuEngine::render_indices`]).
+    render_indices: Option<IndexBuffer>,
     /// The render surface's embedding (model node indices) and the patch count its pass was
     /// bound at, so that a patch re-binds it.
     pub(super) render: Option<(Embedding, u64)>,
@@ -117,38 +222,48 @@ impl GpuEngine {
                 "surface triangle {t} names node {c} but the model has {n} nodes"
             )));
         }
-        let count = (triangles.len() * 3) as u32;
-        let fresh =
-            matches!(&self.host.indices, Some((_, c, g)) if *g == generation && *c == count);
-        if !fresh {
-            let bytes = (u64::from(count) * 4).max(4);
-            let fits = matches!(&self.host.indices, Some((b, ..)) if b.size() >= bytes);
-            if !fits {
-                // Room to grow by a quarter: cuts open new faces a few at a time.
-                let size = (bytes + bytes / 4).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-                let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("surface indices"),
-                    size,
-                    usage: wgpu::BufferUsages::INDEX
-                        | wgpu::BufferUsages::COPY_DST
-                        | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                });
-                self.host.indices = Some((buffer, 0, 0));
-            }
-            let (buffer, c, g) = self.host.indices.as_mut().expect("made above");
-            if count > 0 {
-                self.ctx
-                    .queue
-                    .write_buffer(buffer, 0, bytemuck::cast_slice(triangles));
-            }
-            (*c, *g) = (count, generation);
+        Ok(IndexBuffer::update(
+            &mut self.host.indices,
+            &self.ctx,
+            "surface indices",
+            triangles,
+            generation,
+        ))
+    }
+
+    /// An index buffer of `triangles` over the render surface's vertices
+    /// ([`GpuEngine::render_vertices`]): the surface as drawn, split and capped after cuts
+    /// ([`crate::surface::Capper`]). `generation` names the triangles: the buffer is written
+    /// again only when it changes, and then only the triangles that differ. An error when no
+    /// render surface is set or a triangle names a vertex it does not have.
+    pub fn render_indices(
+        &mut self,
+        triangles: &[[u32; 3]],
+        generation: u64,
+    ) -> Result<DeviceIndices<'_>> {
+        let Some((e, _)) = &self.host.render else {
+            return Err(Error::Model(
+                "render triangles need a render surface: set one first (set_render_surface)".into(),
+            ));
+        };
+        let n = e.len() as u32;
+        if let Some((t, c)) = triangles
+            .iter()
+            .enumerate()
+            .find_map(|(t, tri)| tri.iter().find(|&&c| c >= n).map(|&c| (t, c)))
+        {
+            return Err(Error::Model(format!(
+                "render triangle {t} names vertex {c} but the render surface has {n} vertices; \
+                 set the embedding the triangles were made with (set_render_surface) first"
+            )));
         }
-        let (buffer, count, _) = self.host.indices.as_ref().expect("made above");
-        Ok(DeviceIndices {
-            buffer,
-            count: *count,
-        })
+        Ok(IndexBuffer::update(
+            &mut self.host.render_indices,
+            &self.ctx,
+            "render surface indices",
+            triangles,
+            generation,
+        ))
     }
 
     /// The render surface ([`GpuEngine::set_render_surface`]) evaluated now, bound again first

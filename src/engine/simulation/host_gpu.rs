@@ -32,6 +32,9 @@ pub(crate) struct HostDevice {
     /// The render surface bound with [`Simulation::set_render_surface`], bound again on an
     /// engine this simulation builds anew.
     pub(crate) render: Option<Embedding>,
+    /// The render surface's triangles as drawn ([`Simulation::set_render_triangles`]) and
+    /// their generation, counted up each time they change.
+    pub(crate) render_triangles: Option<(Vec<[u32; 3]>, u64)>,
 }
 
 impl Simulation {
@@ -52,7 +55,7 @@ impl Simulation {
             gpu,
             HostDevice {
                 context: Some(ctx),
-                render: None,
+                ..HostDevice::default()
             },
         )
     }
@@ -94,6 +97,50 @@ impl Simulation {
         }
         self.host.render = Some(embedding.clone());
         Ok(())
+    }
+
+    /// The triangles to draw the render surface with, as indices into its vertices (those of
+    /// the embedding given to [`Simulation::set_render_surface`]): the surface as read, or as
+    /// split and capped after cuts ([`crate::surface::Capped::triangles`]). Call it after each
+    /// cut the surface followed (or every frame): triangles equal to those held change nothing,
+    /// so [`Simulation::gpu_render_indices`] rewrites its buffer only when the caps changed.
+    /// An error when a triangle names a vertex the bound surface does not have.
+    pub fn set_render_triangles(&mut self, triangles: &[[u32; 3]]) -> Result<()> {
+        let n = self.host.render.as_ref().map_or(0, Embedding::len) as u32;
+        if let Some((t, c)) = triangles
+            .iter()
+            .enumerate()
+            .find_map(|(t, tri)| tri.iter().find(|&&c| c >= n).map(|&c| (t, c)))
+        {
+            return Err(Error::Model(format!(
+                "render triangle {t} names vertex {c} but the render surface bound has {n} \
+                 vertices; call set_render_surface with the embedding the triangles were made \
+                 with first"
+            )));
+        }
+        match &mut self.host.render_triangles {
+            Some((held, _)) if held.as_slice() == triangles => {}
+            Some((held, generation)) => {
+                held.clear();
+                held.extend_from_slice(triangles);
+                *generation += 1;
+            }
+            None => self.host.render_triangles = Some((triangles.to_vec(), 0)),
+        }
+        Ok(())
+    }
+
+    /// The render surface's triangles ([`Simulation::set_render_triangles`]) as an index buffer
+    /// over [`Simulation::gpu_render_vertices`], to draw the surface (split and capped after
+    /// cuts) without readback: `None` on a CPU engine or before both are set. Written again
+    /// only after the triangles changed, and then only the triangles that differ; it grows like
+    /// the vertex buffer. [`DeviceIndices::uploaded`] counts the bytes written. Ask again each
+    /// frame: a cut may replace the buffer.
+    pub fn gpu_render_indices(&mut self) -> Result<Option<DeviceIndices<'_>>> {
+        match (self.engine.gpu_mut(), &self.host.render_triangles) {
+            (Some(g), Some((t, generation))) => g.render_indices(t, *generation).map(Some),
+            _ => Ok(None),
+        }
     }
 
     /// The render surface's vertices on the device, evaluated now (16 bytes per vertex);
