@@ -65,9 +65,8 @@ use std::time::Instant;
 
 use nalgebra::{Point3, Vector3};
 use rustc_hash::{FxHashMap, FxHashSet};
-use spade::handles::FixedVertexHandle;
-use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
+use super::cap_fill::cap;
 use super::embed::{barycentric, bounds, closest_on_triangle, INSIDE_TOLERANCE};
 use super::grid::Grid;
 use super::rebind::side_of;
@@ -77,11 +76,11 @@ use crate::mesh::{TetKey, TetMesh, TET_FACES};
 
 /// One cut: the triangles of the strokes in one plane.
 #[derive(Debug, Clone)]
-struct CutPlane {
+pub(super) struct CutPlane {
     triangles: Vec<[Point3<f64>; 3]>,
     /// The unit normal and a point of the best-fit plane of `triangles`.
-    normal: Vector3<f64>,
-    origin: Point3<f64>,
+    pub(super) normal: Vector3<f64>,
+    pub(super) origin: Point3<f64>,
     /// The corners of the last stroke's triangles: where the next stroke of the same blade
     /// starts.
     last_stroke: Vec<Point3<f64>>,
@@ -241,17 +240,17 @@ fn segment_hits(a: &Point3<f64>, b: &Point3<f64>, t: &[Point3<f64>; 3]) -> Optio
 pub const ON_SWEEP: f64 = 1e-8;
 
 /// The sweep's triangles, their bounds, and its boundary edges (used by one triangle).
-struct SweepIndex<'a> {
-    plane: &'a CutPlane,
+pub(super) struct SweepIndex<'a> {
+    pub(super) plane: &'a CutPlane,
     lo: [f64; 3],
     hi: [f64; 3],
     edges: Vec<[Point3<f64>; 2]>,
     /// How close to the sweep a point counts as on it, m.
     tolerance: f64,
     /// Its largest extent, m.
-    size: f64,
+    pub(super) size: f64,
     /// Whether it leaves its plane by more than the tolerance (a blade that turned).
-    curved: bool,
+    pub(super) curved: bool,
 }
 
 impl<'a> SweepIndex<'a> {
@@ -335,7 +334,7 @@ impl<'a> SweepIndex<'a> {
     }
 
     /// Where the segment `a b` crosses the sweep.
-    fn crossing(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
+    pub(super) fn crossing(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
         self.plane
             .triangles
             .iter()
@@ -721,209 +720,4 @@ fn split_and_cap(
     }
     drawn.retain(|t| t.iter().all(|&v| !e.dropped[v as usize]));
     drawn
-}
-
-/// The cap of one side: its rim edges (as the cap runs along them) chained into loops, open
-/// paths closed from end to start, triangulated in the sweep's plane. `None` when the rim is
-/// not a set of simple loops the triangulation can take.
-fn cap(
-    e: &mut Embedding,
-    rim: &[(u32, u32)],
-    index: &SweepIndex,
-) -> Option<(Vec<[u32; 3]>, Vec<u32>)> {
-    let plane = index.plane;
-    if rim.is_empty() {
-        return Some((Vec::new(), Vec::new()));
-    }
-    let mut next: FxHashMap<u32, u32> = FxHashMap::default();
-    let mut ends: FxHashMap<u32, usize> = FxHashMap::default();
-    for &(a, b) in rim {
-        if next.insert(a, b).is_some() {
-            return None;
-        }
-        *ends.entry(b).or_default() += 1;
-    }
-    if ends.values().any(|&n| n > 1) {
-        return None;
-    }
-    // Paths first (from a vertex nothing leads to), then loops, in a fixed order.
-    let mut starts: Vec<u32> = next.keys().copied().collect();
-    starts.sort_unstable_by_key(|v| (ends.contains_key(v), *v));
-    let mut seen: FxHashMap<u32, ()> = FxHashMap::default();
-    let mut loops: Vec<Vec<u32>> = Vec::new();
-    for s in starts {
-        if seen.contains_key(&s) {
-            continue;
-        }
-        let mut l = vec![s];
-        seen.insert(s, ());
-        let mut v = s;
-        while let Some(&w) = next.get(&v) {
-            if w == s || seen.contains_key(&w) {
-                break;
-            }
-            seen.insert(w, ());
-            l.push(w);
-            v = w;
-        }
-        if l.len() >= 3 {
-            loops.push(l);
-        }
-    }
-    // Coordinates in the plane.
-    let n = plane.normal;
-    let u = n
-        .cross(
-            &(if n.x.abs() < 0.9 {
-                Vector3::x()
-            } else {
-                Vector3::y()
-            }),
-        )
-        .normalize();
-    let w = n.cross(&u);
-    let flat = |v: u32| {
-        let d = Point3::from(e.rest[v as usize]) - plane.origin;
-        Point2::new(d.dot(&u), d.dot(&w))
-    };
-    let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> = Default::default();
-    let mut vertex_of: FxHashMap<FixedVertexHandle, u32> = FxHashMap::default();
-    let mut polys: Vec<Vec<Point2<f64>>> = Vec::new();
-    for l in &loops {
-        let mut handles = Vec::with_capacity(l.len());
-        for &v in l {
-            let h = cdt.insert(flat(v)).ok()?;
-            if *vertex_of.entry(h).or_insert(v) != v {
-                // Two rim vertices at one place in the plane.
-                return None;
-            }
-            handles.push(h);
-        }
-        for k in 0..handles.len() {
-            let (a, b) = (handles[k], handles[(k + 1) % handles.len()]);
-            if !cdt.can_add_constraint(a, b) {
-                return None;
-            }
-            cdt.add_constraint(a, b);
-        }
-        polys.push(l.iter().map(|&v| flat(v)).collect());
-    }
-    // On a curved sweep (a blade turned during its strokes) the cap follows it: points of the
-    // sweep inside the rim, about a rim edge apart, split the triangulation so that its
-    // triangles lie on the sweep up to its curvature over that distance, not on the plane.
-    let mut inner = Vec::new();
-    if index.curved {
-        for x in inner_points(&polys) {
-            let q = plane.origin + u * x.x + w * x.y;
-            let reach = n * (2.0 * index.size);
-            let Some(on) = index.crossing(&(q - reach), &(q + reach)) else {
-                continue;
-            };
-            let h = cdt.insert(x).ok()?;
-            if vertex_of.contains_key(&h) {
-                continue;
-            }
-            let v = e.push(on);
-            vertex_of.insert(h, v);
-            inner.push(v);
-        }
-    }
-    // The cap runs along its rim: the loop with the largest area says which way round the
-    // plane's counter-clockwise triangles must be taken.
-    let area = |p: &[Point2<f64>]| {
-        (0..p.len())
-            .map(|k| {
-                let (a, b) = (p[k], p[(k + 1) % p.len()]);
-                a.x * b.y - b.x * a.y
-            })
-            .sum::<f64>()
-    };
-    let outer = polys
-        .iter()
-        .map(|p| area(p))
-        .max_by(|a, b| a.abs().total_cmp(&b.abs()))?;
-    let mut out = Vec::new();
-    for f in cdt.inner_faces() {
-        let pos = f.positions();
-        let c = Point2::new(
-            (pos[0].x + pos[1].x + pos[2].x) / 3.0,
-            (pos[0].y + pos[1].y + pos[2].y) / 3.0,
-        );
-        if !polys
-            .iter()
-            .fold(false, |inside, p| inside ^ contains(p, c))
-        {
-            continue;
-        }
-        let v = f.vertices().map(|h| vertex_of[&h.fix()]);
-        out.push(if outer > 0.0 { v } else { [v[0], v[2], v[1]] });
-    }
-    Some((out, inner))
-}
-
-/// Points inside the polygons `polys` (by the even-odd rule) on a square grid of half the mean
-/// polygon edge's spacing, none closer than a third of that to an edge (no sliver triangles,
-/// no point on a constraint).
-fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
-    let edges: Vec<(Point2<f64>, Point2<f64>)> = polys
-        .iter()
-        .flat_map(|p| (0..p.len()).map(move |k| (p[k], p[(k + 1) % p.len()])))
-        .collect();
-    let length = |(a, b): &(Point2<f64>, Point2<f64>)| (b.x - a.x).hypot(b.y - a.y);
-    // Half the mean edge: the caps' triangles about as large as the rim's own spacing.
-    let h = 0.5 * edges.iter().map(length).sum::<f64>() / edges.len().max(1) as f64;
-    if h <= 0.0 {
-        return Vec::new();
-    }
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in polys.iter().flatten() {
-        lo = [lo[0].min(p.x), lo[1].min(p.y)];
-        hi = [hi[0].max(p.x), hi[1].max(p.y)];
-    }
-    let to_edge = |c: Point2<f64>| {
-        edges
-            .iter()
-            .map(|&(a, b)| {
-                let (dx, dy) = (b.x - a.x, b.y - a.y);
-                let l2 = dx * dx + dy * dy;
-                let s = if l2 > 0.0 {
-                    (((c.x - a.x) * dx + (c.y - a.y) * dy) / l2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (c.x - a.x - s * dx).hypot(c.y - a.y - s * dy)
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
-    let count = |k: usize| ((hi[k] - lo[k]) / h).floor() as usize;
-    let mut out = Vec::new();
-    for i in 0..=count(0) {
-        for j in 0..=count(1) {
-            // Centred in the bounds.
-            let c = Point2::new(
-                lo[0] + 0.5 * (hi[0] - lo[0] - count(0) as f64 * h) + i as f64 * h,
-                lo[1] + 0.5 * (hi[1] - lo[1] - count(1) as f64 * h) + j as f64 * h,
-            );
-            if polys
-                .iter()
-                .fold(false, |inside, p| inside ^ contains(p, c))
-                && to_edge(c) > h / 3.0
-            {
-                out.push(c);
-            }
-        }
-    }
-    out
-}
-
-/// Whether `c` lies inside the polygon `p` (crossing number).
-fn contains(p: &[Point2<f64>], c: Point2<f64>) -> bool {
-    let mut inside = false;
-    for k in 0..p.len() {
-        let (a, b) = (p[k], p[(k + 1) % p.len()]);
-        if (a.y > c.y) != (b.y > c.y) && c.x < a.x + (c.y - a.y) * (b.x - a.x) / (b.y - a.y) {
-            inside = !inside;
-        }
-    }
-    inside
 }

@@ -22,6 +22,8 @@
 
 #[cfg(feature = "cut")]
 pub mod cap;
+#[cfg(feature = "cut")]
+mod cap_fill;
 pub mod colour;
 pub mod embed;
 pub mod gap;
