@@ -1,0 +1,90 @@
+//! One check both finite-element force models' GPU tests make (`gpu_tensor_mass.rs`,
+//! `gpu_corotational.rs`): the box of `tests/common/fem_cut.rs` cut on the GPU, every cut
+//! checked against a rebuild by the world, then the cut engine stepped beside one built afresh
+//! from the cut model.
+
+use crate::common;
+use lancet::engine::{EngineKind, ForceModelKind, Integrator, SimConfig, Simulation};
+use lancet::layout::LayoutKind;
+use lancet::model::SpringModel;
+
+/// Cut the box with `method` on the GPU in `layout` under the force model `kind`: after every
+/// cut the world's checks (`Engine::differences_from_rebuild`) find nothing, and the cut engine
+/// then steps as a GPU engine built afresh from the cut model does, to float32 rounding.
+pub fn cut_model_equals_a_rebuilt_one(
+    kind: ForceModelKind,
+    layout: LayoutKind,
+    method: lancet::cut::CutMethod,
+) {
+    use lancet::scene::driver::SceneDriver;
+    use lancet::scene::runner::{build_mesh, model_config};
+    use lancet::scene::{RunOptions, Scene};
+    use lancet::world::WorldBuilder;
+    let Some(_) = common::gpu() else { return };
+    let path = std::path::Path::new("gpu_fem_cuts.ron");
+    // The blade's edge sweeps down through the box and across over 20 ms (40 steps).
+    let text = crate::fem_cut::scene([0.011, 0.012, 0.04], [0.019, 0.021, -0.01], 40);
+    let scene = Scene::from_ron(&text, path).unwrap();
+    let mesh = build_mesh(&scene, path).unwrap();
+    let mconfig = model_config(&scene);
+    let packed = SpringModel::build(&mesh, &mconfig)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let config = SimConfig {
+        integrator: Integrator::Verlet,
+        force_model: kind,
+        ..SimConfig::new(0.8 * kind.stable_time_step(&packed).unwrap().dt)
+    };
+    let mut world = WorldBuilder::new(mesh, &mconfig, config)
+        .unwrap()
+        .engine(EngineKind::Gpu)
+        .gpu(layout.into())
+        .build()
+        .unwrap();
+    let opts = RunOptions {
+        cut_method: Some(method),
+        check: true,
+        ..RunOptions::default()
+    };
+    world.set_up_scene(&scene, &opts).unwrap();
+    let mut driver = SceneDriver::new(&scene);
+    for _ in 0..scene.steps {
+        driver.step(&mut world).unwrap();
+    }
+    let report = &world.cutting().unwrap().report;
+    assert!(report.cuts > 0, "{kind} {layout:?} {method}: nothing cut");
+    assert!(report.nodes_added > 0, "{kind} {layout:?} {method}");
+    assert_eq!(report.checks, report.cuts);
+    assert!(
+        report.violations.is_empty(),
+        "{kind} {layout:?} {method}: {:#?}",
+        report.violations
+    );
+    let sim = world.sim_mut();
+    assert!(sim.engine_name().starts_with("gpu-"));
+    let model = sim.model().clone();
+    let (x, v) = (sim.positions(), sim.velocities());
+    let mut fresh =
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, *sim.config(), layout.into()).unwrap();
+    fresh.set_state(&x, &v).unwrap();
+    sim.set_state(&x, &v).unwrap();
+    sim.run(30).unwrap();
+    fresh.run(30).unwrap();
+    let (a, b) = (sim.positions(), fresh.positions());
+    let motion = a
+        .iter()
+        .zip(&x)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f64::max);
+    let worst = a
+        .iter()
+        .zip(&b)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f64::max);
+    assert!(motion > 1e-6, "the cut box moves ({motion:e})");
+    assert!(
+        worst <= 1e-4 * motion,
+        "{kind} {layout:?} {method}: cut and rebuilt engines differ by {worst:e} (motion {motion:e})"
+    );
+}
