@@ -151,21 +151,7 @@ fn a_cut_right_through_leaves_the_surface_closed_and_each_side_moving_whole(
             assert_eq!(piece(v), y < Y0, "{method}: vertex {v} at y {y}");
         }
     }
-    let mut at: std::collections::BTreeMap<[u64; 3], Vec<bool>> = Default::default();
-    for v in added {
-        at.entry(e.rest[v].map(f64::to_bits))
-            .or_default()
-            .push(piece(v as u32));
-    }
-    for (p, sides) in &at {
-        let mut s = sides.clone();
-        s.sort_unstable();
-        assert_eq!(
-            s,
-            [false, true],
-            "{method}: the vertices at {p:?} moved with {sides:?}"
-        );
-    }
+    one_copy_per_piece(added, &e.rest, piece, &method.to_string());
     // Each piece moved rigidly: the enclosed volume is still the box's.
     let v = enclosed_volume(&x, &capped.triangles);
     assert!(
@@ -198,4 +184,29 @@ fn a_blade_stopping_inside_leaves_the_surface_closed(
         .filter(|&v| (e.rest[v][2] - 0.012).abs() < 1e-9)
         .count();
     assert_eq!(ends, 2, "{method}: slit ends");
+}
+
+/// Each point on the cut among the `added` vertices has two copies, one moving with each piece
+/// (`piece(v)`: whether vertex `v` moved with the piece on the negative side).
+pub(crate) fn one_copy_per_piece(
+    added: impl IntoIterator<Item = usize>,
+    rest: &[[f64; 3]],
+    piece: impl Fn(u32) -> bool,
+    what: &str,
+) {
+    let mut at: std::collections::BTreeMap<[u64; 3], Vec<bool>> = Default::default();
+    for v in added {
+        at.entry(rest[v].map(f64::to_bits))
+            .or_default()
+            .push(piece(v as u32));
+    }
+    for (p, sides) in &at {
+        let mut s = sides.clone();
+        s.sort_unstable();
+        assert_eq!(
+            s,
+            [false, true],
+            "{what}: the copies at {p:?} moved with {sides:?}"
+        );
+    }
 }

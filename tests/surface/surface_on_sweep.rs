@@ -158,21 +158,7 @@ fn cut_and_check(method: CutMethod, (surface, strokes, plane): (RenderSurface, V
             }
         }
     }
-    let mut at: std::collections::BTreeMap<[u64; 3], Vec<bool>> = Default::default();
-    for v in own..e.len() {
-        at.entry(e.rest[v].map(f64::to_bits))
-            .or_default()
-            .push(piece(v as u32));
-    }
-    for (p, sides) in &at {
-        let mut s = sides.clone();
-        s.sort_unstable();
-        assert_eq!(
-            s,
-            [false, true],
-            "{method}: the copies at {p:?} moved with {sides:?}"
-        );
-    }
+    crate::surface_cap::one_copy_per_piece(own..e.len(), &e.rest, piece, &method.to_string());
     let v = enclosed_volume(&x, &capped.triangles);
     assert!(
         (v - volume).abs() < 1e-9 * volume,
