@@ -61,6 +61,8 @@ pub(super) struct Sliced {
     pub live: usize,
     /// Groups no slice uses.
     pub holes: usize,
+    /// Compactions run since the layout was built.
+    pub compactions: usize,
     /// Whether `damping` is kept (fixed for the layout's life: the first damped spring of an
     /// undamped model rebuilds the engine).
     pub damped: bool,
@@ -87,6 +89,7 @@ impl Sliced {
             lens: Vec::with_capacity(n + spare(n)),
             live: 0,
             holes: 0,
+            compactions: 0,
             damped,
         };
         for b in 0..count {
@@ -94,7 +97,7 @@ impl Sliced {
             let at = s.groups.len();
             let w = width(b);
             s.append(w);
-            s.write(b, at, w, lanes);
+            s.write(b, at, w, lanes, [true; LANES]);
             s.slices.push([at as u32, (at + w) as u32]);
         }
         s.lens = rows.iter().map(|r| row_len(r.len())).collect();
@@ -133,25 +136,34 @@ impl Sliced {
 
     /// Set the rows of the nodes in `rows` (internal index to its new row) and lay out `n`
     /// nodes (new nodes, past the old count, start with empty rows): the slices of edited
-    /// rows and of new nodes are rewritten, in place when they do not widen. Returns the
-    /// groups written and those compaction moved.
+    /// rows and of new nodes are rewritten, in place (only the changed lanes) when they do not
+    /// widen. Returns the lanes written with new rows and the lanes copied (a widened slice's
+    /// unchanged lanes moved with it, and the slices compaction slid), a group holding
+    /// [`LANES`], and whether compaction ran (rewriting every slice's bounds).
     pub fn patch(
         &mut self,
         n: usize,
         mut rows: std::collections::BTreeMap<usize, Row>,
-    ) -> (usize, usize) {
+    ) -> (usize, usize, bool) {
         let count = n.div_ceil(LANES);
+        let old_n = self.lens.len();
         let mut dirty: Vec<usize> = rows.keys().map(|i| i / LANES).collect();
         // Slices new nodes made or filled.
         dirty.extend(self.lens.len() / LANES..count);
         dirty.sort_unstable();
         dirty.dedup();
         self.lens.resize(n, 0);
-        let (mut written, mut moved) = (0, 0);
+        let (mut written, mut copied, mut compacted) = (0, 0, false);
         for b in dirty {
-            // The slice's rows, new or as they are, read out before it is rewritten.
+            // The slice's rows, new or as they are, read out before it is rewritten, and
+            // which lanes changed (an edited row or a new node).
+            let mut changed = [false; LANES];
             let lanes: Vec<Row> = (b * LANES..((b + 1) * LANES).min(n))
-                .map(|i| rows.remove(&i).unwrap_or_else(|| self.row(i).collect()))
+                .map(|i| {
+                    let new = rows.remove(&i);
+                    changed[i % LANES] = new.is_some() || i >= old_n;
+                    new.unwrap_or_else(|| self.row(i).collect())
+                })
                 .collect();
             for (l, r) in lanes.iter().enumerate() {
                 let i = b * LANES + l;
@@ -159,10 +171,12 @@ impl Sliced {
                 self.lens[i] = row_len(r.len());
             }
             let w = lanes.iter().map(Vec::len).max().unwrap_or(0);
-            let at = match self.slices.get(b) {
+            // In place, only the changed lanes are written (the others' rows, no longer than
+            // `w`, stay as they are); appended, every lane.
+            let (at, mask) = match self.slices.get(b) {
                 Some(&[start, end]) if (end - start) as usize >= w => {
                     self.holes += (end - start) as usize - w;
-                    start as usize
+                    (start as usize, changed)
                 }
                 old => {
                     if let Some(&[start, end]) = old {
@@ -173,26 +187,32 @@ impl Sliced {
                     let full = self.groups.len() + w > self.groups.capacity();
                     // Compact only where that makes real room: else grow.
                     if full && self.holes >= w.max(self.groups.len() / 16) {
-                        moved += self.compact();
+                        copied += self.compact() * LANES;
+                        compacted = true;
                     }
                     let at = self.groups.len();
                     self.append(w);
-                    at
+                    (at, [true; LANES])
                 }
             };
-            self.write(b, at, w, &lanes);
+            self.write(b, at, w, &lanes, mask);
             let range = [at as u32, (at + w) as u32];
             if b < self.slices.len() {
                 self.slices[b] = range;
             } else {
                 self.slices.push(range);
             }
-            written += w;
+            // A widened slice's unchanged lanes are copied to its new place, as compaction
+            // copies whole slices: moved, not new data.
+            let fresh = lanes.iter().zip(changed).filter(|(_, c)| *c).count();
+            written += w * fresh;
+            copied += w * (mask.iter().filter(|&&m| m).count() - fresh);
         }
         if self.holes * 4 > self.groups.len() {
-            moved += self.compact();
+            copied += self.compact() * LANES;
+            compacted = true;
         }
-        (written, moved)
+        (written, copied, compacted)
     }
 
     /// Slide every slice down over the holes, in the order the slices lie in (each moves to a
@@ -226,6 +246,7 @@ impl Sliced {
         self.groups.truncate(to);
         self.damping.truncate(if self.damped { to } else { 0 });
         self.holes = 0;
+        self.compactions += 1;
         moved
     }
 
@@ -297,12 +318,19 @@ impl Sliced {
     }
 
     /// Write slice `b`'s rows `lanes` (fewer than [`LANES`] in a last, partial slice) into
-    /// `w` groups from `at`, padding lanes with null springs.
-    fn write(&mut self, b: usize, at: usize, w: usize, lanes: &[Row]) {
+    /// `w` groups from `at`, padding lanes with null springs; only the lanes `mask` holds.
+    fn write(&mut self, b: usize, at: usize, w: usize, lanes: &[Row], mask: [bool; LANES]) {
         for k in 0..w {
             let grp = &mut self.groups[at + k];
-            let mut c = [0.0f32; LANES];
+            let mut c = if self.damped {
+                self.damping[at + k]
+            } else {
+                [0.0f32; LANES]
+            };
             for (l, cl) in c.iter_mut().enumerate() {
+                if !mask[l] {
+                    continue;
+                }
                 // A node past the end points at node 0; its lane's result is never stored.
                 let own = if l < lanes.len() {
                     (b * LANES + l) as u32
@@ -326,6 +354,7 @@ impl Sliced {
                         }
                         grp.rest[l] = 0.0;
                         grp.k[l] = 0.0;
+                        *cl = 0.0;
                     }
                 }
             }
