@@ -1,7 +1,7 @@
 //! The box the finite-element cut tests cut: 3 cm, 4 x 4 x 4 cells, hanging from its y = 0
 //! face, Rayleigh-damped, a blade whose edge moves from one point to another over 20 ms, every
 //! cut checked against a rebuild (`tests/cut/cut_fem.rs` on the CPU engines,
-//! `tests/gpu/fem_cut_gpu.rs` on the GPU layouts, for tensor-mass and corotational; each picks
+//! `tests/gpu/fem_gpu_checks.rs` on the GPU layouts, for tensor-mass and corotational; each picks
 //! its engine and method).
 
 /// The scene's RON text: the blade's edge from `from` to `to` (m), `steps` steps at 0.8 of the

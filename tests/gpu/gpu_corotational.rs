@@ -16,7 +16,6 @@ use lancet::layout::tet_table::{TetTable, IDENTITY};
 use lancet::layout::{LayoutKind, PackedLayout};
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{Material, ModelConfig, PackedModel, SpringModel};
-use lancet::report::bench::relative_l2;
 use models::{random_box, Rng};
 use rstest::rstest;
 
@@ -159,24 +158,15 @@ fn gpu_corotational_follows_the_float64_reference(
     let model = jittered_box(3, true, 0.08);
     let config = config(&model, Integrator::Verlet, 0.8);
     let (x, v) = random_state(&model, 5, 1e-3, 0.3);
-    let run = |kind: EngineKind, config: SimConfig| {
-        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
-        sim.set_state(&x, &v).unwrap();
-        sim.run(200).unwrap();
-        sim.positions()
-    };
-    let gpu = run(EngineKind::Gpu, config);
-    let reference = run(EngineKind::Reference, config);
-    let err = relative_l2(&model.rest, &gpu, &reference);
-    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
-    let linear = run(
-        EngineKind::Reference,
-        SimConfig {
-            force_model: ForceModelKind::TensorMass,
-            ..config
-        },
+    let (err, apart) = crate::fem_gpu_checks::against_the_reference(
+        &model,
+        config,
+        (&x, &v),
+        layout,
+        200,
+        ForceModelKind::TensorMass,
     );
-    let apart = relative_l2(&model.rest, &linear, &reference);
+    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
     assert!(
         apart > 100.0 * err.max(1e-6),
         "linear {apart:e}, gpu {err:e}"
@@ -338,7 +328,7 @@ fn a_cut_gpu_corotational_model_equals_a_rebuilt_one(
     #[case] layout: LayoutKind,
     #[case] method: lancet::cut::CutMethod,
 ) {
-    crate::fem_cut_gpu::cut_model_equals_a_rebuilt_one(
+    crate::fem_gpu_checks::cut_model_equals_a_rebuilt_one(
         ForceModelKind::Corotational,
         layout,
         method,

@@ -5,12 +5,11 @@
 
 use crate::{common, models};
 use lancet::engine::gpu::GpuEngine;
-use lancet::engine::{Engine, EngineKind, ForceModelKind, Integrator, SimConfig, Simulation};
+use lancet::engine::{Engine, ForceModelKind, Integrator, SimConfig};
 use lancet::layout::edges::Accumulation;
 use lancet::layout::tensor_blocks::TensorBlocks;
 use lancet::layout::LayoutKind;
 use lancet::model::PackedModel;
-use lancet::report::bench::relative_l2;
 use lancet::Error;
 use models::{random_box, Rng};
 use rstest::rstest;
@@ -117,24 +116,15 @@ fn gpu_tensor_mass_follows_the_float64_reference(
     let model = jittered_box(3, true);
     let config = config(&model, Integrator::Verlet, 0.8);
     let (x, v) = random_state(&model, 5);
-    let run = |kind: EngineKind, config: SimConfig| {
-        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
-        sim.set_state(&x, &v).unwrap();
-        sim.run(300).unwrap();
-        sim.positions()
-    };
-    let gpu = run(EngineKind::Gpu, config);
-    let reference = run(EngineKind::Reference, config);
-    let err = relative_l2(&model.rest, &gpu, &reference);
-    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
-    let springs = run(
-        EngineKind::Reference,
-        SimConfig {
-            force_model: ForceModelKind::Springs,
-            ..config
-        },
+    let (err, apart) = crate::fem_gpu_checks::against_the_reference(
+        &model,
+        config,
+        (&x, &v),
+        layout,
+        300,
+        ForceModelKind::Springs,
     );
-    let apart = relative_l2(&model.rest, &springs, &reference);
+    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
     assert!(
         apart > 100.0 * err.max(1e-6),
         "springs {apart:e}, gpu {err:e}"
@@ -243,5 +233,9 @@ fn a_cut_gpu_tensor_mass_model_equals_a_rebuilt_one(
     #[values(lancet::cut::CutMethod::Separate, lancet::cut::CutMethod::Subdivide)]
     method: lancet::cut::CutMethod,
 ) {
-    crate::fem_cut_gpu::cut_model_equals_a_rebuilt_one(ForceModelKind::TensorMass, layout, method);
+    crate::fem_gpu_checks::cut_model_equals_a_rebuilt_one(
+        ForceModelKind::TensorMass,
+        layout,
+        method,
+    );
 }

@@ -14,7 +14,7 @@ mod models;
 #[path = "../common/read_ahead.rs"]
 mod read_ahead;
 
-mod fem_cut_gpu;
+mod fem_gpu_checks;
 mod gpu_broad_phase;
 mod gpu_corotational;
 mod gpu_edges;

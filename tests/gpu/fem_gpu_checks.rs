@@ -1,12 +1,47 @@
-//! One check both finite-element force models' GPU tests make (`gpu_tensor_mass.rs`,
-//! `gpu_corotational.rs`): the box of `tests/common/fem_cut.rs` cut on the GPU, every cut
-//! checked against a rebuild by the world, then the cut engine stepped beside one built afresh
-//! from the cut model.
+//! Checks both finite-element force models' GPU tests make (`gpu_tensor_mass.rs`,
+//! `gpu_corotational.rs`): the GPU engine against the float64 reference, and the box of
+//! `tests/common/fem_cut.rs` cut on the GPU, every cut checked against a rebuild by the world,
+//! then the cut engine stepped beside one built afresh from the cut model.
 
 use crate::common;
 use lancet::engine::{EngineKind, ForceModelKind, Integrator, SimConfig, Simulation};
 use lancet::layout::LayoutKind;
-use lancet::model::SpringModel;
+use lancet::model::{PackedModel, SpringModel};
+use lancet::report::bench::relative_l2;
+
+/// Run `model` from the state `(x, v)` for `steps` steps under `config` on the GPU in `layout`
+/// and on the float64 reference engine, and on the reference engine under the force model
+/// `other`: the relative L2 errors of the GPU run and of the `other` run against the reference
+/// run. The first is float32 rounding where the GPU steps the model; the second shows how far
+/// the model is from `other`, so that the first is seen to be small.
+pub fn against_the_reference(
+    model: &PackedModel,
+    config: SimConfig,
+    (x, v): (&[[f64; 3]], &[[f64; 3]]),
+    layout: LayoutKind,
+    steps: u64,
+    other: ForceModelKind,
+) -> (f64, f64) {
+    let run = |kind: EngineKind, config: SimConfig| {
+        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
+        sim.set_state(x, v).unwrap();
+        sim.run(steps).unwrap();
+        sim.positions()
+    };
+    let gpu = run(EngineKind::Gpu, config);
+    let reference = run(EngineKind::Reference, config);
+    let apart = run(
+        EngineKind::Reference,
+        SimConfig {
+            force_model: other,
+            ..config
+        },
+    );
+    (
+        relative_l2(&model.rest, &gpu, &reference),
+        relative_l2(&model.rest, &apart, &reference),
+    )
+}
 
 /// Cut the box with `method` on the GPU in `layout` under the force model `kind`: after every
 /// cut the world's checks (`Engine::differences_from_rebuild`) find nothing, and the cut engine
