@@ -207,11 +207,15 @@ fn device_surface_grows_with_the_caps() {
             [0, 1, 2].map(|c| got[v as usize][c] as f64 - e.rest[v as usize][c]),
         )
     };
+    // Each vertex is within 2e-8 of the float64 evaluation (checked above), so two vertices of
+    // one piece moved alike to 4e-8 on any device (a fused multiply-add rounds differently
+    // from lavapipe); the two pieces moved about 1.1e-2 apart.
     for t in &triangles {
         for k in 1..3 {
+            let d = (moved(t[0]) - moved(t[k])).norm();
             assert!(
-                (moved(t[0]) - moved(t[k])).norm() < 1e-8,
-                "triangle {t:?} stretched across the opening"
+                d < 4e-8,
+                "triangle {t:?} stretched across the opening ({d:e} m)"
             );
         }
     }
