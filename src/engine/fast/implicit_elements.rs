@@ -158,7 +158,15 @@ mod tests {
         }
         let rows = rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements);
         let (p, h32) = (&imp.p, e.params.h);
-        product(&e.graph, rows, &imp.nodes, p, &mut imp.ap, &mut imp.partials, None);
+        product(
+            &e.graph,
+            rows,
+            &imp.nodes,
+            p,
+            &mut imp.ap,
+            &mut imp.partials,
+            None,
+        );
         // The float64 force's central difference along `w`.
         let force = |s: f64| {
             let xs: Vec<[f64; 3]> = (0..n)
