@@ -1,7 +1,7 @@
 //! Finite elements on the fast float32 engine: tensor-mass as a 3x3 block per adjacency slot,
-//! corotational as a per-tet pass and a per-node gather. Explicit schemes only (the implicit
-//! solve in `implicit.rs` takes the springs' scalar stiffness as its Jacobian, so
-//! `make_engine` refuses backward Euler with a finite-element model on this engine).
+//! corotational as a per-tet pass and a per-node gather. The explicit step is here; backward
+//! Euler's rows of the system, `-(h C + h^2 K)` per adjacency entry, are formed from the same
+//! arrays in `elements_jacobian.rs` and solved in `implicit.rs`.
 //!
 //! **Tensor-mass.** Each node's row holds `K_ij` (and `C_ij` where Rayleigh's `beta` is not
 //! zero) for every neighbour `j`, in the springs' row order (the tet edges are the springs),
@@ -33,6 +33,9 @@ use crate::error::Result;
 use crate::model::{corner_set, ModelDiff, PackedModel, PackedTet};
 use crate::physics::corotational::polar_rotation;
 use crate::physics::{ElementForces, ForceModel, ForceModelKind, TetElement};
+
+#[path = "elements_jacobian.rs"]
+mod jacobian;
 
 type M3 = [f32; 9];
 
@@ -77,6 +80,9 @@ struct Tets {
     by_corners: FxHashMap<[u32; 4], usize>,
     /// Each tet's corner forces at the last element pass, N.
     forces: Vec<[[f32; 3]; 4]>,
+    /// Each tet's rotation at the last element pass that kept them (backward Euler's), row
+    /// major.
+    rotations: Vec<M3>,
 }
 
 #[derive(Debug)]
@@ -132,6 +138,7 @@ impl Tets {
             .push(std::array::from_fn(|k| to_m3(&e.stiffness[k / 4][k % 4])));
         self.beta.push(e.beta as f32);
         self.forces.push([[0.0; 3]; 4]);
+        self.rotations.push([0.0; 9]);
     }
 
     fn of(elements: &[&TetElement], rank: &[u32], nodes: usize) -> Self {
@@ -145,6 +152,7 @@ impl Tets {
             keys: Vec::with_capacity(elements.len()),
             by_corners: FxHashMap::default(),
             forces: Vec::with_capacity(elements.len()),
+            rotations: Vec::with_capacity(elements.len()),
         };
         for e in elements {
             t.push(e, rank);
@@ -179,6 +187,7 @@ impl Tets {
         self.stiffness.swap_remove(t);
         self.beta.swap_remove(t);
         self.forces.swap_remove(t);
+        self.rotations.swap_remove(t);
         self.keys.swap_remove(t);
         if let Some(&moved) = self.keys.get(t) {
             self.by_corners.insert(moved, t);
@@ -186,9 +195,9 @@ impl Tets {
     }
 
     /// Corner forces of tet `t` at displacements `x` and second states `w` (velocity times
-    /// `w_scale`).
+    /// `w_scale`), and the tet's rotation.
     #[inline(always)]
-    fn element_forces(&self, t: usize, x: &[P], w: &[P], w_scale: f32) -> [[f32; 3]; 4] {
+    fn element_forces(&self, t: usize, x: &[P], w: &[P], w_scale: f32) -> ([[f32; 3]; 4], M3) {
         let n = self.nodes[t];
         let u0 = x[n[0] as usize];
         // Current edges x_a - x_0 in float64: rest edge plus displacement difference.
@@ -236,17 +245,23 @@ impl Tets {
             let rotated = mul(&r32, sum);
             *o = rotated.map(|v| -v);
         }
-        out
+        (out, r32)
     }
 
-    /// Every tet's corner forces, in parallel over blocks of tets.
-    fn element_pass(&mut self, x: &[P], w: &[P], w_scale: f32) {
+    /// Every tet's corner forces (and, with `keep`, its rotation), in parallel over blocks of
+    /// tets.
+    fn element_pass(&mut self, x: &[P], w: &[P], w_scale: f32, keep: bool) {
         let mut forces = std::mem::take(&mut self.forces);
+        let mut rotations = std::mem::take(&mut self.rotations);
         {
             let this = &*self;
-            let run = |start: usize, chunk: &mut [[[f32; 3]; 4]]| {
+            let run = |start: usize, chunk: &mut [[[f32; 3]; 4]], r: &mut [M3]| {
                 for (k, f) in chunk.iter_mut().enumerate() {
-                    *f = this.element_forces(start + k, x, w, w_scale);
+                    let (forces, rotation) = this.element_forces(start + k, x, w, w_scale);
+                    *f = forces;
+                    if keep {
+                        r[k] = rotation;
+                    }
                 }
             };
             #[cfg(feature = "parallel")]
@@ -254,15 +269,21 @@ impl Tets {
                 use rayon::prelude::*;
                 forces
                     .par_chunks_mut(BLOCK)
+                    .zip(rotations.par_chunks_mut(BLOCK))
                     .enumerate()
-                    .for_each(|(b, chunk)| run(b * BLOCK, chunk));
+                    .for_each(|(b, (chunk, r))| run(b * BLOCK, chunk, r));
             }
             #[cfg(not(feature = "parallel"))]
-            for (b, chunk) in forces.chunks_mut(BLOCK).enumerate() {
-                run(b * BLOCK, chunk);
+            for (b, (chunk, r)) in forces
+                .chunks_mut(BLOCK)
+                .zip(rotations.chunks_mut(BLOCK))
+                .enumerate()
+            {
+                run(b * BLOCK, chunk, r);
             }
         }
         self.forces = forces;
+        self.rotations = rotations;
     }
 
     #[inline(always)]
@@ -577,7 +598,7 @@ impl FastElements {
             Layout::Tets(t) => vec![
                 (
                     "corotational tets".into(),
-                    (t.nodes.len() * (16 + 72 + 72 + std::mem::size_of::<[M3; 16]>() + 4 + 48))
+                    (t.nodes.len() * (16 + 72 + 72 + std::mem::size_of::<[M3; 16]>() + 4 + 48 + 36))
                         as u64,
                 ),
                 (
@@ -634,7 +655,7 @@ impl FastEngine {
             _ => 1.0,
         };
         if let Layout::Tets(t) = &mut fem.layout {
-            t.element_pass(x, s, w_scale);
+            t.element_pass(x, s, w_scale, false);
         }
         let fem = &*fem;
         let damped = fem.damped;

@@ -51,6 +51,8 @@ use contact::{constrain, impulses};
 
 #[path = "implicit_contact.rs"]
 mod contact;
+#[path = "implicit_elements.rs"]
+mod element_system;
 
 /// A symmetric 3x3 matrix as `[xx, yy, zz, xy, xz, yz]`.
 type Sym = [f32; 6];
@@ -61,6 +63,16 @@ type Sym = [f32; 6];
 struct Block {
     s: Sym,
     other: u32,
+}
+
+/// One adjacency entry's block of a finite-element system in full, `B_ij = -A_ij` (a tet's
+/// blocks are not symmetric one by one: `B_ji = B_ij^T`), row major, with the entry's other
+/// end (40 bytes an entry).
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C)]
+pub(in crate::engine::fast) struct FullBlock {
+    pub(in crate::engine::fast) m: [f32; 9],
+    pub(in crate::engine::fast) other: u32,
 }
 
 /// A node's diagonal block, its inverse (the preconditioner) and its right-hand side.
@@ -91,8 +103,13 @@ pub(super) struct Implicit {
     /// springs laid end to end without padding, formed again at each step (a cut may have
     /// changed any row's length).
     starts: Vec<u32>,
-    /// Row by row: each spring end's block, the row's lower part first.
+    /// Row by row: each spring end's block, the row's lower part first (springs only).
     blocks: Vec<Block>,
+    /// Row by row: each adjacency entry's block in full, the row's lower part first (finite
+    /// elements only, see `implicit_elements.rs`).
+    full: Vec<FullBlock>,
+    /// Whether the system is the finite elements' (`full`) rather than the springs'.
+    elements: bool,
     nodes: Vec<NodeSystem>,
     cg: Vec<Iterate>,
     /// The search direction, gathered by neighbours: kept apart so a gather reads 16 bytes.
@@ -122,6 +139,8 @@ impl Implicit {
             stats: SolverStats::default(),
             starts: room(nodes + 1),
             blocks: room(entries),
+            full: Vec::new(),
+            elements: false,
             nodes: room(nodes),
             cg: room(nodes),
             p: room(nodes),
@@ -134,6 +153,15 @@ impl Implicit {
         }
     }
 
+    /// Solve the finite elements' system (their 3x3 blocks in full) instead of the springs'.
+    pub(super) fn for_elements(&mut self) {
+        let entries = self.blocks.len();
+        self.blocks = Vec::new();
+        self.full = Vec::with_capacity(entries + spare(entries));
+        self.full.resize(entries, FullBlock::default());
+        self.elements = true;
+    }
+
     /// What the solver did so far.
     pub(super) fn stats(&self) -> SolverStats {
         self.stats
@@ -144,10 +172,17 @@ impl Implicit {
         let n = self.nodes.len() as u64;
         let p = std::mem::size_of::<P>() as u64;
         vec![
-            (
-                "implicit: spring blocks".to_string(),
-                self.blocks.len() as u64 * std::mem::size_of::<Block>() as u64,
-            ),
+            if self.elements {
+                (
+                    "implicit: element blocks".to_string(),
+                    self.full.len() as u64 * std::mem::size_of::<FullBlock>() as u64,
+                )
+            } else {
+                (
+                    "implicit: spring blocks".to_string(),
+                    self.blocks.len() as u64 * std::mem::size_of::<Block>() as u64,
+                )
+            },
             (
                 "implicit: row starts".to_string(),
                 self.starts.len() as u64 * 4,
@@ -170,7 +205,12 @@ impl Implicit {
         let n = self.nodes.len() as u64;
         let p = std::mem::size_of::<P>() as u64;
         let sym = std::mem::size_of::<Sym>() as u64;
-        live_entries as u64 * std::mem::size_of::<Block>() as u64
+        let entry = if self.elements {
+            std::mem::size_of::<FullBlock>()
+        } else {
+            std::mem::size_of::<Block>()
+        };
+        live_entries as u64 * entry as u64
             + n * (sym + 2 * p)
             + n * (sym + 2 * std::mem::size_of::<Iterate>() as u64 + 2 * p)
             + n * 3 * p
@@ -188,8 +228,17 @@ impl Implicit {
         }
         self.starts[n] = at;
         let entries = at as usize;
-        if self.nodes.len() != n || self.blocks.len() != entries {
-            self.blocks.resize(entries, Block::default());
+        let stored = if self.elements {
+            self.full.len()
+        } else {
+            self.blocks.len()
+        };
+        if self.nodes.len() != n || stored != entries {
+            if self.elements {
+                self.full.resize(entries, FullBlock::default());
+            } else {
+                self.blocks.resize(entries, Block::default());
+            }
             for v in [
                 &mut self.p,
                 &mut self.ap,
@@ -226,15 +275,21 @@ impl FastEngine {
         imp.fit(&self.graph);
         let (g, params) = (&self.graph, self.params);
         let settings = imp.settings;
+        let mut fem = self.elements.as_mut();
         // The first iterate is Baraff and Witkin's: linearised at the start of the step, and
         // started from the last step's velocity change (still in `dv`) with a warm start.
-        let bb = assemble(
-            imp,
-            g,
-            params,
-            settings.linearization,
-            Lin::Start(&self.x, &self.second),
-        );
+        let bb = match fem.as_deref_mut() {
+            Some(fem) => {
+                element_system::assemble(imp, g, params, fem, Lin::Start(&self.x, &self.second))
+            }
+            None => assemble(
+                imp,
+                g,
+                params,
+                settings.linearization,
+                Lin::Start(&self.x, &self.second),
+            ),
+        };
         let bb = constrain(imp, g, params, Some((&self.x, &self.second)), bb);
         let result = solve(imp, g, settings, bb, settings.warm_start);
         imp.record(result);
@@ -242,7 +297,10 @@ impl FastEngine {
         update_dv(imp, params, &self.x, &self.second, true);
         for _ in 1..settings.newton_iterations.max(1) {
             // Newton on `g(y) = M (y - v) - h F(u + h y, y)` at `y = v + dv`.
-            let bb = assemble(imp, g, params, settings.linearization, Lin::Iterate);
+            let bb = match fem.as_deref_mut() {
+                Some(fem) => element_system::assemble(imp, g, params, fem, Lin::Iterate),
+                None => assemble(imp, g, params, settings.linearization, Lin::Iterate),
+            };
             let bb = constrain(imp, g, params, None, bb);
             let result = solve(imp, g, settings, bb, false);
             imp.record(result);
@@ -297,7 +355,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
         Lin::Start(x, v) => (x, v, None),
         Lin::Iterate => (&imp.xk[..], &imp.vk[..], Some(&imp.dv[..])),
     };
-    let blocks = SharedBlocks(imp.blocks.as_mut_ptr(), imp.blocks.len());
+    let blocks = SharedRows(imp.blocks.as_mut_ptr(), imp.blocks.len());
     let starts = &imp.starts[..];
     let (h, h2) = (p.h, p.h * p.h);
     let definite = lin == Linearization::Definite;
@@ -405,9 +463,11 @@ fn solve(
     guess: bool,
 ) -> (u32, f64) {
     let sgs = settings.preconditioner != Preconditioner::BlockJacobi;
+    let elements = imp.elements;
     let Implicit {
         starts,
         blocks,
+        full,
         nodes,
         cg,
         p,
@@ -418,10 +478,7 @@ fn solve(
         ..
     } = imp;
     let (nodes, held) = (&nodes[..], &*held);
-    let blocks = Rows {
-        starts: &starts[..],
-        blocks: &blocks[..],
-    };
+    let blocks = rows_of(starts, blocks, full, elements);
     if bb == 0.0 {
         cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
@@ -536,10 +593,8 @@ fn precondition(
     let end = start + out.len();
     // Each row's lower part, then the rest (`assemble` put them so): each sweep reads only
     // its own part, and the two together read the row once.
-    let parts = |i: usize| {
-        let row = blocks.row(i);
-        row.split_at(nodes[i].lower as usize)
-    };
+    let lower = |i: usize| 0..nodes[i].lower as usize;
+    let upper = |i: usize| nodes[i].lower as usize..blocks.len(i);
     // Forward: `(D - L) w = r`, `w` kept in `z`.
     for k in 0..out.len() {
         let i = start + k;
@@ -547,14 +602,11 @@ fn precondition(
             out[k].z = [0.0; 4];
             continue;
         }
-        let mut acc = out[k].r;
-        for b in parts(i).0 {
-            let q = sym_mul(&b.s, out[b.other as usize - start].z);
-            for c in 0..3 {
-                acc[c] += q[c];
-            }
-        }
-        let z = sym_mul(&nodes[i].inverse, acc);
+        let r = out[k].r;
+        let acc = blocks.accumulate(i, lower(i), [r[0], r[1], r[2]], false, |j| {
+            Some(out[j - start].z)
+        });
+        let z = sym_mul(&nodes[i].inverse, [acc[0], acc[1], acc[2], 0.0]);
         out[k].z = [z[0], z[1], z[2], 0.0];
     }
     // Backward: `(D - U) z = D w`, i.e. `z_i = w_i + D_i^-1 sum_(j > i) S_ij z_j`.
@@ -563,17 +615,10 @@ fn precondition(
         if g.fixed[i] {
             continue;
         }
-        let mut acc = [0.0f32; 4];
-        for b in parts(i).1 {
-            let j = b.other as usize;
-            if j > i && j < end {
-                let q = sym_mul(&b.s, out[j - start].z);
-                for c in 0..3 {
-                    acc[c] += q[c];
-                }
-            }
-        }
-        let z = sym_mul(&nodes[i].inverse, acc);
+        let acc = blocks.accumulate(i, upper(i), [0.0; 3], false, |j| {
+            (j > i && j < end).then(|| out[j - start].z)
+        });
+        let z = sym_mul(&nodes[i].inverse, [acc[0], acc[1], acc[2], 0.0]);
         for (out, z) in out[k].z.iter_mut().zip(z) {
             *out += z;
         }
@@ -616,13 +661,8 @@ fn product(
             }
             // The row is read through the blocks' own `other`: 28 bytes an entry, the springs
             // are not touched.
-            let mut acc = sym_mul(&nodes[i].diag, p[i]);
-            for b in blocks.row(i) {
-                let q = sym_mul(&b.s, p[b.other as usize]);
-                for c in 0..3 {
-                    acc[c] -= q[c];
-                }
-            }
+            let diag = sym_mul(&nodes[i].diag, p[i]);
+            let acc = blocks.accumulate(i, 0..blocks.len(i), diag, true, |j| Some(p[j]));
             *o = [acc[0], acc[1], acc[2], 0.0];
             sum += dot64(p[i], *o);
         }
@@ -713,37 +753,102 @@ fn for_pairs(a: &mut [P], b: &mut [P], f: impl Fn(usize, &mut [P], &mut [P]) + S
     }
 }
 
+/// The system's off-diagonal blocks: the springs' symmetric ones or the elements' full ones.
+#[derive(Clone, Copy)]
+enum Entries<'a> {
+    Springs(&'a [Block]),
+    Elements(&'a [FullBlock]),
+}
+
 /// The blocks, read row by row.
 #[derive(Clone, Copy)]
 struct Rows<'a> {
     starts: &'a [u32],
-    blocks: &'a [Block],
+    entries: Entries<'a>,
 }
 
-impl<'a> Rows<'a> {
-    /// Node `i`'s blocks.
+impl Rows<'_> {
+    /// How many blocks node `i`'s row has.
     #[inline(always)]
-    fn row(&self, i: usize) -> &'a [Block] {
-        &self.blocks[self.starts[i] as usize..self.starts[i + 1] as usize]
+    fn len(&self, i: usize) -> usize {
+        (self.starts[i + 1] - self.starts[i]) as usize
+    }
+
+    /// `acc + sum B_ij w_j` (or `-`, with `subtract`) over the blocks `part` of node `i`'s row
+    /// (offsets within it), in row order, skipping those where `w(j)` is `None`.
+    #[inline(always)]
+    fn accumulate(
+        &self,
+        i: usize,
+        part: std::ops::Range<usize>,
+        mut acc: [f32; 3],
+        subtract: bool,
+        w: impl Fn(usize) -> Option<P>,
+    ) -> [f32; 3] {
+        let first = self.starts[i] as usize;
+        let range = first + part.start..first + part.end;
+        let mut add = |q: [f32; 3]| {
+            for c in 0..3 {
+                if subtract {
+                    acc[c] -= q[c];
+                } else {
+                    acc[c] += q[c];
+                }
+            }
+        };
+        match self.entries {
+            Entries::Springs(b) => {
+                for b in &b[range] {
+                    if let Some(wj) = w(b.other as usize) {
+                        add(sym_mul(&b.s, wj));
+                    }
+                }
+            }
+            Entries::Elements(b) => {
+                for b in &b[range] {
+                    if let Some(wj) = w(b.other as usize) {
+                        add(full_mul(&b.m, wj));
+                    }
+                }
+            }
+        }
+        acc
     }
 }
 
-/// The blocks array, written row by row from the assembly's tasks.
+/// The rows of the springs' `blocks` or, with `elements`, of the elements' `full` blocks.
+fn rows_of<'a>(
+    starts: &'a [u32],
+    blocks: &'a [Block],
+    full: &'a [FullBlock],
+    elements: bool,
+) -> Rows<'a> {
+    Rows {
+        starts,
+        entries: if elements {
+            Entries::Elements(full)
+        } else {
+            Entries::Springs(blocks)
+        },
+    }
+}
+
+/// An array of row blocks, written row by row from the assembly's tasks.
 #[derive(Clone, Copy)]
-struct SharedBlocks(*mut Block, usize);
+struct SharedRows<T>(*mut T, usize);
 
-// SAFETY: the pointer is only used to write disjoint rows (see `SharedBlocks::row`), while the
+// SAFETY: the pointer is only used to write disjoint rows (see `SharedRows::row`), while the
 // `Vec` it points into is borrowed mutably by the assembly and not otherwise touched.
-unsafe impl Send for SharedBlocks {}
-unsafe impl Sync for SharedBlocks {}
+unsafe impl<T> Send for SharedRows<T> {}
+unsafe impl<T> Sync for SharedRows<T> {}
 
-impl SharedBlocks {
+impl<T> SharedRows<T> {
     /// The blocks `first..end`.
     ///
     /// # Safety
     /// No two live calls may have overlapping ranges, and `first <= end <= len`.
     #[allow(clippy::mut_from_ref)]
-    unsafe fn row(&self, first: usize, end: usize) -> &mut [Block] {
+    unsafe fn row(&self, first: usize, end: usize) -> &mut [T] {
         assert!(first <= end && end <= self.1, "a row past the adjacency");
         std::slice::from_raw_parts_mut(self.0.add(first), end - first)
     }
@@ -758,6 +863,16 @@ fn sym_mul(s: &Sym, w: P) -> [f32; 3] {
         s[0] * w[0] + s[3] * w[1] + s[4] * w[2],
         s[3] * w[0] + s[1] * w[1] + s[5] * w[2],
         s[4] * w[0] + s[5] * w[1] + s[2] * w[2],
+    ]
+}
+
+/// `m w` for the row-major `m`.
+#[inline(always)]
+fn full_mul(m: &[f32; 9], w: P) -> [f32; 3] {
+    [
+        m[0] * w[0] + m[1] * w[1] + m[2] * w[2],
+        m[3] * w[0] + m[4] * w[1] + m[5] * w[2],
+        m[6] * w[0] + m[7] * w[1] + m[8] * w[2],
     ]
 }
 

@@ -8,7 +8,7 @@
 //! product) before the solve and the solution gains `z` after it, and one more product gives
 //! each constraint's impulse `n . (A dv - b)`.
 
-use super::{dot64, over_blocks, product, Implicit, Rows};
+use super::{dot64, over_blocks, product, rows_of, Implicit};
 use crate::engine::fast::{Graph, Params, P};
 use crate::physics::NodeConstraint;
 
@@ -130,12 +130,10 @@ pub(super) fn constrain(
             let z = hold.normal.map(|a| a * hold.z);
             imp.p[hold.rank as usize] = [z[0], z[1], z[2], 0.0];
         }
+        let rows = rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements);
         product(
             g,
-            Rows {
-                starts: &imp.starts,
-                blocks: &imp.blocks,
-            },
+            rows,
             &imp.nodes,
             &imp.p,
             &mut imp.ap,
@@ -188,10 +186,7 @@ pub(super) fn impulses(imp: &mut Implicit, g: &Graph, p: Params, first: bool) {
     });
     product(
         g,
-        Rows {
-            starts: &imp.starts,
-            blocks: &imp.blocks,
-        },
+        rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements),
         &imp.nodes,
         &imp.p,
         &mut imp.ap,

@@ -222,24 +222,20 @@ impl FastEngine {
     }
 
     /// Step with the finite-element force model `kind` of `model` (the model this engine was
-    /// built on) instead of the springs (see `elements.rs`); `Springs` changes nothing. Explicit
-    /// schemes only: with backward Euler it is refused, since the implicit solve takes the
-    /// springs' scalar stiffness as its Jacobian, not the elements' 3x3 blocks. Fails where the
-    /// model cannot have that force model (no tets, a tet without Young's modulus).
+    /// built on) instead of the springs (see `elements.rs`); `Springs` changes nothing. With
+    /// backward Euler the implicit solve takes the elements' 3x3 blocks as its Jacobian
+    /// (`implicit_elements.rs`). Fails where the model cannot have that force model (no tets, a
+    /// tet without Young's modulus).
     pub fn with_force_model(
         mut self,
         model: &PackedModel,
         kind: crate::physics::ForceModelKind,
     ) -> crate::Result<Self> {
-        if kind.is_finite_element() && self.integrator.is_implicit() {
-            return Err(crate::Error::Unsupported(format!(
-                "backward Euler with the {kind} force model on the fast engine: its implicit \
-                 solve takes the springs' scalar stiffness as its Jacobian, not the elements' \
-                 3x3 blocks; choose integrator Verlet or SymplecticEuler, or engine Reference"
-            )));
-        }
         self.elements =
             elements::FastElements::new(kind, model, &self.graph, &self.order, &self.rank)?;
+        if let (Some(_), Some(imp)) = (&self.elements, &mut self.implicit) {
+            imp.for_elements();
+        }
         Ok(self)
     }
 
@@ -557,7 +553,7 @@ impl Engine for FastEngine {
     fn step(&mut self, steps: u32) {
         self.read_ahead = None;
         for _ in 0..steps {
-            if self.elements.is_some() {
+            if self.elements.is_some() && !self.integrator.is_implicit() {
                 self.step_elements();
                 continue;
             }

@@ -1,0 +1,126 @@
+//! Backward Euler's rows of the system from the finite-element arrays of the fast engine: for
+//! each node `i` and each entry `j` of its row (the springs' row: the tet edges), the block
+//! `B_ij = -(h D_ij + h^2 K_ij)` of the force's derivatives, with `A_ij = -B_ij` the system's
+//! off-diagonal block (so that `A_ii = (1 + h alpha) m_i I + sum_j B_ij`, every element's block
+//! rows summing to zero), and the node's force and `K v` at the same state.
+//!
+//! **Tensor-mass.** `K` is constant: `B_ij = -(h^2 K_ij + h C_ij)` straight from the slots
+//! (`K_ij` the tensor of `elements.rs`, whose force is `-K_ij (u_j - u_i)`).
+//!
+//! **Corotational.** `K` is the corotated `-R K_e R^T` of each tet, its rotation `R` that of
+//! the state the system is linearised at and frozen over the solve (the derivative of `R` is
+//! neglected, as the float64 model and SOFA neglect it: symmetric and negative semi-definite,
+//! so conjugate gradients always apply). Rayleigh's damping is `beta` times the same block.
+//! The rotations come from the element pass that also forms the force; node `i` then forms the
+//! blocks `R K_ab R^T` of its own corners `a` (row `a` of each tet), so every block of a tet is
+//! formed once and rows are written by the task that owns the node.
+
+use super::{FastElements, Layout, Tets, M3};
+use crate::engine::fast::implicit::FullBlock;
+use crate::engine::fast::{Graph, P};
+
+impl FastElements {
+    /// Before forming rows at displacements `x` and velocities `v`: the corotational tets'
+    /// corner forces (with their damping at `v`) and rotations.
+    pub(in crate::engine::fast) fn linearize(&mut self, x: &[P], v: &[P]) {
+        if let Layout::Tets(t) = &mut self.layout {
+            t.element_pass(x, v, 1.0, true);
+        }
+    }
+
+    /// Node `i`'s row of the system at `(x, v)` for the step `h`, written into `row` in the
+    /// order of the springs' row of `i` (every entry's `other` set, zero where no tet joins the
+    /// two nodes); returns the node's element force (elastic and damping) and `K v`. For a
+    /// corotational model, after [`FastElements::linearize`] at the same state.
+    pub(in crate::engine::fast) fn implicit_row(
+        &self,
+        i: usize,
+        g: &Graph,
+        x: &[P],
+        v: &[P],
+        h: f32,
+        row: &mut [FullBlock],
+    ) -> ([f32; 3], [f32; 3]) {
+        for (out, (e, _)) in row.iter_mut().zip(g.springs.row(i)) {
+            *out = FullBlock {
+                m: [0.0; 9],
+                other: e.other,
+            };
+        }
+        match &self.layout {
+            Layout::Blocks(b) => {
+                let (f, kv) = (b.node_force(i, x, v, 1.0, self.damped), {
+                    // `K v` is the elastic force's formula on velocities.
+                    b.node_force(i, v, v, 0.0, false)
+                });
+                let [start, end] = b.rows[i];
+                let slots = start as usize..end as usize;
+                let mut next = slots.start;
+                for out in row.iter_mut() {
+                    // The slots follow the springs' row, those without a tensor left out.
+                    let k = if next < slots.end && b.slots[next].other == out.other {
+                        next += 1;
+                        next - 1
+                    } else {
+                        match slots.clone().find(|&k| b.slots[k].other == out.other) {
+                            Some(k) => k,
+                            None => continue,
+                        }
+                    };
+                    let c = if self.damped { b.damping[k] } else { [0.0; 9] };
+                    let kk = &b.slots[k].k;
+                    out.m = std::array::from_fn(|n| -(h * h * kk[n] + h * c[n]));
+                }
+                (f, kv)
+            }
+            Layout::Tets(t) => (t.node_force(i), t.corotated_row(i, v, h, row)),
+        }
+    }
+}
+
+impl Tets {
+    /// Node `i`'s blocks `-(h beta + h^2) R K_ab R^T` added into `row` (found by the other
+    /// corner), and `K v = -sum R K_ab R^T (v_b - v_a)` over the tets at `i` returned.
+    fn corotated_row(&self, i: usize, v: &[P], h: f32, row: &mut [FullBlock]) -> [f32; 3] {
+        let mut kv = [0.0f32; 3];
+        let vi = v[i];
+        for &corner in &self.incidence[i] {
+            let (t, a) = ((corner / 4) as usize, (corner % 4) as usize);
+            let r = &self.rotations[t];
+            let scale = -(h * self.beta[t] + h * h);
+            for b in (0..4).filter(|&b| b != a) {
+                let block = corotate(r, &self.stiffness[t][4 * a + b]);
+                let j = self.nodes[t][b];
+                let dv = [0, 1, 2].map(|c| v[j as usize][c] - vi[c]);
+                let q = super::mul(&block, dv);
+                for c in 0..3 {
+                    kv[c] -= q[c];
+                }
+                // Rows hold a dozen or two entries: a scan finds the other corner's.
+                match row.iter_mut().find(|e| e.other == j) {
+                    Some(e) => {
+                        for (m, b) in e.m.iter_mut().zip(block) {
+                            *m += scale * b;
+                        }
+                    }
+                    None => debug_assert!(false, "a tet edge with no spring"),
+                }
+            }
+        }
+        kv
+    }
+}
+
+/// `R K R^T` in float32.
+#[inline(always)]
+fn corotate(r: &M3, k: &M3) -> M3 {
+    // `RK = R K`, then `(R K) R^T`.
+    let rk: M3 = std::array::from_fn(|n| {
+        let (row, col) = (n / 3, n % 3);
+        (0..3).map(|l| r[3 * row + l] * k[3 * l + col]).sum()
+    });
+    std::array::from_fn(|n| {
+        let (row, col) = (n / 3, n % 3);
+        (0..3).map(|l| rk[3 * row + l] * r[3 * col + l]).sum()
+    })
+}
