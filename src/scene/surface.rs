@@ -158,7 +158,8 @@ impl SurfaceStage {
     }
 
     /// Follow the cuts `cut` made since the last call: rebind the vertices of the tets each
-    /// changed, then split and cap the surface at the blade's sweep.
+    /// changed, then split and cap the surface at the blade's sweep, the strokes before it
+    /// that changed no tet included ([`crate::world::cutting::CutMade::earlier`]).
     pub fn after_cuts(&mut self, cut: &mut Cutting) {
         let made = cut.take_cuts();
         if made.is_empty() {
@@ -171,17 +172,24 @@ impl SurfaceStage {
             .rebinder
             .get_or_insert_with(|| Rebinder::new(mesh, embedding));
         for m in &made {
-            let r = rebinder.rebind(
-                embedding,
-                &CutChange {
-                    mesh,
-                    faces,
-                    tets: &m.tets,
-                    sweep: &m.sweep,
-                },
-            );
-            self.rebind_s.push(r.seconds);
-            self.vertices_rebound += r.vertices.len();
+            if !m.tets.is_empty() {
+                let r = rebinder.rebind(
+                    embedding,
+                    &CutChange {
+                        mesh,
+                        faces,
+                        tets: &m.tets,
+                        sweep: &m.sweep,
+                    },
+                );
+                self.rebind_s.push(r.seconds);
+                self.vertices_rebound += r.vertices.len();
+            }
+            // The strokes that changed no tet before it cut the surface too: the mesh opens
+            // under them at this cut (separating opens a tet once the blade is through it).
+            for stroke in &m.earlier {
+                self.capper.follow(stroke);
+            }
             let capped = self.capper.cut(embedding, mesh, &m.sweep);
             self.cap_s.push(capped.seconds);
             self.cap_triangles = capped.cap_triangles;

@@ -40,7 +40,10 @@
 //! surface's own vertices ([`super::embed`]), to the nearest tet whose centroid lies on its
 //! side of the sweep (inside it when one holds it, else by the extended coordinates of that
 //! tet beyond its nearest face), so that each cap moves with its own side; a vertex of a split
-//! triangle that its rebinding left in a tet on the other side is bound the same way.
+//! triangle that its rebinding left in a tet on the other side is bound the same way, and so is
+//! any vertex of the surface over the sweep and within a tet's reach of it (separating opens
+//! the faces between tets whose centroids the sweep parts, up to a cell from it: a vertex
+//! between the sweep and those faces lies in a tet of the other piece).
 //!
 //! On a **curved sweep** (a blade turned during its stroke) the loops are still triangulated in
 //! the best-fit plane's coordinates, but with points of the sweep inside them (on a grid of half
@@ -50,7 +53,12 @@
 //! **Several cuts.** A blade's successive strokes in one plane, or each starting where the last
 //! ended (the blade's edge at the last step, turned or not), extend one cut: their sweeps are
 //! kept together, and after each cut the surface is split again from the surface as read, so
-//! that a slit grows rather than being capped at every step. A stroke in another plane starts a
+//! that a slit grows rather than being capped at every step. A stroke going on from the last
+//! along the same lines (a blade moving straight without turning) is merged with it into one
+//! quad, so that a cut's sweep stays a few triangles over any number of steps. Strokes that
+//! changed no tet are taken too ([`Capper::follow`], given by the world with the blade's next
+//! cut, or when it leaves the tissue or stops): the surface is split along every stroke, but
+//! only when the mesh changed. A stroke in another plane starts a
 //! new cut, applied after the earlier ones to their result. The vertices of the surface as read
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
@@ -139,6 +147,13 @@ impl Capper {
         out
     }
 
+    /// Take the sweep of a stroke without splitting the surface yet: a stroke that changed
+    /// no tet, split and capped with the next [`Capper::cut`] or [`Capper::recap`] (so that
+    /// the surface is split again only when the mesh changed).
+    pub fn follow(&mut self, sweep: &Sweep) {
+        self.take(sweep);
+    }
+
     /// Split and cap the surface for every cut taken so far, rebinding the appended vertices in
     /// `mesh` (the mesh as cut); `embedding`'s appended vertices are replaced.
     pub fn recap(&mut self, embedding: &mut Embedding, mesh: &TetMesh) -> Capped {
@@ -171,7 +186,7 @@ impl Capper {
             let bits = |p: &Point3<f64>| [p.x, p.y, p.z].map(f64::to_bits);
             let ends: FxHashSet<[u64; 3]> = last.last_stroke.iter().map(bits).collect();
             if tris.iter().flatten().any(|p| ends.contains(&bits(p))) {
-                last.triangles.extend_from_slice(tris);
+                extend_strip(&mut last.triangles, tris);
                 (last.normal, last.origin, _) = fit(&last.triangles);
                 last.last_stroke = tris.iter().flatten().copied().collect();
                 return;
@@ -183,7 +198,7 @@ impl Capper {
                 .map(|p| last.normal.dot(&(p - last.origin)).abs())
                 .fold(0.0, f64::max);
             if sine < COPLANAR && offset <= COPLANAR * size {
-                last.triangles.extend_from_slice(tris);
+                extend_strip(&mut last.triangles, tris);
                 last.last_stroke = tris.iter().flatten().copied().collect();
                 return;
             }
@@ -196,6 +211,51 @@ impl Capper {
         });
     }
 }
+
+/// Add a stroke's triangles `tris` to a cut's, `cut`: each pair of them sweeping one side of
+/// the blade (`[a0, b0, b1], [a0, b1, a1]`, as [`Sweep::of_blade`] makes them) that goes on
+/// from a pair of the cut in its plane and along the same lines (a blade moving straight
+/// without turning) is merged with it into one quad. A blade's sweep then stays a few
+/// triangles however many steps it took, so that splitting the surface at it, and telling
+/// sides by it, costs the same after a thousand strokes as after one.
+fn extend_strip(cut: &mut Vec<[Point3<f64>; 3]>, tris: &[[Point3<f64>; 3]]) {
+    let same =
+        |p: &Point3<f64>, q: &Point3<f64>| p.coords.map(f64::to_bits) == q.coords.map(f64::to_bits);
+    let pair =
+        |t: &[Point3<f64>; 3], u: &[Point3<f64>; 3]| same(&t[0], &u[0]) && same(&t[2], &u[1]);
+    // `b` goes on from `a` along the line from `p` (to rounding), forwards.
+    let straight = |p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>| {
+        let (u, v) = (a - p, b - a);
+        u.cross(&v).norm() <= STRAIGHT * u.norm() * v.norm() && u.dot(&v) > 0.0
+    };
+    let mut k = 0;
+    while k < tris.len() {
+        if k + 1 < tris.len() && pair(&tris[k], &tris[k + 1]) {
+            let (a0, b0, b1, a1) = (tris[k][0], tris[k][1], tris[k][2], tris[k + 1][2]);
+            let before = (0..cut.len().saturating_sub(1)).rev().find(|&i| {
+                pair(&cut[i], &cut[i + 1]) && same(&cut[i][2], &b0) && same(&cut[i + 1][2], &a0)
+            });
+            if let Some(i) = before {
+                let (p0, q0) = (cut[i][0], cut[i][1]);
+                // In one plane: the old quad's, which the new one's corners then lie in.
+                let n = (q0 - p0).cross(&(b0 - p0));
+                let flat = n.dot(&(a0 - p0)).abs() <= STRAIGHT * n.norm() * (a0 - p0).norm();
+                if flat && straight(&p0, &a0, &a1) && straight(&q0, &b0, &b1) {
+                    cut[i] = [p0, q0, b1];
+                    cut[i + 1] = [p0, b1, a1];
+                    k += 2;
+                    continue;
+                }
+            }
+        }
+        cut.push(tris[k]);
+        k += 1;
+    }
+}
+
+/// How far from a straight line or a plane (sine of the angle) a stroke's corners may be for
+/// [`extend_strip`] to merge it with the last: rounding only.
+const STRAIGHT: f64 = 1e-12;
 
 /// The unit area-weighted normal, centroid and largest extent of `tris`.
 fn fit(tris: &[[Point3<f64>; 3]]) -> (Vector3<f64>, Point3<f64>, f64) {
@@ -307,18 +367,10 @@ impl<'a> SweepIndex<'a> {
     /// [`side_of`] says), `None` when it lies on the sweep (within the tolerance); and whether
     /// it lies in that triangle's plane (on the sweep or beyond its boundary).
     fn classify(&self, p: &Point3<f64>) -> (Option<bool>, bool) {
-        let Some((t, d2)) = self
-            .plane
-            .triangles
-            .iter()
-            .map(|t| {
-                let d = closest_on_triangle(p, &t[0], &t[1], &t[2]) - p;
-                (t, d.norm_squared())
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-        else {
+        let Some((t, d)) = self.nearest(p) else {
             return (Some(true), false);
         };
+        let d2 = d * d;
         let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
         let height = normal.dot(&(p - t[0]));
         let in_plane = height.abs() <= self.tolerance * normal.norm();
@@ -326,6 +378,18 @@ impl<'a> SweepIndex<'a> {
             return (None, true);
         }
         (Some(height >= 0.0), in_plane)
+    }
+
+    /// The sweep's triangle nearest `p`, and the distance to it.
+    fn nearest(&self, p: &Point3<f64>) -> Option<(&[Point3<f64>; 3], f64)> {
+        self.plane
+            .triangles
+            .iter()
+            .map(|t| {
+                let d = closest_on_triangle(p, &t[0], &t[1], &t[2]) - p;
+                (t, d.norm())
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
     }
 
     /// Whether a box meets the sweep's bounds.
@@ -350,12 +414,55 @@ impl<'a> SweepIndex<'a> {
     }
 }
 
+/// Bind again, on their own side, the surface's vertices (below `first_new`) over the sweep
+/// and within a tet's reach of it that are bound to a tet whose centroid lies on the other
+/// side. Separating opens the faces between tets whose centroids the sweep parts, up to a cell
+/// from the blade, so that a vertex between the sweep and the faces opened lies in a tet of the
+/// other piece: bound there, it would go with that piece, stretching its triangles (which lie
+/// on its side of the sweep, where the surface is split) across the opening.
+fn rebind_band(
+    e: &mut Embedding,
+    binder: &SideBinder,
+    index: &SweepIndex,
+    sweep: &Sweep,
+    first_new: u32,
+) {
+    let reach = binder.reach;
+    let (lo, hi) = (index.lo.map(|c| c - reach), index.hi.map(|c| c + reach));
+    for v in 0..first_new as usize {
+        let p = Point3::from(e.rest[v]);
+        if e.dropped[v] || (0..3).any(|k| p[k] < lo[k] || p[k] > hi[k]) {
+            continue;
+        }
+        // Over the sweep (its nearest point inside a triangle, not on the sweep's boundary)
+        // and off it: a vertex on it has its copies.
+        let Some((t, d)) = index.nearest(&p) else {
+            continue;
+        };
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        let Some(n) = n.try_normalize(0.0) else {
+            continue;
+        };
+        let height = n.dot(&(p - t[0]));
+        if d > reach || d <= index.tolerance || d > height.abs() + index.tolerance {
+            continue;
+        }
+        let side = height >= 0.0;
+        if !binder.holds(e, v, side, sweep) {
+            binder.bind(e, v, Some(side), sweep);
+        }
+    }
+}
+
 /// Appends vertices to an embedding, each bound to a tet on its side of the sweep.
 struct SideBinder<'a> {
     mesh: &'a TetMesh,
     tets: Vec<(TetKey, [Point3<f64>; 4])>,
     grid: Grid,
     dense: crate::mesh::DenseNodes,
+    /// The largest extent of a tet, m: how far from the sweep a vertex can lie in a tet on
+    /// its other side.
+    reach: f64,
 }
 
 impl<'a> SideBinder<'a> {
@@ -363,11 +470,19 @@ impl<'a> SideBinder<'a> {
         let tets: Vec<(TetKey, [Point3<f64>; 4])> =
             mesh.tets().map(|(k, t)| (k, mesh.tet_points(t))).collect();
         let grid = Grid::new(&tets.iter().map(|(_, p)| bounds(p)).collect::<Vec<_>>());
+        let reach = tets
+            .iter()
+            .map(|(_, p)| {
+                let (lo, hi) = bounds(p);
+                (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
         SideBinder {
             mesh,
             tets,
             grid,
             dense: mesh.dense_nodes(),
+            reach,
         }
     }
 
@@ -692,6 +807,7 @@ fn split_and_cap(
             binder.bind(e, v, Some(side), &sweep);
         }
     }
+    rebind_band(e, binder, &index, &sweep, first_new);
     for side in [true, false] {
         let edges: FxHashSet<(u32, u32)> = sided
             .iter()

@@ -213,7 +213,20 @@ struct Blade {
     /// the next (true before its first step): its first cut is then read ahead like the
     /// others.
     approaching: bool,
+    /// Its strokes through the tissue since its last cut that changed no tet, kept for a
+    /// render surface ([`CutMade::earlier`]) while [`Cutting::follow_cuts`] is on.
+    unfollowed: Vec<Sweep>,
+    /// Its strokes since it last touched the tissue, up to [`GAP_STEPS`] (`None` beyond):
+    /// a carving can clear the material around the blade for a step or two, and a render
+    /// surface needs those strokes too, or its sweep would have a gap there.
+    outside: Option<Vec<Sweep>>,
 }
+
+/// How many steps out of touch with the tissue a blade's strokes are kept for a render surface
+/// in case it touches again (beyond that, it left): a blade in the void a carving left goes
+/// about twenty steps without touching in `surface_cut_box.ron`; a few hundred strokes are a
+/// few hundred kilobytes at most.
+const GAP_STEPS: usize = 256;
 
 /// The cutting part of a world: the [`Cutter`] (which holds the mesh as cut so far), the
 /// blades, and what the cuts did.
@@ -236,12 +249,22 @@ pub struct Cutting {
 }
 
 /// What one cut changed, for a render surface to follow ([`crate::surface::Rebinder`]).
+///
+/// A blade's strokes that changed no tet (separating opens a tet only once the blade is
+/// through it; a blade moving within a cell) still cut the render surface where the mesh
+/// opens later: they come with the blade's next cut as `earlier`, or, when the blade leaves
+/// the tissue or stops with no further cut, as a `CutMade` of their own with no tets and an
+/// empty `sweep`, so that the render surface is split along every stroke but only when the
+/// mesh changed (or the blade left or stopped).
 #[derive(Debug, Clone)]
 pub struct CutMade {
     /// The tets it removed, gave new corners or made.
     pub tets: Vec<crate::mesh::TetKey>,
-    /// The blade's swept surface.
+    /// The blade's swept surface over the step that cut.
     pub sweep: Sweep,
+    /// The same blade's strokes through the tissue before it, since its last cut, that changed
+    /// no tet, in order.
+    pub earlier: Vec<Sweep>,
 }
 
 impl Cutting {
@@ -302,6 +325,8 @@ impl Cutting {
             tool,
             name: name.to_string(),
             touching: false,
+            unfollowed: Vec::new(),
+            outside: None,
             // Nothing is known of the blade's motion before its first step: read ahead for it
             // then (it may start in contact).
             approaching: true,
@@ -358,6 +383,15 @@ impl Cutting {
             else {
                 continue;
             };
+            if sweep.is_empty() {
+                // A blade that stopped: what it swept without cutting is followed now, out of
+                // touch with the tissue too (in the void a carving left, or through and out).
+                let blade = &mut self.blades[slot];
+                if let Some(outside) = blade.outside.as_mut() {
+                    blade.unfollowed.append(outside);
+                }
+                self.follow_unfollowed(slot);
+            }
             // Only read the state back when the blade's bounds meet the surface, or met it at
             // the last step (a blade can be wholly inside the tissue). The same cull asks
             // whether the blade, moving on as it moved, would meet it at the next step.
@@ -370,12 +404,29 @@ impl Cutting {
             self.blades[slot].approaching = culled.iter().any(|&[_, k]| k == 1);
             let was = std::mem::replace(&mut self.blades[slot].touching, near);
             if !(near || was) {
+                // Out of the tissue: what it swept inside without cutting is followed now.
+                self.follow_unfollowed(slot);
+                let blade = &mut self.blades[slot];
+                let follows = self.made.is_some() && !sweep.is_empty();
+                if let (Some(outside), true) = (blade.outside.as_mut(), follows) {
+                    outside.push(sweep);
+                    if outside.len() > GAP_STEPS {
+                        blade.outside = None;
+                    }
+                }
                 continue;
             }
+            // Back in touch within a few steps: the strokes in between go on the same cut.
+            let blade = &mut self.blades[slot];
+            let gap = blade.outside.replace(Vec::new()).unwrap_or_default();
+            blade.unfollowed.extend(gap);
             let start = Instant::now();
             // The cutter reads back only the positions near the blade.
             let outcome = self.cutter.cut_from(&sweep, sim)?;
             if outcome.is_empty() {
+                if self.made.is_some() && !sweep.is_empty() {
+                    self.blades[slot].unfollowed.push(sweep);
+                }
                 continue;
             }
             self.blades[slot].touching = true;
@@ -386,6 +437,7 @@ impl Cutting {
                 made.push(CutMade {
                     tets: outcome.tets_changed.clone(),
                     sweep: sweep.clone(),
+                    earlier: std::mem::take(&mut self.blades[slot].unfollowed),
                 });
             }
             let seconds = start.elapsed().as_secs_f64();
@@ -451,6 +503,20 @@ impl Cutting {
             }
         }
         Ok(())
+    }
+
+    /// Hand the strokes blade `slot` swept without cutting since its last cut to the render
+    /// surface (a [`CutMade`] with no tets), if any and if one follows the cuts.
+    fn follow_unfollowed(&mut self, slot: usize) {
+        let mut earlier = std::mem::take(&mut self.blades[slot].unfollowed);
+        earlier.retain(|s| !s.is_empty());
+        if let (Some(made), false) = (self.made.as_mut(), earlier.is_empty()) {
+            made.push(CutMade {
+                tets: Vec::new(),
+                sweep: Sweep::from_triangles(Vec::new()),
+                earlier,
+            });
+        }
     }
 
     /// Give a cut's `diff` to the simulation (with the positions the cutter read), and when it

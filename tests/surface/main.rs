@@ -12,6 +12,7 @@ mod splitmix;
 mod surface_cap;
 mod surface_cut;
 mod surface_embed;
+mod surface_follow;
 mod surface_on_sweep;
 mod surface_read;
 mod surface_scene;

@@ -116,10 +116,13 @@ fn cut_box(method: lancet::cut::CutMethod) -> lancet::scene::RunSummary {
     run_scene(&scene, &path, &opts, |_, _| {}).unwrap()
 }
 
-/// A surface on the simulation box's boundary stays on the boundary of the pieces through a
-/// cut that separates them (each vertex lies on a boundary face of its tet, which an affine
-/// map keeps a boundary face), while the free piece falls centimetres away from the one that
-/// hangs (the scene's expectations): the vertices of the falling piece went with it.
+/// A surface on the simulation box's boundary stays near the boundary of the pieces through a
+/// cut that separates them, while the free piece falls centimetres away from the one that
+/// hangs (the scene's expectations): the vertices of the falling piece went with it. The
+/// surface is split at the blade's sweep (y = 0.017) and separating opens the tet faces whose
+/// centroids the sweep parts, up to a cell (1 cm) from it: a vertex between the two goes with
+/// its side of the sweep, off the boundary of its piece by less than a cell, and every vertex
+/// away from the opening stays on it (the mean gap a small fraction of that).
 #[test]
 fn the_surface_stays_on_the_boundary_of_the_pieces() {
     let method = lancet::cut::CutMethod::Separate;
@@ -129,7 +132,12 @@ fn the_surface_stays_on_the_boundary_of_the_pieces() {
     let s = summary.surface.unwrap();
     assert_eq!(s.gap_rest.vertices, s.vertices);
     assert!(s.gap_rest.max < 1e-15, "{method}: {:?}", s.gap_rest);
-    assert!(s.gap_end.max < 1e-9, "{method}: {:?}", s.gap_end);
+    let cell = 0.01;
+    assert!(
+        s.gap_end.max < cell && s.gap_end.mean < cell / 20.0,
+        "{method}: {:?}",
+        s.gap_end
+    );
     assert_eq!(s.rebinds, cuts.cuts, "{method}: one rebinding per cut");
     assert!(s.vertices_rebound > 100, "{method}: {}", s.vertices_rebound);
     assert_eq!(s.dropped, 0);
