@@ -68,8 +68,11 @@ fn the_tensor_mass_implicit_step_equals_its_twin(
 
 /// The GPU's tensor-mass backward Euler in every layout follows the float64 reference engine's
 /// (20 steps at ten times the explicit bound, damped, under gravity from a random state)
-/// within float32 rounding and the solver's tolerance; the reference's springs under the same
-/// integrator are far off, so the tensors are what is solved for.
+/// within the solver's tolerance: both solves stop at a relative residual of 1e-5 (the GPU's
+/// in float32, from zero; the reference's from the last step's change), and the displacements
+/// agree to 1e-5 of their norm (2.7e-6 on lavapipe; leaving the damping blocks out of the
+/// product gives 3.3e-5). The reference's springs under the same integrator are far off, so
+/// the tensors are what is solved for.
 #[rstest]
 fn gpu_tensor_mass_backward_euler_follows_the_float64_reference(
     #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
@@ -87,7 +90,7 @@ fn gpu_tensor_mass_backward_euler_follows_the_float64_reference(
         ForceModelKind::Springs,
     );
     eprintln!("{layout:?}: gpu {err:e}, springs {apart:e}");
-    assert!(err < 1e-3, "{layout:?}: relative L2 error {err:e}");
+    assert!(err < 1e-5, "{layout:?}: relative L2 error {err:e}");
     assert!(
         apart > 100.0 * err.max(1e-6),
         "springs {apart:e}, gpu {err:e}"
