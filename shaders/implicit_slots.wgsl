@@ -1,8 +1,8 @@
 // The node-centric layouts' walk for `implicit_solve.wgsl` (connectivity, valence): a node's
-// springs are the slots of its row, and the product gathers over them, recomputing each
-// spring's block from the geometry. Followed by the layout's `row_of`
+// springs (or tensor blocks) are the slots of its row. Followed by the force model's product
+// (implicit_slots_springs.wgsl, implicit_slots_tensor.wgsl) and the layout's `row_of`
 // (implicit_connectivity.wgsl, implicit_valence.wgsl). The twin is `twin::implicit_solve::rows`
-// and `twin::implicit_solve::product`.
+// (`twin::implicit_tensor::tensor_rows` for the blocks).
 
 // Where a node's slots start and how many its row holds (width 0: no slots).
 struct Row {
@@ -60,29 +60,3 @@ fn next_slot(c: ptr<function, Cursor>) -> Slot {
     }
     return slots[k];
 }
-
-// (A w)_i for the vector `v` of the solver vectors (zero on fixed nodes).
-fn product(i: u32, v: u32) -> vec3<f32> {
-    let m_inv = inv_mass[i];
-    if (m_inv == 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let ui = cur[i].xyz;
-    let wi = vecs[at(v, i)].xyz;
-    var sum = vec3<f32>(0.0);
-    var c = cursor(i);
-    loop {
-        let k = advance(&c);
-        if (k == EMPTY) {
-            break;
-        }
-        let s = slots[k];
-        let g = geometry(s, ui);
-        if (g.ok) {
-            sum = sum + block_product(s, g, vecs[at(v, s.other)].xyz - wi);
-        }
-    }
-    let m = (1.0 + q.h * q.alpha) / m_inv;
-    return m * wi - sum;
-}
-

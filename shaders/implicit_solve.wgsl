@@ -1,18 +1,20 @@
 // Linearised backward Euler by block-Jacobi conjugate gradients on the device: the passes of
 // one solve over a layout, each a twin of a function of `twin::implicit_solve` (the float64
 // specification is `physics::backward_euler`). Prepended with common.wgsl, which gives the slot
-// record and its markers, and followed by the layout's walk over a node's springs
-// (`cursor`, `next_slot`) and its product (`product`): implicit_slots.wgsl with the
-// connectivity table's or the valence buckets' `row_of`, or implicit_edges.wgsl. Every pass
-// reads the solve's status word first and does nothing once it is set, so that the host can
-// record many iterations per submission and read back only that word.
+// record and its markers, and followed by the force model's and the layout's parts: a node's
+// setup terms (`node_terms`) and its product (`product`), and on the edge layout the record
+// pass `spring_multiply`.
+// - springs: implicit_springs.wgsl, then implicit_slots.wgsl (the walk) with
+//   implicit_slots_springs.wgsl and the connectivity table's or the valence buckets' `row_of`,
+//   or implicit_edges.wgsl;
+// - tensor-mass: implicit_tensor.wgsl (the blocks), then implicit_slots.wgsl with
+//   implicit_slots_tensor.wgsl and `row_of`, or implicit_tensor_edges.wgsl.
+// Every pass reads the solve's status word first and does nothing once it is set, so that the
+// host can record many iterations per submission and read back only that word.
 //
 // The system is A w = (1 + h alpha) M w - h D w - h^2 K w over the free nodes (fixed nodes,
-// inverse mass 0, are projected out: every vector is zero there). Per spring seen from node i
-// towards j, with d the current spring vector, l its length, u = d / l and
-// t = 1 - rest / l (clamped at 0 under the definite linearisation):
-//   K_s w = k (t w + (1 - t) u (u . w)),  D_s w = c u (u . w),
-// and (K w)_i = sum_s K_s (w_j - w_i), likewise D.
+// inverse mass 0, are projected out: every vector is zero there), K and D the force model's
+// stiffness and damping derivatives (see its file).
 
 // The solve's constants; mirrors `engine::gpu::implicit::SolveUniform` (64 bytes).
 struct Solve {
@@ -86,36 +88,17 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return a.x * b.x + a.y * b.y + a.z * b.z;
 }
 
-// The spring geometry of a slot: direction and transverse term; `ok` false at zero length.
-struct Geometry {
-    u: vec3<f32>,
-    l: f32,
-    t: f32,
-    ok: bool,
-}
-
-fn geometry(s: Slot, ui: vec3<f32>) -> Geometry {
-    let d = s.edge + (cur[s.other].xyz - ui);
-    let l = length(d);
-    if (l <= 0.0) {
-        return Geometry(vec3<f32>(0.0), 0.0, 0.0, false);
-    }
-    var t = 1.0 - s.rest / l;
-    if (q.definite != 0u) {
-        t = max(t, 0.0);
-    }
-    return Geometry(d / l, l, t, true);
-}
-
-// h D_s w + h^2 K_s w for the relative vector w of one slot.
-fn block_product(s: Slot, g: Geometry, w: vec3<f32>) -> vec3<f32> {
-    let uw = dot3(g.u, w);
-    let kw = s.k * (g.t * w + (1.0 - g.t) * uw * g.u);
-    var out = (q.h * q.h) * kw;
-    if (q.damped != 0u) {
-        out = out + q.h * (s.c * uw * g.u);
-    }
-    return out;
+// What a node's force model gives its setup: the elastic and damping force f, the stiffness
+// times the velocities (K v), and the diagonal block of h D + h^2 K negated as an isotropic part
+// `iso` plus the symmetric entries xx, xy, xz, yy (da) and yz, zz (db). Each force model's file
+// gives `node_terms` (implicit_springs.wgsl, implicit_slots_tensor.wgsl,
+// implicit_tensor_edges.wgsl).
+struct Terms {
+    f: vec3<f32>,
+    kv: vec3<f32>,
+    iso: f32,
+    da: vec4<f32>,
+    db: vec2<f32>,
 }
 
 // Workgroup sum of `value` over the 64 invocations, in a fixed tree order; every invocation
@@ -179,50 +162,17 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocatio
         if (m_inv != 0.0) {
             let ui = cur[i].xyz;
             let vi = vel[i].xyz;
-            var f = vec3<f32>(0.0);
-            var kv = vec3<f32>(0.0);
-            // h^2 k t summed (the isotropic part of the diagonal block) and the rest's
-            // symmetric entries xx, xy, xz, yy, yz, zz.
-            var iso = 0.0;
-            var da = vec4<f32>(0.0);
-            var db = vec2<f32>(0.0);
-            var c = cursor(i);
-            loop {
-                let s = next_slot(&c);
-                if (s.other == EMPTY) {
-                    break;
-                }
-                let g = geometry(s, ui);
-                if (!g.ok) {
-                    continue;
-                }
-                let dv = vel[s.other].xyz - vi;
-                var mag = s.k * (g.l - s.rest);
-                if (q.damped != 0u) {
-                    mag = mag + s.c * dot3(dv, g.u);
-                }
-                f = f + mag * g.u;
-                let uw = dot3(g.u, dv);
-                kv = kv + s.k * (g.t * dv + (1.0 - g.t) * uw * g.u);
-                let h2k = (q.h * q.h) * s.k;
-                iso = iso + h2k * g.t;
-                var along = h2k * (1.0 - g.t);
-                if (q.damped != 0u) {
-                    along = along + q.h * s.c;
-                }
-                da = da + along * vec4<f32>(g.u.x * g.u.x, g.u.x * g.u.y, g.u.x * g.u.z, g.u.y * g.u.y);
-                db = db + along * vec2<f32>(g.u.y * g.u.z, g.u.z * g.u.z);
-            }
+            let t = node_terms(i, ui, vi);
             let mass = 1.0 / m_inv;
-            let force = f + mass * q.gravity - (q.alpha * mass) * vi;
-            b = q.h * (force + q.h * kv);
-            let diag = (1.0 + q.h * q.alpha) * mass + iso;
-            let a00 = diag + da.x;
-            let a01 = da.y;
-            let a02 = da.z;
-            let a11 = diag + da.w;
-            let a12 = db.x;
-            let a22 = diag + db.y;
+            let force = t.f + mass * q.gravity - (q.alpha * mass) * vi;
+            b = q.h * (force + q.h * t.kv);
+            let diag = (1.0 + q.h * q.alpha) * mass + t.iso;
+            let a00 = diag + t.da.x;
+            let a01 = t.da.y;
+            let a02 = t.da.z;
+            let a11 = diag + t.da.w;
+            let a12 = t.db.x;
+            let a22 = diag + t.db.y;
             let c00 = a11 * a22 - a12 * a12;
             let c01 = a02 * a12 - a01 * a22;
             let c02 = a01 * a12 - a02 * a11;

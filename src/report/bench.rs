@@ -74,6 +74,34 @@ impl BenchMesh {
     }
 }
 
+/// Why a row of `engine` (on an atomic edge variant where `atomic`) cannot run the implicit
+/// integrator with the options' force model; `None` where it runs (or the integrator is
+/// explicit).
+fn implicit_skip(opts: &BenchOptions, engine: EngineKind, atomic: bool) -> Option<String> {
+    if !opts.integrator.is_implicit() {
+        return None;
+    }
+    let fem = opts.force_model.is_finite_element();
+    match engine {
+        EngineKind::Gpu if atomic => Some(
+            "gpu atomic edge rows skipped: the GPU implicit solve gathers over the incidence \
+             table (the edge layout's gather variant)"
+                .into(),
+        ),
+        EngineKind::Gpu if opts.force_model == ForceModelKind::Corotational => Some(
+            "gpu rows skipped: the GPU engine solves backward Euler with springs and \
+             tensor-mass, not yet with the corotational force model"
+                .into(),
+        ),
+        EngineKind::Fast if fem => Some(format!(
+            "fast rows skipped: the fast engine solves backward Euler with springs only, not \
+             with the {} force model",
+            opts.force_model
+        )),
+        _ => None,
+    }
+}
+
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct BenchOptions {
@@ -95,8 +123,8 @@ pub struct BenchOptions {
     /// The model every engine runs: the tissue of [`bench_model`] (`None`) or a preset's.
     pub preset: Option<Preset>,
     /// The force model every engine steps (a finite-element one needs the tissue model, not
-    /// a preset's springs; the GPU rows are skipped with the reason, the GPU layouts do not
-    /// run it yet).
+    /// a preset's springs). Rows that cannot run it with the integrator are skipped with the
+    /// reason.
     pub force_model: crate::physics::ForceModelKind,
 }
 
@@ -373,20 +401,16 @@ pub fn run_bench(
         for v in variants(opts) {
             // Without a usable adapter the GPU rows are skipped with the reason, once, and the
             // CPU rows still run, as `lancet report accuracy` does.
-            if v.engine == EngineKind::Gpu && opts.integrator.is_implicit() {
-                let msg = format!(
-                    "gpu rows skipped: the GPU engine has no {:?} yet",
-                    opts.integrator
-                );
+            let atomic = matches!(
+                v.accumulation,
+                Some(Accumulation::AtomicFixed | Accumulation::AtomicFloat)
+            );
+            if let Some(msg) = implicit_skip(opts, v.engine, atomic) {
                 if !report.skipped.contains(&msg) {
                     report.skipped.push(msg);
                 }
                 continue;
             }
-            let atomic = matches!(
-                v.accumulation,
-                Some(Accumulation::AtomicFixed | Accumulation::AtomicFloat)
-            );
             let gpu_fem = match opts.force_model {
                 ForceModelKind::Springs => None,
                 // The tensor passes gather; the atomic variants would need two accumulations

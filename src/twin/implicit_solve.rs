@@ -161,27 +161,27 @@ impl SolveVectors {
     }
 }
 
-fn v3(a: [f32; 4]) -> [f32; 3] {
+pub(crate) fn v3(a: [f32; 4]) -> [f32; 3] {
     [a[0], a[1], a[2]]
 }
 
-fn v4(a: [f32; 3]) -> [f32; 4] {
+pub(crate) fn v4(a: [f32; 3]) -> [f32; 4] {
     [a[0], a[1], a[2], 0.0]
 }
 
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(crate) fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn add(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+pub(crate) fn add(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
-fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+pub(crate) fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn scale(s: f32, a: [f32; 3]) -> [f32; 3] {
+pub(crate) fn scale(s: f32, a: [f32; 3]) -> [f32; 3] {
     [s * a[0], s * a[1], s * a[2]]
 }
 
@@ -279,7 +279,7 @@ pub fn total(partials: &[[f32; 2]]) -> [f32; 2] {
     workgroup_sum(acc)
 }
 
-fn apply_inverse(m: &[[f32; 4]; 2], r: [f32; 3]) -> [f32; 3] {
+pub(crate) fn apply_inverse(m: &[[f32; 4]; 2], r: [f32; 3]) -> [f32; 3] {
     let (a, b) = (m[0], m[1]);
     [
         a[0] * r[0] + a[1] * r[1] + a[2] * r[2],
@@ -333,10 +333,36 @@ fn node_setup(
             db[c] += along * e[c];
         }
     }
+    let terms = Terms { f, kv, iso, da, db };
+    finish_setup(p, inv_mass, vi, &terms)
+}
+
+/// What a node's force model gives its setup, as the shader's `struct Terms`: the elastic and
+/// damping force, `K v`, and the negated diagonal block of `h D + h^2 K` as an isotropic part
+/// and the symmetric entries (xx, xy, xz, yy) and (yz, zz).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Terms {
+    pub f: [f32; 3],
+    pub kv: [f32; 3],
+    pub iso: f32,
+    pub da: [f32; 4],
+    pub db: [f32; 2],
+}
+
+/// The rest of the shader's `setup` for a free node of velocity `vi` and terms `t`: the
+/// right-hand side and the inverse diagonal block.
+pub(crate) fn finish_setup(
+    p: &SolveParams,
+    inv_mass: f32,
+    vi: [f32; 3],
+    t: &Terms,
+) -> ([f32; 3], [[f32; 4]; 2]) {
+    let identity = [[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 0.0]];
+    let (da, db) = (t.da, t.db);
     let mass = 1.0 / inv_mass;
-    let force = sub(add(f, scale(mass, p.gravity)), scale(p.alpha * mass, vi));
-    let b = scale(p.h, add(force, scale(p.h, kv)));
-    let diag = (1.0 + p.h * p.alpha) * mass + iso;
+    let force = sub(add(t.f, scale(mass, p.gravity)), scale(p.alpha * mass, vi));
+    let b = scale(p.h, add(force, scale(p.h, t.kv)));
+    let diag = (1.0 + p.h * p.alpha) * mass + t.iso;
     let (a00, a01, a02, a11, a12, a22) = (
         diag + da[0],
         da[1],
@@ -372,18 +398,29 @@ pub fn setup_cpu(
     cur: &[[f32; 4]],
     vel: &[[f32; 4]],
 ) -> SolveVectors {
-    let n = cur.len();
+    setup_with(cur.len(), |i| {
+        node_setup(p, &rows[i], inv_mass[i], cur, vel, i)
+    })
+}
+
+/// The `setup` pass over `n` nodes, each node's right-hand side and inverse diagonal block
+/// from `node`.
+pub(crate) fn setup_with(
+    n: usize,
+    mut node: impl FnMut(usize) -> ([f32; 3], [[f32; 4]; 2]),
+) -> SolveVectors {
     let mut out = SolveVectors::zeros(n);
-    let mut pairs = vec![[0.0f32; 2]; n];
-    for i in 0..n {
-        let (b, m) = node_setup(p, &rows[i], inv_mass[i], cur, vel, i);
-        let z = apply_inverse(&m, b);
-        out.minv[i] = m;
-        out.r[i] = v4(b);
-        out.z[i] = v4(z);
-        out.p[i] = v4(z);
-        pairs[i] = [dot3(b, b), dot3(b, z)];
-    }
+    let pairs: Vec<[f32; 2]> = (0..n)
+        .map(|i| {
+            let (b, m) = node(i);
+            let z = apply_inverse(&m, b);
+            out.minv[i] = m;
+            out.r[i] = v4(b);
+            out.z[i] = v4(z);
+            out.p[i] = v4(z);
+            [dot3(b, b), dot3(b, z)]
+        })
+        .collect();
     out.partials = partials(&pairs);
     out
 }

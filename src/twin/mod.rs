@@ -26,6 +26,7 @@
 //! | `corotational` (every layout) | `corotational_tets.wgsl` then `corotational_gather.wgsl` (over `common.wgsl`'s `integrate`) | [`corotational`]: `TetTable::tet_pass_cpu`, `gather_cpu`, `step_cpu` | `tests/gpu/gpu_corotational.rs` (within 1e-5 of the motion: the rotation's last iterations round differently on lavapipe) |
 //! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
 //! | `implicit` (every layout) | `implicit_solve.wgsl` (entry points `setup`, `start`, `multiply`, `step_length`, `update`, `residual`, `direction`, `finish`) with `implicit_slots.wgsl` or, on the edge layout, `implicit_edges.wgsl` (`spring_multiply`, and its gather in `multiply`) | [`implicit_solve`]: one function per entry point, [`implicit_solve::implicit_step_cpu`] and [`implicit_solve::implicit_step_edges_cpu`] the whole step | `tests/gpu/gpu_implicit.rs` |
+//! | `implicit`, tensor-mass (every layout) | `implicit_solve.wgsl` with `implicit_tensor.wgsl` and `implicit_slots.wgsl` + `implicit_slots_tensor.wgsl` or, on the edge layout, `implicit_tensor_edges.wgsl` (`node_terms`, `product`, `spring_multiply`) | [`implicit_tensor`]: `setup_cpu`, `multiply_cpu`, `record_multiply_cpu`, `gather_multiply_cpu`; [`implicit_tensor::implicit_step_cpu`] the whole step | `tests/gpu/gpu_implicit_tensor.rs` |
 //! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
 //! | `broad_self` | `self_count`, `scan_blocks`, `scan_top`, `scan_apply`, `self_scatter`, `self_pairs.wgsl` over `self_grid.wgsl` | [`broad_self`]: [`broad_self::self_pairs_cpu`] (the whole chain; the CPU engines' self-contact broad phase) | `tests/gpu/gpu_self_contact.rs` |
 //! | `nodes_near` | `nodes_near.wgsl` | [`nodes_near`]: [`nodes_near::nodes_near_cpu`] | `tests/gpu/gpu_nodes_near.rs` (`device_finds_the_nodes_its_twin_finds`) |
@@ -54,6 +55,7 @@ pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
 pub mod implicit_solve;
+pub mod implicit_tensor;
 pub mod integrate_fixed;
 pub mod integrate_float;
 pub mod move_state;

@@ -43,13 +43,16 @@ pub fn against_the_reference(
     )
 }
 
-/// Cut the box with `method` on the GPU in `layout` under the force model `kind`: after every
-/// cut the world's checks (`Engine::differences_from_rebuild`) find nothing, and the cut engine
-/// then steps as a GPU engine built afresh from the cut model does, to float32 rounding.
+/// Cut the box with `method` on the GPU in `layout` under the force model `kind` and
+/// `integrator` (an explicit one at 0.8 of the stable bound, backward Euler at 4 times it):
+/// after every cut the world's checks (`Engine::differences_from_rebuild`) find nothing, and
+/// the cut engine then steps as a GPU engine built afresh from the cut model does, to float32
+/// rounding (and the solver's tolerance).
 pub fn cut_model_equals_a_rebuilt_one(
     kind: ForceModelKind,
     layout: LayoutKind,
     method: lancet::cut::CutMethod,
+    integrator: Integrator,
 ) {
     use lancet::scene::driver::SceneDriver;
     use lancet::scene::runner::{build_mesh, model_config};
@@ -66,10 +69,11 @@ pub fn cut_model_equals_a_rebuilt_one(
         .unwrap()
         .pack(&mesh)
         .unwrap();
+    let fraction = if integrator.is_implicit() { 4.0 } else { 0.8 };
     let config = SimConfig {
-        integrator: Integrator::Verlet,
+        integrator,
         force_model: kind,
-        ..SimConfig::new(0.8 * kind.stable_time_step(&packed).unwrap().dt)
+        ..SimConfig::new(fraction * kind.stable_time_step(&packed).unwrap().dt)
     };
     let mut world = WorldBuilder::new(mesh, &mconfig, config)
         .unwrap()

@@ -332,5 +332,6 @@ fn a_cut_gpu_corotational_model_equals_a_rebuilt_one(
         ForceModelKind::Corotational,
         layout,
         method,
+        Integrator::Verlet,
     );
 }

@@ -10,6 +10,12 @@
 //! variant: a pass over the springs stores each spring's block product, a pass over the nodes
 //! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's atomic
 //! variants have no incidence table: the implicit step refuses them.
+//!
+//! With the tensor-mass force model the system's stiffness and damping are the constant 3x3
+//! blocks of [`super::tensor_mass::TensorMassPasses`] (bound as group 1), read where the
+//! springs' solve computes each spring's Jacobian block from its geometry
+//! (`shaders/implicit_tensor.wgsl`); the conjugate gradients and the block-Jacobi
+//! preconditioner are the same passes. Twin: [`crate::twin::implicit_tensor`].
 
 use bytemuck::{Pod, Zeroable};
 
@@ -25,28 +31,63 @@ use crate::twin::implicit_solve::{status, Scalars, SolveParams, SolveVectors};
 /// Conjugate-gradient iterations recorded per submission between reads of the status word.
 pub const ITERATIONS_PER_SUBMISSION: u32 = 16;
 
-/// The solve over the connectivity table (WGSL has no includes: the parts are joined).
+/// The springs' solve over the connectivity table (WGSL has no includes: the parts are
+/// joined).
 const CONNECTIVITY: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_springs.wgsl"),
     include_str!("../../../shaders/implicit_connectivity.wgsl")
 );
 
-/// The solve over the valence buckets.
+/// The springs' solve over the valence buckets.
 const VALENCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_springs.wgsl"),
     include_str!("../../../shaders/valence_buckets.wgsl"),
     include_str!("../../../shaders/implicit_valence.wgsl")
 );
 
-/// The solve over the edge layout's springs and incidence table.
+/// The springs' solve over the edge layout's springs and incidence table.
 const EDGES: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_edges.wgsl")
+);
+
+/// The tensor-mass solve over the connectivity table.
+const TENSOR_CONNECTIVITY: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_connectivity.wgsl")
+);
+
+/// The tensor-mass solve over the valence buckets.
+const TENSOR_VALENCE: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
+    include_str!("../../../shaders/valence_buckets.wgsl"),
+    include_str!("../../../shaders/implicit_valence.wgsl")
+);
+
+/// The tensor-mass solve over the edge layout's records and incidence table.
+const TENSOR_EDGES: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_tensor_edges.wgsl")
 );
 
 /// The solver vectors held in one buffer, in this order (see the shader).
@@ -155,6 +196,10 @@ pub struct ImplicitSolver {
     spring_values: wgpu::Buffer,
     /// The workgroups of a dispatch over the spring records (edge layout).
     spring_groups: (u32, u32),
+    /// The tensor-mass blocks' layout (group 1) and its bind group once bound; `None` for
+    /// springs.
+    blocks_layout: Option<wgpu::BindGroupLayout>,
+    blocks_group: Option<wgpu::BindGroup>,
     vectors: wgpu::Buffer,
     reduce: wgpu::Buffer,
     staging: wgpu::Buffer,
@@ -168,13 +213,15 @@ fn group_count(groups: (u32, u32)) -> u32 {
 }
 
 impl ImplicitSolver {
-    /// The pipelines and buffers of a solve with `settings` at step constants `p`.
+    /// The pipelines and buffers of a solve with `settings` at step constants `p`, on the
+    /// springs' Jacobian or (`tensor`) on the tensor-mass blocks.
     pub(super) fn new(
         ctx: &GpuContext,
         settings: SolverSettings,
         p: &StepParams,
         state: &StateBuffers,
         kind: LayoutKind,
+        tensor: bool,
     ) -> Result<Self> {
         if settings.newton_iterations > 1 {
             return Err(Error::Unsupported(format!(
@@ -208,43 +255,55 @@ impl ImplicitSolver {
         // slots, masses, velocities, displacements (read); next displacements, next velocities,
         // solver vectors, scalars and partials (written); the valence layout's bucket table.
         let mut bindings = vec![true, true, true, true, false, false, false, false];
-        let source = match kind {
-            LayoutKind::Connectivity => CONNECTIVITY,
-            LayoutKind::Valence => {
-                let most = ctx.limits.max_storage_buffers_per_shader_stage;
-                if most < 9 {
-                    return Err(Error::Unsupported(format!(
-                        "the implicit step over the valence layout binds 9 storage buffers, \
-                         {} allows {most}: use --layout connectivity",
-                        ctx.info.name
-                    )));
-                }
+        let source = match (kind, tensor) {
+            (LayoutKind::Connectivity, false) => CONNECTIVITY,
+            (LayoutKind::Connectivity, true) => TENSOR_CONNECTIVITY,
+            (LayoutKind::Valence, _) => {
                 bindings.push(true);
-                VALENCE
-            }
-            LayoutKind::Edges => {
-                let most = ctx.limits.max_storage_buffers_per_shader_stage;
-                if most < 11 {
-                    return Err(Error::Unsupported(format!(
-                        "the implicit step over the edge layout binds 11 storage buffers, {} \
-                         allows {most}: use --layout connectivity",
-                        ctx.info.name
-                    )));
+                if tensor {
+                    TENSOR_VALENCE
+                } else {
+                    VALENCE
                 }
+            }
+            (LayoutKind::Edges, _) => {
                 // Incidence rows and entries (read), the spring values (written).
                 bindings.extend([true, true, false]);
-                EDGES
+                if tensor {
+                    TENSOR_EDGES
+                } else {
+                    EDGES
+                }
             }
         };
+        // The tensor-mass blocks are one more, in group 1.
+        let count = bindings.len() as u32 + tensor as u32;
+        let most = ctx.limits.max_storage_buffers_per_shader_stage;
+        if count > 8 && most < count {
+            return Err(Error::Unsupported(format!(
+                "the implicit step over the {kind:?} layout binds {count} storage buffers, {} \
+                 allows {most}: use --layout connectivity",
+                ctx.info.name
+            )));
+        }
         let edges = kind == LayoutKind::Edges;
         let layout = buffers::pass_layout(ctx, "implicit solve", &bindings);
+        let blocks_layout = tensor.then(|| {
+            ctx.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("implicit tensor blocks"),
+                    entries: &[buffers::storage_entry(0, true)],
+                })
+        });
+        let groups: Vec<&wgpu::BindGroupLayout> =
+            std::iter::once(&layout).chain(&blocks_layout).collect();
         let pipelines = SolvePass::ALL
             .iter()
             .map(|pass| {
                 if *pass == SolvePass::SpringMultiply && !edges {
                     return Ok(None);
                 }
-                buffers::compute_pipeline_at(ctx, pass.entry(), source, pass.entry(), &[&layout])
+                buffers::compute_pipeline_at(ctx, pass.entry(), source, pass.entry(), &groups)
                     .map(Some)
             })
             .collect::<Result<Vec<_>>>()?;
@@ -266,6 +325,8 @@ impl ImplicitSolver {
             edges,
             spring_values,
             spring_groups: (0, 0),
+            blocks_layout,
+            blocks_group: None,
             vectors,
             reduce,
             staging,
@@ -297,9 +358,10 @@ impl ImplicitSolver {
     }
 
     /// Bind the layout's slot (or edge spring) and mass buffers, its further tables (the
-    /// valence buckets; the edge layout's incidence rows and entries) and the node state (again
-    /// after a patch, which may have replaced any of them), with the dispatch sizes and
-    /// connectivity width of now; the solver buffers grow with the state and the springs.
+    /// valence buckets; the edge layout's incidence rows and entries), the tensor-mass blocks
+    /// (where the solve runs on them) and the node state (again after a patch, which may have
+    /// replaced any of them), with the dispatch sizes and connectivity width of now; the solver
+    /// buffers grow with the state and the springs.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn rebind(
         &mut self,
@@ -307,6 +369,7 @@ impl ImplicitSolver {
         slots: &wgpu::Buffer,
         inv_mass: &wgpu::Buffer,
         tables: &[&wgpu::Buffer],
+        blocks: Option<&wgpu::Buffer>,
         state: &StateBuffers,
         n: u32,
         width: u32,
@@ -318,16 +381,32 @@ impl ImplicitSolver {
         if self.vectors.size() < VECTORS * capacity as u64 * 16 {
             (self.vectors, self.reduce) = Self::solver_buffers(ctx, capacity)?;
         }
-        // Room for every spring record the layout's buffer holds, so that most patches keep it.
-        let records = slots.size() / 32;
-        if self.edges && self.spring_values.size() < records.max(1) * 16 {
-            self.spring_values = buffers::zeroed_storage(
-                ctx,
-                "solver spring values",
-                records.max(1) * 16,
-                buffers::Sizing::Exact,
-            )?;
+        // Room for every spring record the layout's buffer holds, so that most patches keep it:
+        // one value per record, two for the tensor-mass blocks (a tensor's ends differ).
+        let per_record = if self.blocks_layout.is_some() { 32 } else { 16 };
+        let want = (slots.size() / 32).max(1) * per_record;
+        if self.edges && self.spring_values.size() < want {
+            self.spring_values =
+                buffers::zeroed_storage(ctx, "solver spring values", want, buffers::Sizing::Exact)?;
         }
+        self.blocks_group = match (&self.blocks_layout, blocks) {
+            (Some(layout), Some(b)) => {
+                Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("implicit tensor blocks"),
+                    layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: b.as_entire_binding(),
+                    }],
+                }))
+            }
+            (Some(_), None) => {
+                return Err(Error::Gpu(
+                    "the tensor-mass implicit solve was given no blocks to bind".into(),
+                ))
+            }
+            (None, _) => None,
+        };
         self.spring_groups = springs.1;
         let u = &mut self.uniform_data;
         (u.n, u.width, u.row) = (n, width, row);
@@ -413,6 +492,9 @@ impl ImplicitSolver {
         };
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind_groups[phase], &[]);
+        if let Some(blocks) = &self.blocks_group {
+            pass.set_bind_group(1, blocks, &[]);
+        }
         let g = match which {
             SolvePass::SpringMultiply => self.spring_groups,
             w if w.over_nodes() => groups,
@@ -624,6 +706,7 @@ impl GpuEngine {
             buffer(records)?,
             buffer(LayoutArray::InvMass)?,
             &tables,
+            self.tensor.as_ref().map(|t| t.buffer()),
             &self.state,
             self.layout.node_slots() as u32,
             width,

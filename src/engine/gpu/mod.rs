@@ -315,6 +315,7 @@ impl GpuEngine {
                 &params,
                 &state,
                 layout.kind(),
+                tensor.is_some(),
             )?),
             false => None,
         };
@@ -529,8 +530,8 @@ impl GpuEngine {
     }
 }
 
-/// The tensor-mass passes where `config` asks for that force model (explicit integrators
-/// only); `None` for the other force models.
+/// The tensor-mass passes where `config` asks for that force model (the implicit solve reads
+/// their blocks too); `None` for the other force models.
 fn tensor_passes(
     ctx: &GpuContext,
     model: &PackedModel,
@@ -543,15 +544,6 @@ fn tensor_passes(
     use crate::physics::ForceModelKind;
     match config.force_model {
         ForceModelKind::Springs | ForceModelKind::Corotational => Ok(None),
-        ForceModelKind::TensorMass if config.integrator.is_implicit() => {
-            Err(crate::Error::Unsupported(
-                "the tensor-mass force model runs on the GPU layouts with the explicit \
-                 integrators only (Verlet, SymplecticEuler): the GPU implicit solve takes the \
-                 springs' stiffness as its Jacobian. Choose an explicit integrator, or engine: \
-                 Fast or Reference"
-                    .into(),
-            ))
-        }
         ForceModelKind::TensorMass => Ok(Some(tensor_mass::TensorMassPasses::new(
             ctx, model, layout, passes, uniform, state,
         )?)),

@@ -100,7 +100,8 @@ fn blocks_buffer(ctx: &GpuContext, beside: u64, blocks: &TensorBlocks) -> Result
 
 impl TensorMassPasses {
     /// The tensor-mass model of `model` beside `layout` (already uploaded by `passes`), with
-    /// its pipelines. Explicit integrators and the edge layout's gather only.
+    /// its pipelines (the edge layout's gather only). Under backward Euler only the blocks are
+    /// used: the implicit solve reads them (`super::implicit`).
     pub(super) fn new(
         ctx: &GpuContext,
         model: &PackedModel,
