@@ -81,7 +81,6 @@ fn implicit_skip(opts: &BenchOptions, engine: EngineKind, atomic: bool) -> Optio
     if !opts.integrator.is_implicit() {
         return None;
     }
-    let fem = opts.force_model.is_finite_element();
     match engine {
         EngineKind::Gpu if atomic => Some(
             "gpu atomic edge rows skipped: the GPU implicit solve gathers over the incidence \
@@ -93,11 +92,6 @@ fn implicit_skip(opts: &BenchOptions, engine: EngineKind, atomic: bool) -> Optio
              tensor-mass, not yet with the corotational force model"
                 .into(),
         ),
-        EngineKind::Fast if fem => Some(format!(
-            "fast rows skipped: the fast engine solves backward Euler with springs only, not \
-             with the {} force model",
-            opts.force_model
-        )),
         _ => None,
     }
 }
