@@ -135,6 +135,8 @@ pub(super) fn constrain(
             Rows {
                 starts: &imp.starts,
                 blocks: &imp.blocks,
+                lanes: &imp.lanes,
+                wide: imp.wide,
             },
             &imp.nodes,
             &imp.p,
@@ -191,6 +193,8 @@ pub(super) fn impulses(imp: &mut Implicit, g: &Graph, p: Params, first: bool) {
         Rows {
             starts: &imp.starts,
             blocks: &imp.blocks,
+            lanes: &imp.lanes,
+            wide: imp.wide,
         },
         &imp.nodes,
         &imp.p,
