@@ -94,8 +94,8 @@ pub(super) fn product_slices(
         let b = start / LANES + s;
         let mut acc = [[0.0f32; LANES]; 3];
         let [first, end] = sl.slices[b];
-        for k in first as usize..end as usize {
-            let (grp, blk) = (&sl.groups[k], &lanes[k]);
+        let range = first as usize..end as usize;
+        for (grp, blk) in sl.groups[range.clone()].iter().zip(&lanes[range]) {
             let mut q = [[0.0f32; LANES]; 3];
             for l in 0..LANES {
                 let pj = p[grp.other[l] as usize];
