@@ -36,3 +36,36 @@ fn wide_and_baseline_kernels_agree(
     // Rounding only (measured ~1e-7); a wrong lane or missed spring gives 1e-2 and more.
     assert!(e < 1e-5, "AVX2 kernels off the baseline by {e:.2e}");
 }
+
+/// Backward Euler's product, read lane by lane, is compiled a second time for AVX2 and FMA
+/// like the explicit kernels: each lane sums its node's blocks in row order in both builds and
+/// Rust fuses no multiply-add by itself, so the two give the same bits (a lane read from the
+/// wrong component or a block left out would differ at the first step's product).
+#[test]
+fn backward_euler_wide_and_baseline_products_give_the_same_bits() {
+    let model = random_model(72, true);
+    let mut config = SimConfig::new(30.0 * stable_time_step(&model).dt);
+    config.integrator = Integrator::BackwardEuler;
+    let (x, v) = random_state(&model, 72);
+    let run = |wide: bool| {
+        let mut e = FastEngine::new(&model, config);
+        let used = e.set_wide_simd(wide);
+        e.set_state(&x, &v);
+        e.step(5);
+        (used, e.positions(), e.solver_stats().unwrap())
+    };
+    let (wide_used, wide, wide_stats) = run(true);
+    let (_, baseline, baseline_stats) = run(false);
+    if !wide_used {
+        eprintln!("skipped: this CPU has no AVX2/FMA, only the baseline kernels run");
+        return;
+    }
+    assert!(baseline_stats.iterations > 5, "{baseline_stats:?}");
+    assert_eq!(wide_stats, baseline_stats);
+    let bits =
+        |x: &[[f64; 3]]| -> Vec<[u64; 3]> { x.iter().map(|p| p.map(f64::to_bits)).collect() };
+    assert!(
+        bits(&wide) == bits(&baseline),
+        "the AVX2 product's steps differ"
+    );
+}

@@ -23,11 +23,13 @@
 //! 3x3 block `S = h c u u^T + h^2 k (u u^T + t (I - u u^T))` (the float32 twin of
 //! [`crate::physics::spring_stiffness_block`], `t = 1 - L/l` clamped at zero by
 //! [`Linearization::Definite`], plus the spring's damping), its force, `K v` and its diagonal
-//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept row by row, the rows
-//! laid end to end without the sliced layout's padding (the Gauss-Seidel sweep's lower part
-//! first in each row), each with the other end's index (28 bytes an entry): a product
-//! `A w_i = A_ii w_i - sum_j S_ij w_j` then streams them once, nothing is assembled into a
-//! global matrix, and a cut's patched rows are simply walked again at the next step. (A
+//! block `(1 + h alpha) m I + sum S` in the same walk. The blocks are kept twice: lane by lane
+//! beside the sliced springs' groups (24 bytes an entry, padding included), which the product
+//! `A w_i = A_ii w_i - sum_j S_ij w_j` streams eight nodes at a time (`implicit_sliced.rs`),
+//! and row by row, the rows laid end to end without padding (the Gauss-Seidel sweep's lower
+//! part first in each row, each block with the other end's index, 28 bytes an entry), which
+//! the sweep reads node after node. Nothing is assembled into a global matrix, and a cut's
+//! patched rows are simply walked again at the next step. (A
 //! product that recomputed each block from the geometry would read the 24-byte spring end, its
 //! damping and both ends' displacements and take a square root and a division per spring, in
 //! every one of the tens of iterations that share one geometry.) The two ends of a spring see
@@ -43,7 +45,7 @@
 //! the engine's own arrays and grows only when a cut adds past it.
 
 use super::kernels::spring_vector;
-use super::{FastEngine, Graph, Params, BLOCK, P};
+use super::{sliced, FastEngine, Graph, Params, BLOCK, P};
 use crate::model::room::spare;
 use crate::physics::{Linearization, Preconditioner, SolverSettings, SolverStats};
 pub(in crate::engine::fast) use contact::Held;
@@ -53,6 +55,9 @@ use contact::{constrain, impulses};
 mod contact;
 #[path = "implicit_elements.rs"]
 mod element_system;
+#[path = "implicit_sliced.rs"]
+mod laned;
+use laned::{Lanes, SharedLanes};
 
 /// A symmetric 3x3 matrix as `[xx, yy, zz, xy, xz, yz]`.
 type Sym = [f32; 6];
@@ -110,6 +115,9 @@ pub(super) struct Implicit {
     full: Vec<FullBlock>,
     /// Whether the system is the finite elements' (`full`) rather than the springs'.
     elements: bool,
+    /// The same blocks lane by lane beside the sliced springs' groups, for the product
+    /// (`implicit_sliced.rs`).
+    lanes: Vec<Lanes>,
     nodes: Vec<NodeSystem>,
     cg: Vec<Iterate>,
     /// The search direction, gathered by neighbours: kept apart so a gather reads 16 bytes.
@@ -124,11 +132,19 @@ pub(super) struct Implicit {
     partials: Vec<[f64; 2]>,
     /// The nodes held on tools' planes, and the constraints' forces.
     pub(super) held: Held,
+    /// Whether the CPU has AVX2 and FMA and the engine uses them (`FastEngine::wide`).
+    wide: bool,
 }
 
 impl Implicit {
-    /// Scratch for `nodes` nodes and `entries` adjacency entries, with room for cuts.
-    pub(super) fn new(settings: SolverSettings, nodes: usize, entries: usize) -> Self {
+    /// Scratch for `nodes` nodes, `entries` adjacency entries and `groups` groups of the sliced
+    /// springs, with room for cuts.
+    pub(super) fn new(
+        settings: SolverSettings,
+        nodes: usize,
+        entries: usize,
+        groups: usize,
+    ) -> Self {
         fn room<T: Default + Clone>(n: usize) -> Vec<T> {
             let mut v = Vec::with_capacity(n + spare(n));
             v.resize(n, T::default());
@@ -141,6 +157,7 @@ impl Implicit {
             blocks: room(entries),
             full: Vec::new(),
             elements: false,
+            lanes: room(groups),
             nodes: room(nodes),
             cg: room(nodes),
             p: room(nodes),
@@ -150,6 +167,7 @@ impl Implicit {
             vk: room(nodes),
             partials: room(nodes.div_ceil(BLOCK)),
             held: Held::default(),
+            wide: false,
         }
     }
 
@@ -159,6 +177,7 @@ impl Implicit {
         self.blocks = Vec::new();
         self.full = Vec::with_capacity(entries + spare(entries));
         self.full.resize(entries, FullBlock::default());
+        self.lanes = Vec::new();
         self.elements = true;
     }
 
@@ -184,6 +203,10 @@ impl Implicit {
                 )
             },
             (
+                "implicit: spring blocks, lane by lane".to_string(),
+                self.lanes.len() as u64 * std::mem::size_of::<Lanes>() as u64,
+            ),
+            (
                 "implicit: row starts".to_string(),
                 self.starts.len() as u64 * 4,
             ),
@@ -198,19 +221,21 @@ impl Implicit {
         ]
     }
 
-    /// The bytes one conjugate-gradient iteration streams at least: the blocks of the live
-    /// entries, each node's diagonal block and preconditioner, and the vectors read and written
-    /// (p and Ap in the product, y, r, z, p and Ap in the update, z and p in the direction).
-    pub(super) fn bytes_per_iteration(&self, live_entries: usize) -> u64 {
+    /// The bytes one block-Jacobi conjugate-gradient iteration streams at least: the product's
+    /// lane-by-lane blocks and neighbour indices over `slots` spring-end slots (padding
+    /// included; the finite elements' full blocks of the `live_entries` instead), each node's diagonal block and preconditioner, and the vectors read and
+    /// written (p and Ap in the product, y, r, z, p and Ap in the update, z and p in the
+    /// direction). The Gauss-Seidel sweep reads the row-wise blocks once more.
+    pub(super) fn bytes_per_iteration(&self, slots: usize, live_entries: usize) -> u64 {
         let n = self.nodes.len() as u64;
         let p = std::mem::size_of::<P>() as u64;
         let sym = std::mem::size_of::<Sym>() as u64;
-        let entry = if self.elements {
-            std::mem::size_of::<FullBlock>()
+        let entries = if self.elements {
+            live_entries as u64 * std::mem::size_of::<FullBlock>() as u64
         } else {
-            std::mem::size_of::<Block>()
+            slots as u64 * (sym + 4)
         };
-        live_entries as u64 * entry as u64
+        entries
             + n * (sym + 2 * p)
             + n * (sym + 2 * std::mem::size_of::<Iterate>() as u64 + 2 * p)
             + n * 3 * p
@@ -228,6 +253,10 @@ impl Implicit {
         }
         self.starts[n] = at;
         let entries = at as usize;
+        if !self.elements {
+            self.lanes
+                .resize(g.springs.groups.len(), [[0.0; sliced::LANES]; 6]);
+        }
         let stored = if self.elements {
             self.full.len()
         } else {
@@ -273,6 +302,7 @@ impl FastEngine {
             unreachable!("an engine built for backward Euler has its solver scratch");
         };
         imp.fit(&self.graph);
+        imp.wide = self.wide;
         let (g, params) = (&self.graph, self.params);
         let settings = imp.settings;
         let mut fem = self.elements.as_mut();
@@ -329,8 +359,16 @@ impl FastEngine {
     /// vectors it reads and writes); `None` for the explicit schemes. Set beside
     /// [`crate::engine::EngineMemory::bytes_per_step`], which counts the explicit step's.
     pub fn bytes_per_cg_iteration(&self) -> Option<u64> {
+        let sl = &self.graph.springs;
+        let slots: usize = sl
+            .slices
+            .iter()
+            .map(|[a, b]| (b - a) as usize * sliced::LANES)
+            .sum();
         let live = self.graph.springs.live;
-        self.implicit.as_ref().map(|i| i.bytes_per_iteration(live))
+        self.implicit
+            .as_ref()
+            .map(|i| i.bytes_per_iteration(slots, live))
     }
 
     /// What the implicit solver did so far (`None` for the explicit schemes).
@@ -356,6 +394,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
         Lin::Iterate => (&imp.xk[..], &imp.vk[..], Some(&imp.dv[..])),
     };
     let blocks = SharedRows(imp.blocks.as_mut_ptr(), imp.blocks.len());
+    let lanes = SharedLanes(imp.lanes.as_mut_ptr(), imp.lanes.len());
     let starts = &imp.starts[..];
     let (h, h2) = (p.h, p.h * p.h);
     let definite = lin == Linearization::Definite;
@@ -363,7 +402,11 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
         let mut bb = 0.0f64;
         for (k, node) in out.iter_mut().enumerate() {
             let i = start + k;
+            // SAFETY: node `i`'s lane is written only here, by the one task that owns it, and
+            // `fit` sized the lanes to these slices.
+            let mut lane = unsafe { lanes.node(&g.springs, i) };
             if g.fixed[i] {
+                lane.finish();
                 *node = NodeSystem {
                     diag: IDENTITY,
                     inverse: IDENTITY,
@@ -397,6 +440,7 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                 if l2 <= 0.0 {
                     // No direction: no force and no block, as in the float64 model.
                     let s = [0.0; 6];
+                    lane.push(&s);
                     place(j, Block { s, other: e.other });
                     continue;
                 }
@@ -423,8 +467,10 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
                 for (acc, s) in sum.iter_mut().zip(s) {
                     *acc += s;
                 }
+                lane.push(&s);
                 place(j, Block { s, other: e.other });
             }
+            lane.finish();
             let m = 1.0 / g.inv_mass[i];
             let mh = (1.0 + h * p.alpha) * m;
             let mut diag = sum;
@@ -475,10 +521,12 @@ fn solve(
         dv,
         partials,
         held,
+        lanes,
+        wide,
         ..
     } = imp;
     let (nodes, held) = (&nodes[..], &*held);
-    let blocks = rows_of(starts, blocks, full, elements);
+    let blocks = rows_of(starts, blocks, full, lanes, elements, *wide);
     if bb == 0.0 {
         cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
@@ -652,20 +700,37 @@ fn product(
     held: Option<&Held>,
 ) -> [f64; 2] {
     over_blocks(ap, partials, |start, out| {
-        let mut sum = 0.0f64;
-        for (k, o) in out.iter_mut().enumerate() {
-            let i = start + k;
-            if g.fixed[i] {
-                *o = [0.0; 4];
-                continue;
+        if let Entries::Elements(_) = blocks.entries {
+            let mut sum = 0.0f64;
+            for (k, o) in out.iter_mut().enumerate() {
+                let i = start + k;
+                if g.fixed[i] {
+                    *o = [0.0; 4];
+                    continue;
+                }
+                // The row is read through the blocks' own `other`: 40 bytes an entry, the
+                // springs are not touched.
+                let diag = sym_mul(&nodes[i].diag, p[i]);
+                let acc = blocks.accumulate(i, 0..blocks.len(i), diag, true, |j| Some(p[j]));
+                *o = [acc[0], acc[1], acc[2], 0.0];
+                sum += dot64(p[i], *o);
             }
-            // The row is read through the blocks' own `other`: 28 bytes an entry, the springs
-            // are not touched.
-            let diag = sym_mul(&nodes[i].diag, p[i]);
-            let acc = blocks.accumulate(i, 0..blocks.len(i), diag, true, |j| Some(p[j]));
-            *o = [acc[0], acc[1], acc[2], 0.0];
-            sum += dot64(p[i], *o);
+            if let Some(held) = held {
+                held.filter(start, out, |o| o);
+            }
+            return [sum, 0.0];
         }
+        // The blocks are read lane by lane (`implicit_sliced.rs`): 24 bytes an entry beside the
+        // springs' neighbour index, the springs themselves are not touched.
+        #[cfg(target_arch = "x86_64")]
+        let sum = if blocks.wide {
+            // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
+            unsafe { laned::product_slices_wide(g, blocks.lanes, nodes, p, start, out) }
+        } else {
+            laned::product_slices(g, blocks.lanes, nodes, p, start, out)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let sum = laned::product_slices(g, blocks.lanes, nodes, p, start, out);
         if let Some(held) = held {
             // `p` has no normal part on a constrained node, so `p . Ap` is unchanged.
             held.filter(start, out, |o| o);
@@ -721,17 +786,22 @@ fn over_blocks<T: Send>(
     let blocks = out.len().div_ceil(BLOCK);
     let partials = &mut partials[..blocks];
     #[cfg(feature = "parallel")]
-    {
+    if !serial(blocks) {
         use rayon::prelude::*;
         out.par_chunks_mut(BLOCK)
             .zip(partials.par_iter_mut())
             .enumerate()
             .for_each(|(b, (chunk, part))| *part = f(b * BLOCK, chunk));
+        return sum_partials(partials);
     }
-    #[cfg(not(feature = "parallel"))]
     for (b, (chunk, part)) in out.chunks_mut(BLOCK).zip(partials.iter_mut()).enumerate() {
         *part = f(b * BLOCK, chunk);
     }
+    sum_partials(partials)
+}
+
+/// The partial sums of [`over_blocks`] summed in block order.
+fn sum_partials(partials: &[[f64; 2]]) -> [f64; 2] {
     partials
         .iter()
         .fold([0.0; 2], |acc, p| [acc[0] + p[0], acc[1] + p[1]])
@@ -740,14 +810,14 @@ fn over_blocks<T: Send>(
 /// Like [`over_blocks`] over two arrays of the same length, with nothing summed.
 fn for_pairs(a: &mut [P], b: &mut [P], f: impl Fn(usize, &mut [P], &mut [P]) + Sync + Send) {
     #[cfg(feature = "parallel")]
-    {
+    if !serial(a.len().div_ceil(BLOCK)) {
         use rayon::prelude::*;
         a.par_chunks_mut(BLOCK)
             .zip(b.par_chunks_mut(BLOCK))
             .enumerate()
             .for_each(|(i, (ca, cb))| f(i * BLOCK, ca, cb));
+        return;
     }
-    #[cfg(not(feature = "parallel"))]
     for (i, (ca, cb)) in a.chunks_mut(BLOCK).zip(b.chunks_mut(BLOCK)).enumerate() {
         f(i * BLOCK, ca, cb);
     }
@@ -760,11 +830,24 @@ enum Entries<'a> {
     Elements(&'a [FullBlock]),
 }
 
+/// Whether a pass over `blocks` blocks of nodes runs on the calling thread: one block has
+/// nothing to share, and on one thread handing the pass to the pool only adds a switch (the
+/// solve makes three passes an iteration, so at a few thousand nodes the hand-overs are a
+/// tenth of the time). The results are the same bits either way.
+#[cfg(feature = "parallel")]
+fn serial(blocks: usize) -> bool {
+    blocks <= 1 || rayon::current_num_threads() <= 1
+}
+
 /// The blocks, read row by row.
 #[derive(Clone, Copy)]
 struct Rows<'a> {
     starts: &'a [u32],
     entries: Entries<'a>,
+    /// The springs' blocks lane by lane, for the product (empty for the elements).
+    lanes: &'a [Lanes],
+    /// Whether the product may use the AVX2 and FMA build.
+    wide: bool,
 }
 
 impl Rows<'_> {
@@ -816,12 +899,15 @@ impl Rows<'_> {
     }
 }
 
-/// The rows of the springs' `blocks` or, with `elements`, of the elements' `full` blocks.
+/// The rows of the springs' `blocks` (and their `lanes`) or, with `elements`, of the
+/// elements' `full` blocks.
 fn rows_of<'a>(
     starts: &'a [u32],
     blocks: &'a [Block],
     full: &'a [FullBlock],
+    lanes: &'a [Lanes],
     elements: bool,
+    wide: bool,
 ) -> Rows<'a> {
     Rows {
         starts,
@@ -830,6 +916,8 @@ fn rows_of<'a>(
         } else {
             Entries::Springs(blocks)
         },
+        lanes,
+        wide,
     }
 }
 

@@ -130,7 +130,14 @@ pub(super) fn constrain(
             let z = hold.normal.map(|a| a * hold.z);
             imp.p[hold.rank as usize] = [z[0], z[1], z[2], 0.0];
         }
-        let rows = rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements);
+        let rows = rows_of(
+            &imp.starts,
+            &imp.blocks,
+            &imp.full,
+            &imp.lanes,
+            imp.elements,
+            imp.wide,
+        );
         product(
             g,
             rows,
@@ -186,7 +193,14 @@ pub(super) fn impulses(imp: &mut Implicit, g: &Graph, p: Params, first: bool) {
     });
     product(
         g,
-        rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements),
+        rows_of(
+            &imp.starts,
+            &imp.blocks,
+            &imp.full,
+            &imp.lanes,
+            imp.elements,
+            imp.wide,
+        ),
         &imp.nodes,
         &imp.p,
         &mut imp.ap,

@@ -156,7 +156,14 @@ mod tests {
             let v = w[o as usize].map(|c| c as f32);
             imp.p[i] = [v[0], v[1], v[2], 0.0];
         }
-        let rows = rows_of(&imp.starts, &imp.blocks, &imp.full, imp.elements);
+        let rows = rows_of(
+            &imp.starts,
+            &imp.blocks,
+            &imp.full,
+            &imp.lanes,
+            imp.elements,
+            imp.wide,
+        );
         let (p, h32) = (&imp.p, e.params.h);
         product(
             &e.graph,

@@ -211,6 +211,7 @@ impl FastEngine {
                 config.solver,
                 n,
                 engine.graph.springs.live,
+                engine.graph.springs.groups.len(),
             ));
         }
         engine.order.reserve(spare(n));
