@@ -26,6 +26,8 @@
 //! from float64, so the rest shape keeps float32 precision of each edge).
 
 mod elements;
+#[cfg(target_arch = "x86_64")]
+mod gather;
 mod implicit;
 mod kernels;
 use kernels::*;
@@ -262,6 +264,9 @@ impl FastEngine {
     fn step_verlet(&mut self) {
         let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, d) = (&self.x, &self.second);
+        // The AVX2 kernel reads neighbours unchecked: the layout's indices are below its node
+        // count, so the state must hold that many nodes.
+        assert!(sl.nodes() == x.len() && d.len() == x.len());
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(
             &mut self.x_next,
@@ -278,8 +283,8 @@ impl FastEngine {
                     (false, true) => unsafe {
                         wide::verlet_block::<false>(g, sl, p, x, d, start, xo, dout)
                     },
-                    (true, _) => verlet_block::<true>(g, sl, p, x, d, start, xo, dout),
-                    (false, _) => verlet_block::<false>(g, sl, p, x, d, start, xo, dout),
+                    (true, _) => verlet_block::<true, false>(g, sl, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false, false>(g, sl, p, x, d, start, xo, dout),
                 }
             },
         );
@@ -291,6 +296,8 @@ impl FastEngine {
     fn step_euler(&mut self) {
         let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, v) = (&self.x, &self.second);
+        // As in `step_verlet`: the AVX2 kernel reads neighbours unchecked.
+        assert!(sl.nodes() == x.len() && v.len() == x.len());
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
             match (damped, wide) {
@@ -302,8 +309,8 @@ impl FastEngine {
                 (false, true) => unsafe {
                     wide::euler_block::<false>(g, sl, p, x, v, start, xo, vo)
                 },
-                (true, _) => euler_block::<true>(g, sl, p, x, v, start, xo, vo),
-                (false, _) => euler_block::<false>(g, sl, p, x, v, start, xo, vo),
+                (true, _) => euler_block::<true, false>(g, sl, p, x, v, start, xo, vo),
+                (false, _) => euler_block::<false, false>(g, sl, p, x, v, start, xo, vo),
             }
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
