@@ -17,8 +17,8 @@ pub(super) fn wide_simd() -> bool {
     }
 }
 
-/// The block kernels compiled for AVX2 and FMA: the same source, inlined into functions with
-/// those target features, so the lane arrays become 256-bit vectors and fused multiply-adds.
+/// The block kernels for AVX2 and FMA: written with their intrinsics (`gather.rs`), the same
+/// physics as the portable kernels below.
 #[cfg(target_arch = "x86_64")]
 pub(super) mod wide {
     use super::{Graph, Params, Sliced, P};
@@ -35,7 +35,8 @@ pub(super) mod wide {
         xo: &mut [P],
         dout: &mut [P],
     ) {
-        super::verlet_block::<DAMPED, true>(g, sl, p, x, d, start, xo, dout)
+        // SAFETY: this function's own features; the step checks the state's length.
+        unsafe { super::super::gather::block::<DAMPED, true>(g, sl, p, x, d, start, xo, dout) }
     }
 
     #[target_feature(enable = "avx2,fma")]
@@ -50,29 +51,16 @@ pub(super) mod wide {
         xo: &mut [P],
         vo: &mut [P],
     ) {
-        super::euler_block::<DAMPED, true>(g, sl, p, x, v, start, xo, vo)
+        // SAFETY: as above.
+        unsafe { super::super::gather::block::<DAMPED, false>(g, sl, p, x, v, start, xo, vo) }
     }
 }
 
 /// The spring forces on the nodes of slice `b` (eight lanes, one a node; lanes past the last
 /// node hold nothing useful), on displacements `x` with damping on the second state `w` scaled
 /// by `w_scale` (`1 / h` for Verlet's steps, 1 for velocities).
-/// `WIDE`: with the AVX2/FMA kernel of `gather.rs` (only from the [`wide`] functions, which
-/// run where the CPU has those features).
 #[inline(always)]
-fn slice_forces<const DAMPED: bool, const WIDE: bool>(
-    sl: &Sliced,
-    x: &[P],
-    w: &[P],
-    b: usize,
-    w_scale: f32,
-) -> V3 {
-    #[cfg(target_arch = "x86_64")]
-    if WIDE {
-        // SAFETY: `WIDE` is set only by the `wide` functions, called only where the CPU has
-        // AVX2 and FMA; the step checks that `x` and `w` hold every node the layout indexes.
-        return unsafe { super::gather::slice_forces::<DAMPED>(sl, x, w, b, w_scale) };
-    }
+fn slice_forces<const DAMPED: bool>(sl: &Sliced, x: &[P], w: &[P], b: usize, w_scale: f32) -> V3 {
     let base = b * SLICE;
     let mut ui = [[0.0f32; SLICE]; 3];
     let mut wi = [[0.0f32; SLICE]; 3];
@@ -99,7 +87,7 @@ fn slice_forces<const DAMPED: bool, const WIDE: bool>(
 /// [`advance`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn verlet_block<const DAMPED: bool, const WIDE: bool>(
+pub(super) fn verlet_block<const DAMPED: bool>(
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -111,7 +99,7 @@ pub(super) fn verlet_block<const DAMPED: bool, const WIDE: bool>(
 ) {
     for (s, (xo, dout)) in xo.chunks_mut(SLICE).zip(dout.chunks_mut(SLICE)).enumerate() {
         let b = start / SLICE + s;
-        let f = slice_forces::<DAMPED, WIDE>(sl, x, d, b, p.inv_h);
+        let f = slice_forces::<DAMPED>(sl, x, d, b, p.inv_h);
         for (l, (xo, dout)) in xo.iter_mut().zip(dout.iter_mut()).enumerate() {
             let i = b * SLICE + l;
             let (xi, di) = (x[i], d[i]);
@@ -136,7 +124,7 @@ pub(super) fn verlet_block<const DAMPED: bool, const WIDE: bool>(
 /// `v+ = v + h a(u, v)`, `u+ = u + h v+` (compensated, [`advance`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn euler_block<const DAMPED: bool, const WIDE: bool>(
+pub(super) fn euler_block<const DAMPED: bool>(
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -148,7 +136,7 @@ pub(super) fn euler_block<const DAMPED: bool, const WIDE: bool>(
 ) {
     for (s, (xo, vo)) in xo.chunks_mut(SLICE).zip(vo.chunks_mut(SLICE)).enumerate() {
         let b = start / SLICE + s;
-        let f = slice_forces::<DAMPED, WIDE>(sl, x, v, b, 1.0);
+        let f = slice_forces::<DAMPED>(sl, x, v, b, 1.0);
         for (l, (xo, vo)) in xo.iter_mut().zip(vo.iter_mut()).enumerate() {
             let i = b * SLICE + l;
             let (xi, vi) = (x[i], v[i]);

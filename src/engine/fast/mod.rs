@@ -283,8 +283,8 @@ impl FastEngine {
                     (false, true) => unsafe {
                         wide::verlet_block::<false>(g, sl, p, x, d, start, xo, dout)
                     },
-                    (true, _) => verlet_block::<true, false>(g, sl, p, x, d, start, xo, dout),
-                    (false, _) => verlet_block::<false, false>(g, sl, p, x, d, start, xo, dout),
+                    (true, _) => verlet_block::<true>(g, sl, p, x, d, start, xo, dout),
+                    (false, _) => verlet_block::<false>(g, sl, p, x, d, start, xo, dout),
                 }
             },
         );
@@ -309,8 +309,8 @@ impl FastEngine {
                 (false, true) => unsafe {
                     wide::euler_block::<false>(g, sl, p, x, v, start, xo, vo)
                 },
-                (true, _) => euler_block::<true, false>(g, sl, p, x, v, start, xo, vo),
-                (false, _) => euler_block::<false, false>(g, sl, p, x, v, start, xo, vo),
+                (true, _) => euler_block::<true>(g, sl, p, x, v, start, xo, vo),
+                (false, _) => euler_block::<false>(g, sl, p, x, v, start, xo, vo),
             }
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
