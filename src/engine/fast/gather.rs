@@ -64,7 +64,7 @@ fn store_rows(v: [__m256; 4], out: &mut [P]) {
     let t1 = _mm256_unpackhi_ps(v[0], v[1]); // x2 y2 x3 y3 | x6 y6 x7 y7
     let t2 = _mm256_unpacklo_ps(v[2], v[3]); // z0 w0 z1 w1 | z4 w4 z5 w5
     let t3 = _mm256_unpackhi_ps(v[2], v[3]); // z2 w2 z3 w3 | z6 w6 z7 w7
-    // [r_l | r_{l+4}] for l = 0..4.
+                                             // [r_l | r_{l+4}] for l = 0..4.
     let pairs = [
         _mm256_shuffle_ps::<0x44>(t0, t2),
         _mm256_shuffle_ps::<0xEE>(t0, t2),
@@ -279,7 +279,10 @@ fn encode(u: &[__m256; 4], lost: [__m256; 3]) -> (__m256, __m256) {
         let r = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(
             _mm256_mul_ps(e, inv),
         );
-        _mm256_min_ps(_mm256_max_ps(r, _mm256_set1_ps(-2047.0)), _mm256_set1_ps(2047.0))
+        _mm256_min_ps(
+            _mm256_max_ps(r, _mm256_set1_ps(-2047.0)),
+            _mm256_set1_ps(2047.0),
+        )
     });
     let xw = _mm256_add_ps(q[0], _mm256_mul_ps(q[1], _mm256_set1_ps(4096.0)));
     (_mm256_and_ps(xw, ok), _mm256_and_ps(q[2], ok))

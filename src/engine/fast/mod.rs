@@ -28,6 +28,7 @@
 mod elements;
 #[cfg(target_arch = "x86_64")]
 mod gather;
+mod health;
 mod implicit;
 mod kernels;
 use kernels::*;
@@ -623,6 +624,10 @@ impl Engine for FastEngine {
 
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         self.near_ahead = Some((lo, hi));
+    }
+
+    fn health(&self) -> Option<crate::Result<super::Health>> {
+        Some(Ok(self.probe()))
     }
 
     fn near_reads(&self) -> super::NearReads {
