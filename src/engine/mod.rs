@@ -201,7 +201,7 @@ pub trait Engine: Send {
     /// the GPU engine's reduced on the device, the fast CPU engine's one read of its own
     /// arrays. `None` where the engine has none; the simulation then checks the whole state
     /// exactly at every check.
-    fn health(&self) -> Option<Result<Health>> {
+    fn divergence_probe(&self) -> Option<Result<Health>> {
         self.device().map(|d| d.health())
     }
     /// [`Engine::device`], mutably.

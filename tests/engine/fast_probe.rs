@@ -1,5 +1,5 @@
-//! The fast engine's divergence probe (`Engine::health`), which the simulation's checks read
-//! instead of copying the whole state: its kinetic and gravitational energies are those of the
+//! The fast engine's divergence probe (`Engine::divergence_probe`), which the simulation's
+//! checks read instead of copying the whole state: its kinetic and gravitational energies are those of the
 //! state the engine reports, computed in float64 from the model's masses; it names the node
 //! (model index) that is not finite; and it does not depend on the number of threads.
 
@@ -21,7 +21,10 @@ fn the_probe_gives_the_state_s_energies_and_its_first_bad_node() {
                 let mut e = FastEngine::new(&model, config);
                 e.set_state(&x, &v);
                 e.step(20);
-                let h: Health = e.health().expect("the fast engine has a probe").unwrap();
+                let h: Health = e
+                    .divergence_probe()
+                    .expect("the fast engine has a probe")
+                    .unwrap();
                 (h, e.positions(), e.velocities())
             })
             .unwrap()
@@ -52,7 +55,7 @@ fn the_probe_gives_the_state_s_energies_and_its_first_bad_node() {
             broken[b][1] = f64::NAN;
         }
         e.set_state(&broken, &v);
-        let found = e.health().unwrap().unwrap().non_finite;
+        let found = e.divergence_probe().unwrap().unwrap().non_finite;
         // The probe scans in the engine's internal order: either may come first there.
         assert!(
             found.is_some_and(|n| bad.contains(&n)),

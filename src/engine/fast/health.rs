@@ -1,5 +1,5 @@
-//! The fast engine's divergence probe ([`crate::engine::Engine::health`]): one read of its own
-//! state arrays, in blocks on the step's threads, for the first node that is not finite, the
+//! The fast engine's divergence probe ([`crate::engine::Engine::divergence_probe`]): one read
+//! of its own state arrays, in blocks on the step's threads, for the first node that is not finite, the
 //! kinetic energy and the change of gravitational energy. The simulation's checks (every 10
 //! steps by default) read this instead of copying the whole state to float64 in model order
 //! and summing every spring's energy, which cost 10-25% of the steps it checked; the exact

@@ -626,7 +626,7 @@ impl Engine for FastEngine {
         self.near_ahead = Some((lo, hi));
     }
 
-    fn health(&self) -> Option<crate::Result<super::Health>> {
+    fn divergence_probe(&self) -> Option<crate::Result<super::Health>> {
         Some(Ok(self.probe()))
     }
 
