@@ -1,4 +1,5 @@
-//! Steps per second of the fast float32 engine on a box of about 20,000 nodes.
+//! Steps per second of the fast float32 engine on a box of about 20,000 nodes, and what the
+//! simulation's divergence checks (every 10 steps) add to them.
 //!
 //! `cargo run --release --example fast_engine_speed [cells_per_side] [steps]`
 
@@ -8,7 +9,7 @@ use lancet::engine::fast::FastEngine;
 use lancet::engine::Engine;
 use lancet::mesh::generate::BoxGrid;
 use lancet::model::{FixedSelector, Material, SpringDamping};
-use lancet::{Integrator, ModelConfig, SimConfig, SpringModel};
+use lancet::{EngineKind, Integrator, ModelConfig, SimConfig, Simulation, SpringModel};
 
 fn main() -> lancet::Result<()> {
     let mut args = std::env::args().skip(1);
@@ -46,6 +47,34 @@ fn main() -> lancet::Result<()> {
                 engine.bandwidth(),
                 steps as f64 / secs,
                 steps as f64 / cpu
+            );
+            // The same steps through `Simulation::run`, checked every `check_every` steps,
+            // against unchecked steps, alternated so that the machine's drift shows in both.
+            let mut checked = Simulation::new(packed.clone(), EngineKind::Fast, sim)?;
+            checked.run(50)?;
+            let (mut with, mut without) = (0.0, 0.0);
+            for _ in 0..3 {
+                let t = cpu_seconds();
+                checked.run(steps as u64 / 3)?;
+                with += cpu_seconds() - t;
+                let t = cpu_seconds();
+                checked.step_unchecked(steps / 3);
+                without += cpu_seconds() - t;
+            }
+            // What an exact check costs (the state copied to float64 in model order and its
+            // total energy, springs included): what every check cost before the probe.
+            let t = cpu_seconds();
+            for _ in 0..20 {
+                std::hint::black_box(checked.energy());
+            }
+            let exact = (cpu_seconds() - t) / 20.0;
+            let per_step = without / (3 * (steps / 3)) as f64;
+            println!(
+                "  checked every {} steps: {:.1}% more CPU time than unchecked; an exact check \
+                 at that cadence would add {:.1}%",
+                sim.check_every,
+                100.0 * (with / without - 1.0),
+                100.0 * exact / (per_step * sim.check_every as f64)
             );
         }
     }

@@ -197,6 +197,13 @@ pub trait Engine: Send {
     fn device(&self) -> Option<&dyn DeviceEngine> {
         None
     }
+    /// A cheap divergence probe over the state where it lives (no copy of it, no spring pass):
+    /// the GPU engine's reduced on the device, the fast CPU engine's one read of its own
+    /// arrays. `None` where the engine has none; the simulation then checks the whole state
+    /// exactly at every check.
+    fn divergence_probe(&self) -> Option<Result<Health>> {
+        self.device().map(|d| d.health())
+    }
     /// [`Engine::device`], mutably.
     fn device_mut(&mut self) -> Option<&mut dyn DeviceEngine> {
         None

@@ -17,6 +17,7 @@ mod engine_correction;
 mod engine_patch;
 mod fast_fem;
 mod fast_implicit;
+mod fast_probe;
 mod fast_read_ahead;
 mod fast_simd;
 mod fast_sliced;

@@ -17,8 +17,8 @@ pub(super) fn wide_simd() -> bool {
     }
 }
 
-/// The block kernels compiled for AVX2 and FMA: the same source, inlined into functions with
-/// those target features, so the lane arrays become 256-bit vectors and fused multiply-adds.
+/// The block kernels for AVX2 and FMA: written with their intrinsics (`gather.rs`), the same
+/// physics as the portable kernels below.
 #[cfg(target_arch = "x86_64")]
 pub(super) mod wide {
     use super::{Graph, Params, Sliced, P};
@@ -35,7 +35,8 @@ pub(super) mod wide {
         xo: &mut [P],
         dout: &mut [P],
     ) {
-        super::verlet_block::<DAMPED>(g, sl, p, x, d, start, xo, dout)
+        // SAFETY: this function's own features; the step checks the state's length.
+        unsafe { super::super::gather::block::<DAMPED, true>(g, sl, p, x, d, start, xo, dout) }
     }
 
     #[target_feature(enable = "avx2,fma")]
@@ -50,7 +51,8 @@ pub(super) mod wide {
         xo: &mut [P],
         vo: &mut [P],
     ) {
-        super::euler_block::<DAMPED>(g, sl, p, x, v, start, xo, vo)
+        // SAFETY: as above.
+        unsafe { super::super::gather::block::<DAMPED, false>(g, sl, p, x, v, start, xo, vo) }
     }
 }
 

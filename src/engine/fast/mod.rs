@@ -26,6 +26,9 @@
 //! from float64, so the rest shape keeps float32 precision of each edge).
 
 mod elements;
+#[cfg(target_arch = "x86_64")]
+mod gather;
+mod health;
 mod implicit;
 mod kernels;
 use kernels::*;
@@ -259,6 +262,9 @@ impl FastEngine {
     fn step_verlet(&mut self) {
         let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, d) = (&self.x, &self.second);
+        // The AVX2 kernel reads neighbours unchecked: the layout's indices are below its node
+        // count, so the state must hold that many nodes.
+        assert!(sl.nodes() == x.len() && d.len() == x.len());
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(
             &mut self.x_next,
@@ -288,6 +294,8 @@ impl FastEngine {
     fn step_euler(&mut self) {
         let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
         let (x, v) = (&self.x, &self.second);
+        // As in `step_verlet`: the AVX2 kernel reads neighbours unchecked.
+        assert!(sl.nodes() == x.len() && v.len() == x.len());
         let (damped, wide) = (self.damped, self.wide);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
             match (damped, wide) {
@@ -613,6 +621,10 @@ impl Engine for FastEngine {
 
     fn prefetch_near(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         self.near_ahead = Some((lo, hi));
+    }
+
+    fn divergence_probe(&self) -> Option<crate::Result<super::Health>> {
+        Some(Ok(self.probe()))
     }
 
     fn near_reads(&self) -> super::NearReads {

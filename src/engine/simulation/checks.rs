@@ -7,8 +7,9 @@ use super::*;
 use crate::error::BadStep;
 
 impl Simulation {
-    /// Check the current state for divergence. Engines with a device-side probe
-    /// ([`crate::engine::DeviceEngine::health`]) read back a few bytes: kinetic plus gravitational energy is a lower
+    /// Check the current state for divergence. Engines with a cheap probe
+    /// ([`crate::engine::Engine::divergence_probe`]: the GPU engine's reads back a few bytes,
+    /// the fast CPU engine's reads its state once): kinetic plus gravitational energy is a lower
     /// bound of the total (elastic energy is never negative), so when it is within the limit
     /// nothing more is read; otherwise, or when a node is not finite, the whole state is read
     /// and checked exactly, which names the node.
@@ -24,14 +25,14 @@ impl Simulation {
         self.check_exact().map(Some)
     }
 
-    /// Whether the engine's device-side probe shows the state healthy: every node finite and
+    /// Whether the engine's cheap probe shows the state healthy: every node finite and
     /// the kinetic plus gravitational energy (a lower bound of the total) within the limit.
-    /// `false` where it does not, or where the engine has no device probe.
+    /// `false` where it does not, or where the engine has no probe.
     fn probe_passes(&self) -> Result<bool> {
-        let Some(device) = self.engine.device() else {
+        let Some(h) = self.engine.divergence_probe() else {
             return Ok(false);
         };
-        let h = device.health()?;
+        let h = h?;
         let lower = h.kinetic + h.gravity;
         Ok(h.non_finite.is_none()
             && lower.is_finite()
@@ -154,10 +155,10 @@ impl Simulation {
 
     /// Corrections raise the reference by their work, an upper bound of the energy (damping
     /// only takes energy out); where a check has measured the total exactly (every check on
-    /// the CPU engines; on the GPU a failed lower bound, or every [`EXACT_CHECK_EVERY`] steps
-    /// while the reference is up) and found it lower, the reference comes
-    /// down to it, never below where it was last taken from the state. The scale keeps the
-    /// growth of the reference above that level.
+    /// the reference engine; on the engines with a probe a failed lower bound, or every
+    /// [`EXACT_CHECK_EVERY`] steps while the reference is up) and found it lower, the reference
+    /// comes down to it, never below where it was last taken from the state. The scale keeps
+    /// the growth of the reference above that level.
     pub(super) fn tighten_reference(&mut self, total: f64) {
         if total < self.start_energy {
             self.start_energy = total.max(self.base_energy.min(self.start_energy));

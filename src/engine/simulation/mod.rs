@@ -439,9 +439,11 @@ impl Simulation {
     /// and the watched tets ([`Simulation::watch_mesh`]) for inversion at the first check at
     /// least [`INVERSION_CHECK_EVERY`] steps after the last. A check that measures the total
     /// energy exactly also lowers the reference that position corrections raised (see
-    /// [`Simulation::correct_positions`]): every check on the CPU engines; on the GPU, whose
-    /// checks read a cheap probe, one every [`EXACT_CHECK_EVERY`] steps while corrections hold
-    /// the reference up, and one every [`INVERSION_CHECK_EVERY`] steps in any case.
+    /// [`Simulation::correct_positions`]): every check on the reference engine; on the GPU and
+    /// fast CPU engines, whose checks read a cheap probe
+    /// ([`crate::engine::Engine::divergence_probe`]), one every [`EXACT_CHECK_EVERY`] steps
+    /// while corrections hold the reference up, and one every [`INVERSION_CHECK_EVERY`] steps
+    /// in any case.
     ///
     /// A failed check replays the steps since the last state a check kept (exact checks keep
     /// theirs), one at a time, and reports the first bad step; the simulation is left there.

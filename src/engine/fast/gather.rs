@@ -1,0 +1,289 @@
+//! The fast engine's step of a block of nodes written with AVX2/FMA intrinsics, eight nodes
+//! (a slice of `sliced.rs`) at a time, one a lane.
+//!
+//! The spring forces: the eight neighbours of a group are read as eight 16-byte rows
+//! (position or velocity, padded to four floats) and transposed in registers into one vector
+//! per axis, instead of 24 scalar loads inserted lane by lane. The arithmetic is the portable
+//! kernel's ([`super::sliced::group_force`]) with fused multiply-adds, so it differs from it
+//! only by their rounding.
+//!
+//! The update: the portable kernels' (`kernels.rs`: `verlet_block`, `euler_block`, `advance`
+//! and `physics::Compensation`) operation for operation, unfused, on the eight lanes at once,
+//! the new rows transposed back and stored whole; given the same forces it gives the same
+//! bits.
+
+use super::sliced::{Sliced, LANES};
+use super::{Graph, Params, P};
+use std::arch::x86_64::*;
+
+/// The rows `idx[l]` of `rows`, transposed: their x, y and z as three vectors of eight lanes.
+///
+/// # Safety
+/// The CPU has AVX2 and FMA, and every `idx[l]` is below `rows.len()`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows_of(rows: &[P], idx: &[u32; LANES]) -> [__m256; 3] {
+    let [x, y, z, _] = unsafe { rows4(rows, idx) };
+    [x, y, z]
+}
+
+/// [`rows_of`] with the fourth lane of each row (`w`, the compensation) as a fourth vector.
+///
+/// # Safety
+/// As [`rows_of`].
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows4(rows: &[P], idx: &[u32; LANES]) -> [__m256; 4] {
+    let base = rows.as_ptr();
+    // SAFETY: the caller guarantees each index is within `rows`; a row is four floats.
+    let row = |l: usize| unsafe { _mm_loadu_ps(base.add(idx[l] as usize) as *const f32) };
+    // Rows l and l + 4 share a 256-bit register: [r_l | r_{l+4}].
+    let a0 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(0)), row(4));
+    let a1 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(1)), row(5));
+    let a2 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(2)), row(6));
+    let a3 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(3)), row(7));
+    // A 4x4 transpose in each 128-bit half.
+    let t0 = _mm256_unpacklo_ps(a0, a1); // x0 x1 y0 y1 | x4 x5 y4 y5
+    let t1 = _mm256_unpackhi_ps(a0, a1); // z0 z1 w0 w1 | z4 z5 w4 w5
+    let t2 = _mm256_unpacklo_ps(a2, a3); // x2 x3 y2 y3 | x6 x7 y6 y7
+    let t3 = _mm256_unpackhi_ps(a2, a3); // z2 z3 w2 w3 | z6 z7 w6 w7
+    [
+        _mm256_shuffle_ps::<0x44>(t0, t2),
+        _mm256_shuffle_ps::<0xEE>(t0, t2),
+        _mm256_shuffle_ps::<0x44>(t1, t3),
+        _mm256_shuffle_ps::<0xEE>(t1, t3),
+    ]
+}
+
+/// Store the eight lanes of `v` (x, y, z, w) as the rows `out[0..out.len()]` (eight at most:
+/// a last, partial slice stores its nodes only): the transpose of [`rows4`].
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn store_rows(v: [__m256; 4], out: &mut [P]) {
+    let t0 = _mm256_unpacklo_ps(v[0], v[1]); // x0 y0 x1 y1 | x4 y4 x5 y5
+    let t1 = _mm256_unpackhi_ps(v[0], v[1]); // x2 y2 x3 y3 | x6 y6 x7 y7
+    let t2 = _mm256_unpacklo_ps(v[2], v[3]); // z0 w0 z1 w1 | z4 w4 z5 w5
+    let t3 = _mm256_unpackhi_ps(v[2], v[3]); // z2 w2 z3 w3 | z6 w6 z7 w7
+                                             // [r_l | r_{l+4}] for l = 0..4.
+    let pairs = [
+        _mm256_shuffle_ps::<0x44>(t0, t2),
+        _mm256_shuffle_ps::<0xEE>(t0, t2),
+        _mm256_shuffle_ps::<0x44>(t1, t3),
+        _mm256_shuffle_ps::<0xEE>(t1, t3),
+    ];
+    let mut rows = [[0.0f32; 4]; LANES];
+    for (l, p) in pairs.into_iter().enumerate() {
+        // SAFETY: each row is four f32.
+        unsafe {
+            _mm_storeu_ps(rows[l].as_mut_ptr(), _mm256_castps256_ps128(p));
+            _mm_storeu_ps(rows[l + 4].as_mut_ptr(), _mm256_extractf128_ps::<1>(p));
+        }
+    }
+    let n = out.len();
+    out.copy_from_slice(&rows[..n]);
+}
+
+/// The spring forces on the nodes of slice `b`, whose own displacements and second states
+/// are `ui` and `wi` (lanes past the last node hold nothing useful).
+///
+/// # Safety
+/// The CPU has AVX2 and FMA; `x` and `w` hold the `sl.nodes()` nodes the layout indexes
+/// (every neighbour index in a group is below it, as [`Sliced`] keeps them), and slice `b`
+/// exists.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn slice_forces<const DAMPED: bool>(
+    sl: &Sliced,
+    x: &[P],
+    w: &[P],
+    b: usize,
+    w_scale: f32,
+    ui: &[__m256; 4],
+    wi: &[__m256; 4],
+) -> [__m256; 3] {
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let ws = _mm256_set1_ps(w_scale);
+    let mut acc = [zero; 3];
+    let [start, end] = sl.slices[b];
+    let (start, end) = (start as usize, end as usize);
+    // SAFETY (the loads): `Group` and the damping rows are arrays of eight f32 (`loadu`).
+    let load = |a: &[f32; LANES]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
+    for (k, g) in sl.groups[start..end].iter().enumerate() {
+        // SAFETY: the groups' neighbours are below `sl.nodes()`, the length of `x` and `w`.
+        let uj = unsafe { rows_of(x, &g.other) };
+        let d: [__m256; 3] =
+            std::array::from_fn(|a| _mm256_add_ps(load(&g.edge[a]), _mm256_sub_ps(uj[a], ui[a])));
+        let l2 = _mm256_fmadd_ps(
+            d[2],
+            d[2],
+            _mm256_fmadd_ps(d[1], d[1], _mm256_mul_ps(d[0], d[0])),
+        );
+        // A zero-length spring (padding, coincident nodes) has no direction: nothing.
+        let inv = _mm256_and_ps(
+            _mm256_div_ps(one, _mm256_sqrt_ps(l2)),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(l2, zero),
+        );
+        let mut s = _mm256_mul_ps(load(&g.k), _mm256_fnmadd_ps(load(&g.rest), inv, one));
+        if DAMPED {
+            let wj = unsafe { rows_of(w, &g.other) };
+            let dw: [__m256; 3] = std::array::from_fn(|a| _mm256_sub_ps(wj[a], wi[a]));
+            let along = _mm256_fmadd_ps(
+                dw[2],
+                d[2],
+                _mm256_fmadd_ps(dw[1], d[1], _mm256_mul_ps(dw[0], d[0])),
+            );
+            let c = load(&sl.damping[start + k]);
+            s = _mm256_fmadd_ps(
+                _mm256_mul_ps(c, along),
+                _mm256_mul_ps(ws, _mm256_mul_ps(inv, inv)),
+                s,
+            );
+        }
+        for a in 0..3 {
+            acc[a] = _mm256_fmadd_ps(s, d[a], acc[a]);
+        }
+    }
+    acc
+}
+
+/// The step of nodes `start..` (`start` a multiple of [`LANES`]) from displacements `x` and
+/// second states `s` into `xo` and `so`: Verlet's (`VERLET`, `s` the last steps) or symplectic
+/// Euler's (`s` the velocities), as `kernels::verlet_block` and `kernels::euler_block` make it.
+///
+/// # Safety
+/// The CPU has AVX2 and FMA; `x` and `s` hold the `sl.nodes()` nodes the layout indexes.
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn block<const DAMPED: bool, const VERLET: bool>(
+    g: &Graph,
+    sl: &Sliced,
+    p: Params,
+    x: &[P],
+    s: &[P],
+    start: usize,
+    xo: &mut [P],
+    so: &mut [P],
+) {
+    let last = x.len() - 1;
+    let splat = _mm256_set1_ps;
+    let (mul, add, sub) = (_mm256_mul_ps, _mm256_add_ps, _mm256_sub_ps);
+    for (k, (xo, so)) in xo.chunks_mut(LANES).zip(so.chunks_mut(LANES)).enumerate() {
+        let b = start / LANES + k;
+        let base = b * LANES;
+        // Lanes past the last node read the last node: their results are never stored.
+        let own: [u32; LANES] = std::array::from_fn(|l| (base + l).min(last) as u32);
+        // SAFETY: `own` is clamped into `x` and `s` (the caller guarantees their lengths).
+        let (xi, si) = unsafe { (rows4(x, &own), rows4(s, &own)) };
+        let w_scale = if VERLET { p.inv_h } else { 1.0 };
+        // SAFETY: as above; slice `b` exists since its nodes are being stepped.
+        let f = unsafe { slice_forces::<DAMPED>(sl, x, s, b, w_scale, &xi, &si) };
+        let mut inv_mass = [0.0f32; LANES];
+        let mut fixed = [0i32; LANES];
+        for l in 0..xo.len() {
+            inv_mass[l] = g.inv_mass[base + l];
+            fixed[l] = -(g.fixed[base + l] as i32);
+        }
+        // SAFETY: eight f32 and eight i32.
+        let (m, fixed) = unsafe {
+            (
+                _mm256_loadu_ps(inv_mass.as_ptr()),
+                _mm256_castsi256_ps(_mm256_loadu_si256(fixed.as_ptr() as *const __m256i)),
+            )
+        };
+        // The new second state and the step, axis by axis, in the portable kernels' order.
+        let mut s_new = [_mm256_setzero_ps(); 4];
+        let mut step = [_mm256_setzero_ps(); 3];
+        for c in 0..3 {
+            let pull = add(mul(f[c], m), splat(p.gravity[c]));
+            if VERLET {
+                let a = sub(pull, mul(mul(splat(p.alpha), si[c]), splat(p.inv_h)));
+                s_new[c] = add(si[c], mul(splat(p.h2), a));
+                step[c] = s_new[c];
+            } else {
+                let a = sub(pull, mul(splat(p.alpha), si[c]));
+                s_new[c] = add(si[c], mul(splat(p.h), a));
+                step[c] = mul(splat(p.h), s_new[c]);
+            }
+        }
+        // `kernels::advance`: the step plus what rounding lost last time, and what it loses now.
+        let carried = decode(&xi, si[3]);
+        let mut x_new = [_mm256_setzero_ps(); 4];
+        let mut lost = [_mm256_setzero_ps(); 3];
+        for c in 0..3 {
+            let t = add(step[c], carried[c]);
+            let sum = add(xi[c], t);
+            let bb = sub(sum, xi[c]);
+            x_new[c] = sum;
+            lost[c] = add(sub(xi[c], sub(sum, bb)), sub(t, bb));
+        }
+        (x_new[3], s_new[3]) = encode(&x_new, lost);
+        // Fixed nodes keep their row and lose their second state.
+        for c in 0..4 {
+            x_new[c] = _mm256_blendv_ps(x_new[c], xi[c], fixed);
+            s_new[c] = _mm256_andnot_ps(fixed, s_new[c]);
+        }
+        store_rows(x_new, xo);
+        store_rows(s_new, so);
+    }
+}
+
+/// `ulp(m) / 2^12` of each lane's displacement `u` (`m` its largest component), and the lanes
+/// where that is a normal float32 (`physics::Compensation::unit`, lane by lane).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn unit(u: &[__m256; 4]) -> (__m256i, __m256) {
+    let abs = |v: __m256| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
+    let m = _mm256_max_ps(_mm256_max_ps(abs(u[0]), abs(u[1])), abs(u[2]));
+    let e = _mm256_srli_epi32::<23>(_mm256_castps_si256(m));
+    // 23 + 12 = 35 < e < 255.
+    let ok = _mm256_and_si256(
+        _mm256_cmpgt_epi32(e, _mm256_set1_epi32(35)),
+        _mm256_cmpgt_epi32(_mm256_set1_epi32(255), e),
+    );
+    let unit = _mm256_slli_epi32::<23>(_mm256_sub_epi32(e, _mm256_set1_epi32(35)));
+    (unit, _mm256_castsi256_ps(ok))
+}
+
+/// `physics::Compensation::decode` lane by lane: the residuals stored in the `w` lanes of the
+/// displacement `u` and of the second state (`second_w`).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn decode(u: &[__m256; 4], second_w: __m256) -> [__m256; 3] {
+    let (unit, ok) = unit(u);
+    let unit = _mm256_castsi256_ps(unit);
+    let clamp = |v: __m256, lo: f32, hi: f32| {
+        _mm256_min_ps(_mm256_max_ps(v, _mm256_set1_ps(lo)), _mm256_set1_ps(hi))
+    };
+    let packed = _mm256_cvttps_epi32(clamp(u[3], -8_388_608.0, 8_388_607.0));
+    let qx = _mm256_sub_epi32(
+        _mm256_and_si256(
+            _mm256_add_epi32(packed, _mm256_set1_epi32(2048)),
+            _mm256_set1_epi32(4095),
+        ),
+        _mm256_set1_epi32(2048),
+    );
+    let qy = _mm256_srai_epi32::<12>(_mm256_sub_epi32(packed, qx));
+    let qz = _mm256_cvttps_epi32(clamp(second_w, -2047.0, 2047.0));
+    [qx, qy, qz].map(|q| _mm256_and_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(q), unit), ok))
+}
+
+/// `physics::Compensation::encode` lane by lane: the `w` lanes (displacement, second state)
+/// that keep `lost` with displacement `u`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn encode(u: &[__m256; 4], lost: [__m256; 3]) -> (__m256, __m256) {
+    let (unit, ok) = unit(u);
+    let inv = _mm256_castsi256_ps(_mm256_sub_epi32(_mm256_set1_epi32(254 << 23), unit));
+    let q = lost.map(|e| {
+        let r = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(
+            _mm256_mul_ps(e, inv),
+        );
+        _mm256_min_ps(
+            _mm256_max_ps(r, _mm256_set1_ps(-2047.0)),
+            _mm256_set1_ps(2047.0),
+        )
+    });
+    let xw = _mm256_add_ps(q[0], _mm256_mul_ps(q[1], _mm256_set1_ps(4096.0)));
+    (_mm256_and_ps(xw, ok), _mm256_and_ps(q[2], ok))
+}
