@@ -44,21 +44,7 @@ impl TetTable {
             .iter()
             .map(|e| e.nodes.map(|n| rank[n as usize]))
             .collect();
-        let shape = elements
-            .iter()
-            .map(|e| {
-                let (lambda, mu) = e.lame;
-                let g = |a: usize, w: f64| -> ShapeRow {
-                    let b = e.gradients[a];
-                    [b[0] as f32, b[1] as f32, b[2] as f32, w as f32]
-                };
-                [
-                    g(1, e.volume * lambda),
-                    g(2, 2.0 * e.volume * mu),
-                    g(3, e.beta),
-                ]
-            })
-            .collect();
+        let shape = elements.iter().map(shape_of).collect();
         let mut count = vec![0u32; node_slots];
         for c in &corners {
             for &i in c {
@@ -104,6 +90,183 @@ impl TetTable {
             + self.shape.len() * 48
             + self.rows.len() * 8
             + self.incidence.len() * 4) as u64
+    }
+}
+
+/// Element `e`'s three shape rows (see the module documentation).
+fn shape_of(e: &TetElement) -> [ShapeRow; 3] {
+    let (lambda, mu) = e.lame;
+    let g = |a: usize, w: f64| -> ShapeRow {
+        let b = e.gradients[a];
+        [b[0] as f32, b[1] as f32, b[2] as f32, w as f32]
+    };
+    [
+        g(1, e.volume * lambda),
+        g(2, 2.0 * e.volume * mu),
+        g(3, e.beta),
+    ]
+}
+
+/// What [`TetTable::patch`] changed, for the device copy to follow: nothing else differs.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TablePatch {
+    /// Rotations to carry over: `(from, to)`, the tet at `from` before the patch now at `to`
+    /// (the last tets moved into removed ones' places, as the model moves its tets).
+    pub moved: Vec<(u32, u32)>,
+    /// Tets whose records (corners and shape) were written, ascending.
+    pub tets: Vec<u32>,
+    /// Tets at and past this index are new: their rotations start from the identity.
+    pub first_new: u32,
+    /// Layout nodes whose row (`rows`) was written, ascending.
+    pub nodes: Vec<u32>,
+    /// Ranges of `incidence` written, ascending.
+    pub incidence: Vec<std::ops::Range<u32>>,
+}
+
+impl TetTable {
+    /// Follow a patch of the model's tets: `removed` (corner sets, model indices) go as the
+    /// model removes them (the last tet into each one's place; `at` finds a tet by its corner
+    /// set and `keys` lists them in table order, both kept up to date), then the elements of
+    /// `elements` past the tets that stay are appended (the model's added tets), their corners
+    /// numbered by `rank`, over `node_slots` layout nodes. Only the touched nodes' record
+    /// lists are rewritten (in place where they do not grow, else at the end of `incidence`),
+    /// each in ascending order as a rebuild lists it. The layout must have kept every old node
+    /// at its index. `None` if a removed tet is not in the table.
+    pub fn patch(
+        &mut self,
+        removed: &[[u32; 4]],
+        elements: &[TetElement],
+        keys: &mut Vec<[u32; 4]>,
+        at: &mut rustc_hash::FxHashMap<[u32; 4], usize>,
+        rank: &[u32],
+        node_slots: usize,
+    ) -> Option<TablePatch> {
+        use std::collections::BTreeMap;
+        let mut lists: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+        // Node `n`'s records as the patch has left them so far.
+        fn list<'a>(
+            lists: &'a mut BTreeMap<u32, Vec<u32>>,
+            rows: &[[u32; 2]],
+            incidence: &[u32],
+            n: u32,
+        ) -> &'a mut Vec<u32> {
+            lists
+                .entry(n)
+                .or_insert_with(|| match rows.get(n as usize) {
+                    Some(&[s, e]) => incidence[s as usize..e as usize].to_vec(),
+                    None => Vec::new(),
+                })
+        }
+        // Where each tet now in a place came from (its index before the patch).
+        let mut origin: rustc_hash::FxHashMap<u32, u32> = Default::default();
+        let mut written = Vec::new();
+        for &t in removed {
+            let i = at.remove(&corner_set(t))?;
+            let last = self.corners.len() - 1;
+            for (a, &n) in self.corners[i].iter().enumerate() {
+                let record = (4 * i + a) as u32;
+                list(&mut lists, &self.rows, &self.incidence, n).retain(|&r| r != record);
+            }
+            if i != last {
+                for (a, &n) in self.corners[last].iter().enumerate() {
+                    let (from, to) = ((4 * last + a) as u32, (4 * i + a) as u32);
+                    for r in list(&mut lists, &self.rows, &self.incidence, n).iter_mut() {
+                        if *r == from {
+                            *r = to;
+                        }
+                    }
+                }
+                let source = origin.remove(&(last as u32)).unwrap_or(last as u32);
+                origin.insert(i as u32, source);
+                written.push(i as u32);
+            } else {
+                origin.remove(&(last as u32));
+            }
+            self.corners.swap_remove(i);
+            self.shape.swap_remove(i);
+            keys.swap_remove(i);
+            if let Some(&moved) = keys.get(i) {
+                at.insert(moved, i);
+            }
+        }
+        let first_new = self.corners.len();
+        for (t, e) in elements.iter().enumerate().skip(first_new) {
+            let corners = e.nodes.map(|n| rank[n as usize]);
+            for (a, &n) in corners.iter().enumerate() {
+                list(&mut lists, &self.rows, &self.incidence, n).push((4 * t + a) as u32);
+            }
+            self.corners.push(corners);
+            self.shape.push(shape_of(e));
+            keys.push(corner_set(e.nodes));
+            at.insert(corner_set(e.nodes), t);
+            written.push(t as u32);
+        }
+        self.damped = elements.iter().any(|e| e.beta != 0.0);
+        if self.rows.len() < node_slots {
+            let end = self.incidence.len() as u32;
+            self.rows.resize(node_slots, [end, end]);
+        }
+        let mut patch = TablePatch {
+            first_new: first_new as u32,
+            ..TablePatch::default()
+        };
+        for (n, mut l) in lists {
+            l.sort_unstable();
+            let [start, end] = self.rows[n as usize];
+            let at = if l.len() <= (end - start) as usize {
+                start
+            } else {
+                self.incidence.len() as u32
+            };
+            let stop = at + l.len() as u32;
+            if stop as usize > self.incidence.len() {
+                self.incidence.resize(stop as usize, 0);
+            }
+            self.incidence[at as usize..stop as usize].copy_from_slice(&l);
+            self.rows[n as usize] = [at, stop];
+            patch.nodes.push(n);
+            if stop > at {
+                patch.incidence.push(at..stop);
+            }
+        }
+        patch.incidence.sort_unstable_by_key(|r| r.start);
+        // A place written and then removed again (the last place) holds no tet any more.
+        written.retain(|&t| (t as usize) < self.corners.len());
+        written.sort_unstable();
+        written.dedup();
+        patch.tets = written;
+        let mut moved: Vec<(u32, u32)> = origin
+            .into_iter()
+            .filter(|&(to, from)| to != from && to < first_new as u32)
+            .map(|(to, from)| (from, to))
+            .collect();
+        moved.sort_unstable();
+        patch.moved = moved;
+        Some(patch)
+    }
+
+    /// Records `incidence` holds that no row points to (left by rows that grew and moved).
+    pub fn holes(&self) -> usize {
+        self.incidence.len()
+            - self
+                .rows
+                .iter()
+                .map(|r| (r[1] - r[0]) as usize)
+                .sum::<usize>()
+    }
+
+    /// How this table differs from `other` in what the passes read: the tets' corners and
+    /// shapes, and each node's records in order (not where in `incidence` they lie).
+    pub fn differs_from(&self, other: &TetTable) -> bool {
+        fn list(t: &TetTable, n: usize) -> &[u32] {
+            let [s, e] = t.rows[n];
+            &t.incidence[s as usize..e as usize]
+        }
+        self.corners != other.corners
+            || self.shape != other.shape
+            || self.damped != other.damped
+            || self.rows.len() != other.rows.len()
+            || (0..self.rows.len()).any(|n| list(self, n) != list(other, n))
     }
 }
 

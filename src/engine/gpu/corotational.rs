@@ -16,16 +16,20 @@
 //! inverse, no determinant sign to get wrong), and warm-started it converges in one or two
 //! iterations per step; a cold start (a new tet after a cut, a state set from outside) takes
 //! more iterations within the same step, up to `ROTATION_ITERATIONS`. The twins are in
-//! `twin::corotational`. A cut patches the float64 model by per-tet shares and rewrites the tet
-//! table (corners renumbered by the layout's node order, which a patch may change); the
-//! rotations of the tets that stay follow them (removals move the last tet into the gap, as
-//! the model does), new tets start from the identity.
+//! `twin::corotational`. A cut patches the float64 model by per-tet shares and patches the tet
+//! table where it changed ([`TetTable::patch`]): the records of the tets it moved (the last
+//! tet into each removed one's place, as the model moves them) and added, and the record lists
+//! of their corners, are written; the rotations of the tets that moved are copied on the
+//! device and new tets start from the identity, so nothing is read back and the bytes a cut
+//! uploads follow the cut, not the mesh. Where the layout renumbered nodes that were there
+//! before (a valence regroup, a repack) or a buffer must grow, the table is rebuilt whole and
+//! the rotations are read back to follow it.
 
 use super::buffers::{self, Sizing};
 use super::{dispatch_size, GpuContext, Passes, StateBuffers, WORKGROUP};
 use crate::error::{Error, Result};
 use crate::layout::patch::LayoutArray;
-use crate::layout::tet_table::{corner_sets, TetTable, IDENTITY};
+use crate::layout::tet_table::{corner_sets, TablePatch, TetTable, IDENTITY};
 use crate::layout::PackedLayout;
 use crate::model::{corner_set, ModelDiff, PackedModel};
 use crate::physics::{ElementForces, ForceModelKind, TetElement};
@@ -64,6 +68,13 @@ pub struct CorotationalPasses {
     /// The float64 model, patched by every cut: the source of the table.
     model: ElementForces,
     table: TetTable,
+    /// Each tet's corners (model indices) as a set, in table order, and where each is.
+    keys: Vec<[u32; 4]>,
+    at: rustc_hash::FxHashMap<[u32; 4], usize>,
+    /// The layout's rank (model index to layout index) the table's corners are numbered by.
+    rank: Vec<u32>,
+    /// Bytes the last patch uploaded, and whether it rebuilt the table whole.
+    last_patch: (u64, bool),
     buffers: TableBuffers,
     /// Workgroups of the tet pass (x, y).
     groups: (u32, u32),
@@ -95,7 +106,8 @@ impl CorotationalPasses {
             .expect("a corotational kind builds a model");
         let table = TetTable::new(elements(&forces), &layout.order().rank, layout.node_slots());
         let rotations = vec![IDENTITY; table.len()];
-        let (buffers, groups) = upload(ctx, &table, &rotations)?;
+        let (buffers, groups) = upload(ctx, &table, &rotations, Sizing::Headroom)?;
+        let keys = corner_sets(elements(&forces));
         let tets = {
             let mut e = vec![buffers::uniform_entry(0), buffers::uniform_entry(1)];
             for (b, read_only) in [(2, true), (3, true), (4, false), (5, true), (6, true)] {
@@ -116,6 +128,10 @@ impl CorotationalPasses {
         let mut c = CorotationalPasses {
             model: forces,
             table,
+            at: keys.iter().enumerate().map(|(i, &k)| (k, i)).collect(),
+            keys,
+            rank: layout.order().rank.clone(),
+            last_patch: (0, false),
             buffers,
             groups,
             pipelines: [p1, p2],
@@ -222,10 +238,10 @@ impl CorotationalPasses {
     }
 
     /// Follow `diff` (applied to `model`; `layout` already patched): the float64 model's
-    /// elements removed and added, the rotations of the tets that stay moved as the model moves
-    /// its tets (the last into each removed one's place), new tets from the identity, and the
-    /// table rewritten in the layout's node order now. The bind groups must be rebuilt after
-    /// (`rebind`). Returns the bytes written.
+    /// elements removed and added, and the table patched where they changed (see the module
+    /// documentation), or rebuilt whole where the layout renumbered old nodes or a buffer is
+    /// too small. The bind groups must be rebuilt after (`rebind`). Returns the bytes
+    /// uploaded.
     pub fn patch(
         &mut self,
         ctx: &GpuContext,
@@ -233,11 +249,170 @@ impl CorotationalPasses {
         diff: &ModelDiff,
         layout: &PackedLayout,
     ) -> Result<u64> {
-        let mut rotations = self.rotations(ctx)?;
-        let mut keys = corner_sets(elements(&self.model));
+        let rank = &layout.order().rank;
+        let kept_order = self.rank.len() <= rank.len()
+            && self.rank[..] == rank[..self.rank.len()]
+            && layout.node_slots() >= self.table.rows.len();
+        if !kept_order {
+            let bytes = self.rebuild(ctx, model, diff, layout)?;
+            self.last_patch = (bytes, true);
+            return Ok(bytes);
+        }
+        let before = self.table.clone();
+        let (keys, at) = (self.keys.clone(), self.at.clone());
         self.model.patch(&model.rest, diff)?;
-        let mut at: rustc_hash::FxHashMap<[u32; 4], usize> =
-            keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
+        let Some(patch) = self.table.patch(
+            &diff.removed_tets,
+            elements(&self.model),
+            &mut self.keys,
+            &mut self.at,
+            rank,
+            layout.node_slots(),
+        ) else {
+            unreachable!("the model's patch checked every removed tet");
+        };
+        self.rank.clone_from(rank);
+        let fits = |b: &wgpu::Buffer, bytes: usize| b.size() >= bytes as u64;
+        let t = &self.table;
+        let b = &self.buffers;
+        if !(fits(&b.corners, 16 * t.len())
+            && fits(&b.shape, 48 * t.len())
+            && fits(&b.rotations, 16 * t.len())
+            && fits(&b.forces, 64 * t.len())
+            && fits(&b.rows, 8 * t.rows.len())
+            && fits(&b.incidence, 4 * t.incidence.len()))
+            || t.holes() > t.incidence.len() / 2
+        {
+            // Rebuilt from where it was before this patch, so that the rotations follow.
+            (self.table, self.keys, self.at) = (before, keys, at);
+            let bytes = self.regrow(ctx, diff, layout)?;
+            self.last_patch = (bytes, true);
+            return Ok(bytes);
+        }
+        let bytes = self.write_patch(ctx, &patch);
+        self.last_patch = (bytes, false);
+        Ok(bytes)
+    }
+
+    /// The bytes the last patch uploaded, and whether it rebuilt the table whole (see
+    /// [`CorotationalPasses::patch`]).
+    pub fn last_patch(&self) -> (u64, bool) {
+        self.last_patch
+    }
+
+    /// Write what `patch` changed in the table to the device: the moved tets' rotations copied
+    /// (through a scratch buffer: a copy may not read and write one buffer), then the written
+    /// records, rows and incidence ranges, the new tets' identity rotations and the tet count.
+    /// The bytes uploaded.
+    fn write_patch(&mut self, ctx: &GpuContext, patch: &TablePatch) -> u64 {
+        let (t, b) = (&self.table, &self.buffers);
+        let q = &ctx.queue;
+        if !patch.moved.is_empty() {
+            let scratch = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("corotational moved rotations"),
+                size: 16 * patch.moved.len() as u64,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("corotational rotations moved"),
+                });
+            for (k, &(from, _)) in patch.moved.iter().enumerate() {
+                enc.copy_buffer_to_buffer(
+                    &b.rotations,
+                    16 * from as u64,
+                    &scratch,
+                    16 * k as u64,
+                    16,
+                );
+            }
+            for (k, &(_, to)) in patch.moved.iter().enumerate() {
+                enc.copy_buffer_to_buffer(
+                    &scratch,
+                    16 * k as u64,
+                    &b.rotations,
+                    16 * to as u64,
+                    16,
+                );
+            }
+            // Submitted before the writes below, which a queue runs at its next submission.
+            q.submit([enc.finish()]);
+        }
+        let mut bytes = 0u64;
+        let mut write = |buffer: &wgpu::Buffer, offset: u64, data: &[u8]| {
+            if !data.is_empty() {
+                q.write_buffer(buffer, offset, data);
+                bytes += data.len() as u64;
+            }
+        };
+        for &i in &patch.tets {
+            let i = i as usize;
+            write(&b.corners, 16 * i as u64, bytemuck::bytes_of(&t.corners[i]));
+            write(&b.shape, 48 * i as u64, bytemuck::cast_slice(&t.shape[i]));
+        }
+        let new = t.len() - patch.first_new as usize;
+        write(
+            &b.rotations,
+            16 * patch.first_new as u64,
+            bytemuck::cast_slice(&vec![IDENTITY; new]),
+        );
+        for &n in &patch.nodes {
+            let n = n as usize;
+            write(&b.rows, 8 * n as u64, bytemuck::bytes_of(&t.rows[n]));
+        }
+        for r in &patch.incidence {
+            let r = r.start as usize..r.end as usize;
+            write(
+                &b.incidence,
+                4 * r.start as u64,
+                bytemuck::cast_slice(&t.incidence[r]),
+            );
+        }
+        self.groups = dispatch_size(ctx, t.len() as u32);
+        let constants = TetUniform {
+            tets: t.len() as u32,
+            row: self.groups.0 * WORKGROUP,
+            pad: [0; 2],
+        };
+        write(&b.uniform, 0, bytemuck::bytes_of(&constants));
+        bytes
+    }
+
+    /// [`CorotationalPasses::patch`] where a buffer must grow: the rotations read back and the
+    /// table rebuilt whole into buffers with room for the next cuts.
+    fn regrow(&mut self, ctx: &GpuContext, diff: &ModelDiff, layout: &PackedLayout) -> Result<u64> {
+        let rotations = self.rotations(ctx)?;
+        self.relayout(ctx, layout, rotations, diff, Sizing::SizeClass)
+    }
+
+    /// [`CorotationalPasses::patch`] where the layout renumbered old nodes: the float64 model
+    /// patched, the rotations read back and the table rebuilt whole.
+    fn rebuild(
+        &mut self,
+        ctx: &GpuContext,
+        model: &PackedModel,
+        diff: &ModelDiff,
+        layout: &PackedLayout,
+    ) -> Result<u64> {
+        let rotations = self.rotations(ctx)?;
+        self.model.patch(&model.rest, diff)?;
+        self.relayout(ctx, layout, rotations, diff, Sizing::Headroom)
+    }
+
+    /// The table rebuilt from the (patched) float64 model in `layout`'s order, with the
+    /// rotations `rotations` (the table's before `diff`) moved as the model moved its tets.
+    fn relayout(
+        &mut self,
+        ctx: &GpuContext,
+        layout: &PackedLayout,
+        mut rotations: Vec<[f32; 4]>,
+        diff: &ModelDiff,
+        sizing: Sizing,
+    ) -> Result<u64> {
+        let mut keys = std::mem::take(&mut self.keys);
+        let mut at = std::mem::take(&mut self.at);
         for &t in &diff.removed_tets {
             let i = at
                 .remove(&corner_set(t))
@@ -249,12 +424,15 @@ impl CorotationalPasses {
             }
         }
         rotations.resize(elements(&self.model).len(), IDENTITY);
+        self.keys = corner_sets(elements(&self.model));
+        self.at = self.keys.iter().enumerate().map(|(i, &k)| (k, i)).collect();
+        self.rank.clone_from(&layout.order().rank);
         self.table = TetTable::new(
             elements(&self.model),
             &layout.order().rank,
             layout.node_slots(),
         );
-        let (b, groups) = upload(ctx, &self.table, &rotations)?;
+        let (b, groups) = upload(ctx, &self.table, &rotations, sizing)?;
         self.buffers = b;
         self.groups = groups;
         Ok(self.table.bytes() + 16 * rotations.len() as u64)
@@ -301,7 +479,7 @@ impl CorotationalPasses {
         let fresh = ElementForces::new(ForceModelKind::Corotational, model)?
             .expect("a corotational kind builds a model");
         let want = TetTable::new(elements(&fresh), &layout.order().rank, layout.node_slots());
-        if want != self.table {
+        if self.table.differs_from(&want) {
             out.push(format!(
                 "the corotational tet table ({} tets, {} records) differs from a rebuild's \
                  ({} tets, {} records)",
@@ -331,6 +509,7 @@ fn upload(
     ctx: &GpuContext,
     table: &TetTable,
     rotations: &[[f32; 4]],
+    sizing: Sizing,
 ) -> Result<(TableBuffers, (u32, u32))> {
     let groups = dispatch_size(ctx, table.len() as u32);
     let constants = TetUniform {
@@ -346,7 +525,7 @@ fn upload(
     });
     ctx.queue
         .write_buffer(&uniform, 0, bytemuck::bytes_of(&constants));
-    let store = |label: &str, data: &[u8]| buffers::storage_buffer(ctx, label, data, Sizing::Exact);
+    let store = |label: &str, data: &[u8]| buffers::storage_buffer(ctx, label, data, sizing);
     Ok((
         TableBuffers {
             uniform,
@@ -363,7 +542,7 @@ fn upload(
                 ctx,
                 "corotational force records",
                 64 * table.len() as u64,
-                Sizing::Exact,
+                sizing,
             )?,
             rows: store("corotational node rows", bytemuck::cast_slice(&table.rows))?,
             incidence: store(
