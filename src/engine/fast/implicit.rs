@@ -483,25 +483,45 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
             for d in &mut diag[..3] {
                 *d += mh;
             }
-            let mut b = [0.0f32; 4];
-            for a in 0..3 {
-                let total = f[a] + m * p.gravity[a] - p.alpha * m * vi[a];
-                b[a] = match newton {
-                    None => h * (total + h * kv[a]),
-                    Some(dv) => h * total - m * dv[i][a],
-                };
-            }
-            bb += dot64(b, b);
-            *node = NodeSystem {
-                diag,
-                inverse: inverse(&diag),
-                b,
-                lower: lower as u32,
-            };
+            let dv = newton.map(|dv| dv[i]);
+            let (system, b2) = node_system(p, m, vi, (f, kv), dv, diag, lower);
+            *node = system;
+            bb += b2;
         }
         [bb, 0.0]
     });
     bb
+}
+
+/// A free node's system: its diagonal block and preconditioner, and the right-hand side from
+/// its row's force `f` and `K v` (`kv`) with gravity and the mass damping, `h (F + h K v)` at the
+/// step's start or `h F - M dv` at a Newton iterate (`dv` its velocity change so far); returns
+/// it with `b . b`. Shared by the springs' and the finite elements' assembly.
+fn node_system(
+    p: Params,
+    m: f32,
+    vi: P,
+    (f, kv): ([f32; 3], [f32; 3]),
+    dv: Option<P>,
+    diag: Sym,
+    lower: usize,
+) -> (NodeSystem, f64) {
+    let h = p.h;
+    let mut b = [0.0f32; 4];
+    for a in 0..3 {
+        let total = f[a] + m * p.gravity[a] - p.alpha * m * vi[a];
+        b[a] = match dv {
+            None => h * (total + h * kv[a]),
+            Some(dv) => h * total - m * dv[a],
+        };
+    }
+    let system = NodeSystem {
+        diag,
+        inverse: inverse(&diag),
+        b,
+        lower: lower as u32,
+    };
+    (system, dot64(b, b))
 }
 
 /// Solve `A y = b` (`bb = b . b`) by preconditioned conjugate gradients, as the float64

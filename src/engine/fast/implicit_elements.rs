@@ -10,7 +10,7 @@
 //! the block-Jacobi inverse and the Gauss-Seidel sweep then all read the one set of blocks.
 
 use super::{
-    dot64, inverse, over_blocks, Graph, Implicit, Lin, NodeSystem, Params, SharedRows, IDENTITY,
+    node_system, over_blocks, Graph, Implicit, Lin, NodeSystem, Params, SharedRows, IDENTITY,
 };
 use crate::engine::fast::elements::FastElements;
 
@@ -76,22 +76,10 @@ pub(super) fn assemble(
                 0.5 * (sum[5] + sum[7]),
             ];
             let m = 1.0 / g.inv_mass[i];
-            let vi = v[i];
-            let mut b = [0.0f32; 4];
-            for a in 0..3 {
-                let total = f[a] + m * p.gravity[a] - p.alpha * m * vi[a];
-                b[a] = match newton {
-                    None => h * (total + h * kv[a]),
-                    Some(dv) => h * total - m * dv[i][a],
-                };
-            }
-            bb += dot64(b, b);
-            *node = NodeSystem {
-                diag,
-                inverse: inverse(&diag),
-                b,
-                lower: lower as u32,
-            };
+            let dv = newton.map(|dv| dv[i]);
+            let (system, b2) = node_system(p, m, v[i], (f, kv), dv, diag, lower);
+            *node = system;
+            bb += b2;
         }
         [bb, 0.0]
     });
