@@ -34,3 +34,29 @@ pub fn scene(from: [f64; 3], to: [f64; 3], steps: u64) -> String {
 )"#
     )
 }
+
+/// The diff that gives tet 0 of `model` a copy of its first corner in place of that corner
+/// (what separating does to one tet): a node added with the corner's state, the tet removed and
+/// re-added on the copy.
+pub fn recorner_first_tet(model: &lancet::model::PackedModel) -> lancet::model::ModelDiff {
+    use lancet::model::{AddedNode, ModelDiff, PackedTet};
+    let t: PackedTet = model.tets[0];
+    let n = model.node_count() as u32;
+    let copy = t.nodes[0];
+    ModelDiff {
+        added_nodes: vec![AddedNode {
+            key: Default::default(),
+            rest: model.rest[copy as usize],
+            mass: model.mass[copy as usize],
+            fixed: false,
+            state_from: Some(copy),
+            blend: None,
+        }],
+        removed_tets: vec![t.nodes],
+        added_tets: vec![PackedTet {
+            nodes: [n, t.nodes[1], t.nodes[2], t.nodes[3]],
+            ..t
+        }],
+        ..ModelDiff::default()
+    }
+}

@@ -212,7 +212,7 @@ fn an_element_model_the_diff_did_not_reach_differs_from_a_rebuild(
     #[values(ForceModelKind::TensorMass, ForceModelKind::Corotational)] kind: ForceModelKind,
 ) {
     use lancet::mesh::generate::BoxGrid;
-    use lancet::model::{AddedNode, Material, ModelConfig, ModelDiff, PackedTet};
+    use lancet::model::{Material, ModelConfig};
     use lancet::physics::ElementForces;
     let mesh = BoxGrid::cube_cells([2, 2, 2], 0.01).build().unwrap();
     let config = ModelConfig::new(Material::elastic(1e4, 0.3, 1000.0));
@@ -226,25 +226,7 @@ fn an_element_model_the_diff_did_not_reach_differs_from_a_rebuild(
         .unwrap()
         .is_empty());
     // Tet 0 loses its first corner to a copy of it (what separating does to one tet).
-    let t: PackedTet = model.tets[0];
-    let n = model.node_count() as u32;
-    let copy = t.nodes[0];
-    let diff = ModelDiff {
-        added_nodes: vec![AddedNode {
-            key: Default::default(),
-            rest: model.rest[copy as usize],
-            mass: model.mass[copy as usize],
-            fixed: false,
-            state_from: Some(copy),
-            blend: None,
-        }],
-        removed_tets: vec![t.nodes],
-        added_tets: vec![PackedTet {
-            nodes: [n, t.nodes[1], t.nodes[2], t.nodes[3]],
-            ..t
-        }],
-        ..ModelDiff::default()
-    };
+    let diff = crate::fem_cut::recorner_first_tet(&model);
     model.apply(&diff).unwrap();
     let stale = elements.differences_from_rebuild(&model).unwrap();
     assert!(!stale.is_empty(), "{kind}: a stale model passed");

@@ -346,7 +346,6 @@ fn a_cut_gpu_corotational_model_equals_a_rebuilt_one(
 /// did not reach).
 #[test]
 fn a_cut_uploads_the_tets_it_changed_not_the_table() {
-    use lancet::model::{AddedNode, ModelDiff, PackedTet};
     let Some(ctx) = common::gpu() else { return };
     let mut uploads = Vec::new();
     for cells in [2, 8] {
@@ -371,25 +370,7 @@ fn a_cut_uploads_the_tets_it_changed_not_the_table() {
             .collect();
         engine.set_state(&x, &vec![[0.0; 3]; x.len()]);
         engine.step(3);
-        let t: PackedTet = model.tets[0];
-        let n = model.node_count() as u32;
-        let copy = t.nodes[0];
-        let diff = ModelDiff {
-            added_nodes: vec![AddedNode {
-                key: Default::default(),
-                rest: model.rest[copy as usize],
-                mass: model.mass[copy as usize],
-                fixed: false,
-                state_from: Some(copy),
-                blend: None,
-            }],
-            removed_tets: vec![t.nodes],
-            added_tets: vec![PackedTet {
-                nodes: [n, t.nodes[1], t.nodes[2], t.nodes[3]],
-                ..t
-            }],
-            ..ModelDiff::default()
-        };
+        let diff = crate::fem_cut::recorner_first_tet(&model);
         let before = engine.corotational().unwrap().rotations(&ctx).unwrap();
         model.apply(&diff).unwrap();
         engine.patch(&model, &diff).unwrap();
