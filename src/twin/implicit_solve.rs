@@ -452,14 +452,21 @@ pub fn multiply_cpu(
     cur: &[[f32; 4]],
     v: &mut SolveVectors,
 ) {
+    product_pass(v, |i, w| product(p, &rows[i], inv_mass[i], cur, w, i));
+}
+
+/// A `multiply` pass: `A p` at each node from `ap(i, p)`, written to `v.ap`, and the partials
+/// `(p . A p, 0)`; nothing once the solve has ended. Shared by every layout's and force
+/// model's product.
+pub fn product_pass(v: &mut SolveVectors, ap: impl Fn(usize, &[[f32; 4]]) -> [f32; 3]) {
     if v.scalars.status != status::RUNNING {
         return;
     }
-    let pairs: Vec<[f32; 2]> = (0..cur.len())
+    let pairs: Vec<[f32; 2]> = (0..v.p.len())
         .map(|i| {
-            let ap = product(p, &rows[i], inv_mass[i], cur, &v.p, i);
-            v.ap[i] = v4(ap);
-            [dot3(v3(v.p[i]), ap), 0.0]
+            let a = ap(i, &v.p);
+            v.ap[i] = v4(a);
+            [dot3(v3(v.p[i]), a), 0.0]
         })
         .collect();
     v.partials = partials(&pairs);
@@ -508,31 +515,22 @@ pub fn gather_multiply_cpu(
     spring_values: &[[f32; 4]],
     v: &mut SolveVectors,
 ) {
-    if v.scalars.status != status::RUNNING {
-        return;
-    }
-    let pairs: Vec<[f32; 2]> = (0..v.p.len())
-        .map(|i| {
-            let ap = if inv_mass[i] == 0.0 {
-                [0.0; 3]
+    product_pass(v, |i, w| {
+        if inv_mass[i] == 0.0 {
+            return [0.0; 3];
+        }
+        let mut sum = [0.0f32; 3];
+        for &e in layout.row(i) {
+            let term = v3(spring_values[(e & !B_END) as usize]);
+            sum = if e & B_END != 0 {
+                sub(sum, term)
             } else {
-                let mut sum = [0.0f32; 3];
-                for &e in layout.row(i) {
-                    let term = v3(spring_values[(e & !B_END) as usize]);
-                    sum = if e & B_END != 0 {
-                        sub(sum, term)
-                    } else {
-                        add(sum, term)
-                    };
-                }
-                let m = (1.0 + p.h * p.alpha) / inv_mass[i];
-                sub(scale(m, v3(v.p[i])), sum)
+                add(sum, term)
             };
-            v.ap[i] = v4(ap);
-            [dot3(v3(v.p[i]), ap), 0.0]
-        })
-        .collect();
-    v.partials = partials(&pairs);
+        }
+        let m = (1.0 + p.h * p.alpha) / inv_mass[i];
+        sub(scale(m, v3(w[i])), sum)
+    });
 }
 
 /// The `step_length` pass.

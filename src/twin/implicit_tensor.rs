@@ -7,8 +7,8 @@
 //! [`crate::physics::TensorMass`].
 
 use super::implicit_solve::{
-    add, direction_cpu, dot3, finish_cpu, finish_setup, partials, residual_cpu, scale, setup_with,
-    start_cpu, status, step_length_cpu, sub, update_cpu, v3, v4, Scalars, SolveParams,
+    add, direction_cpu, dot3, finish_cpu, finish_setup, product_pass, residual_cpu, scale,
+    setup_with, start_cpu, status, step_length_cpu, sub, update_cpu, v3, v4, Scalars, SolveParams,
     SolveVectors, Terms,
 };
 use crate::layout::edges::{EdgeLayout, B_END};
@@ -144,29 +144,20 @@ pub fn multiply_cpu(
     inv_mass: &[f32],
     v: &mut SolveVectors,
 ) {
-    if v.scalars.status != status::RUNNING {
-        return;
-    }
     let stride = blocks.stride();
-    let pairs: Vec<[f32; 2]> = (0..v.p.len())
-        .map(|i| {
-            let ap = if inv_mass[i] == 0.0 {
-                [0.0; 3]
-            } else {
-                let wi = v3(v.p[i]);
-                let mut sum = [0.0f32; 3];
-                for &(slot, j, t) in &rows[i] {
-                    let d = sub(v3(v.p[j as usize]), wi);
-                    sum = add(sum, product_term(p, blocks, slot * stride, t, d));
-                }
-                let m = (1.0 + p.h * p.alpha) / inv_mass[i];
-                add(scale(m, wi), sum)
-            };
-            v.ap[i] = v4(ap);
-            [dot3(v3(v.p[i]), ap), 0.0]
-        })
-        .collect();
-    v.partials = partials(&pairs);
+    product_pass(v, |i, w| {
+        if inv_mass[i] == 0.0 {
+            return [0.0; 3];
+        }
+        let wi = v3(w[i]);
+        let mut sum = [0.0f32; 3];
+        for &(slot, j, t) in &rows[i] {
+            let d = sub(v3(w[j as usize]), wi);
+            sum = add(sum, product_term(p, blocks, slot * stride, t, d));
+        }
+        let m = (1.0 + p.h * p.alpha) / inv_mass[i];
+        add(scale(m, wi), sum)
+    });
 }
 
 /// The edge layout's `spring_multiply` pass on the blocks: per record `(a, b)` the `a` end's
@@ -200,27 +191,18 @@ pub fn gather_multiply_cpu(
     values: &[[f32; 4]],
     v: &mut SolveVectors,
 ) {
-    if v.scalars.status != status::RUNNING {
-        return;
-    }
-    let pairs: Vec<[f32; 2]> = (0..v.p.len())
-        .map(|i| {
-            let ap = if inv_mass[i] == 0.0 {
-                [0.0; 3]
-            } else {
-                let mut sum = [0.0f32; 3];
-                for &e in layout.row(i) {
-                    let end = usize::from(e & B_END != 0);
-                    sum = add(sum, v3(values[2 * (e & !B_END) as usize + end]));
-                }
-                let m = (1.0 + p.h * p.alpha) / inv_mass[i];
-                add(scale(m, v3(v.p[i])), sum)
-            };
-            v.ap[i] = v4(ap);
-            [dot3(v3(v.p[i]), ap), 0.0]
-        })
-        .collect();
-    v.partials = partials(&pairs);
+    product_pass(v, |i, w| {
+        if inv_mass[i] == 0.0 {
+            return [0.0; 3];
+        }
+        let mut sum = [0.0f32; 3];
+        for &e in layout.row(i) {
+            let end = usize::from(e & B_END != 0);
+            sum = add(sum, v3(values[2 * (e & !B_END) as usize + end]));
+        }
+        let m = (1.0 + p.h * p.alpha) / inv_mass[i];
+        add(scale(m, v3(w[i])), sum)
+    });
 }
 
 /// One tensor-mass implicit step of `layout` as the device takes it: `setup`, `start`,
