@@ -23,6 +23,7 @@
 #[cfg(feature = "cut")]
 pub mod cap;
 #[cfg(feature = "cut")]
+mod cap_bind;
 mod cap_fill;
 pub mod colour;
 pub mod embed;

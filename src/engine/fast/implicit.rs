@@ -63,7 +63,7 @@ mod passes;
 #[path = "implicit_rows.rs"]
 mod rows;
 use passes::{for_pairs, over_blocks};
-use rows::{dot64, inverse, rows_of, sym_mul, Entries, Rows, SharedRows, IDENTITY};
+use rows::{dot64, node_system, rows_of, sym_mul, Entries, Rows, SharedRows, IDENTITY};
 
 /// A symmetric 3x3 matrix as `[xx, yy, zz, xy, xz, yz]`.
 type Sym = [f32; 6];
@@ -491,37 +491,6 @@ fn assemble(imp: &mut Implicit, g: &Graph, p: Params, lin: Linearization, at: Li
         [bb, 0.0]
     });
     bb
-}
-
-/// A free node's system: its diagonal block and preconditioner, and the right-hand side from
-/// its row's force `f` and `K v` (`kv`) with gravity and the mass damping, `h (F + h K v)` at the
-/// step's start or `h F - M dv` at a Newton iterate (`dv` its velocity change so far); returns
-/// it with `b . b`. Shared by the springs' and the finite elements' assembly.
-fn node_system(
-    p: Params,
-    m: f32,
-    vi: P,
-    (f, kv): ([f32; 3], [f32; 3]),
-    dv: Option<P>,
-    diag: Sym,
-    lower: usize,
-) -> (NodeSystem, f64) {
-    let h = p.h;
-    let mut b = [0.0f32; 4];
-    for a in 0..3 {
-        let total = f[a] + m * p.gravity[a] - p.alpha * m * vi[a];
-        b[a] = match dv {
-            None => h * (total + h * kv[a]),
-            Some(dv) => h * total - m * dv[a],
-        };
-    }
-    let system = NodeSystem {
-        diag,
-        inverse: inverse(&diag),
-        b,
-        lower: lower as u32,
-    };
-    (system, dot64(b, b))
 }
 
 /// Solve `A y = b` (`bb = b . b`) by preconditioned conjugate gradients, as the float64

@@ -1,8 +1,9 @@
 //! The blocks of the implicit step's system as its passes read them (row by row, the springs'
-//! symmetric blocks or the elements' full ones), and the small 3x3 kernels of those passes.
+//! symmetric blocks or the elements' full ones), each node's own system (`node_system`), and
+//! the small 3x3 kernels of those passes.
 
-use super::{Block, FullBlock, Lanes, Sym};
-use crate::engine::fast::P;
+use super::{Block, FullBlock, Lanes, NodeSystem, Sym};
+use crate::engine::fast::{Params, P};
 
 /// The system's off-diagonal blocks: the springs' symmetric ones or the elements' full ones.
 #[derive(Clone, Copy)]
@@ -91,6 +92,37 @@ pub(super) fn rows_of<'a>(
         lanes,
         wide,
     }
+}
+
+/// A free node's system: its diagonal block and preconditioner, and the right-hand side from
+/// its row's force `f` and `K v` (`kv`) with gravity and the mass damping, `h (F + h K v)` at the
+/// step's start or `h F - M dv` at a Newton iterate (`dv` its velocity change so far); returns
+/// it with `b . b`. Shared by the springs' and the finite elements' assembly.
+pub(super) fn node_system(
+    p: Params,
+    m: f32,
+    vi: P,
+    (f, kv): ([f32; 3], [f32; 3]),
+    dv: Option<P>,
+    diag: Sym,
+    lower: usize,
+) -> (NodeSystem, f64) {
+    let h = p.h;
+    let mut b = [0.0f32; 4];
+    for a in 0..3 {
+        let total = f[a] + m * p.gravity[a] - p.alpha * m * vi[a];
+        b[a] = match dv {
+            None => h * (total + h * kv[a]),
+            Some(dv) => h * total - m * dv[a],
+        };
+    }
+    let system = NodeSystem {
+        diag,
+        inverse: inverse(&diag),
+        b,
+        lower: lower as u32,
+    };
+    (system, dot64(b, b))
 }
 
 /// An array of row blocks, written row by row from the assembly's tasks.

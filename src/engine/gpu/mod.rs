@@ -19,6 +19,7 @@ pub mod embed_surface;
 pub mod health;
 pub mod host_buffers;
 pub mod implicit;
+mod implicit_engine;
 pub mod layout_buffers;
 pub mod move_state;
 pub mod node_gather;
