@@ -130,28 +130,16 @@ fn a_cut_right_through_leaves_the_surface_closed_and_each_side_moving_whole(
     // from the blade with their side, each crossing's two vertices one with each piece.
     let pulled = Pulled::apart(mesh);
     let x = e.evaluate(&pulled.x);
-    let moved = |v: u32| Vector3::from(x[v as usize]) - Vector3::from(e.rest[v as usize]);
-    let piece = |v: u32| {
-        let m = moved(v);
-        [true, false]
-            .into_iter()
-            .find(|&minus| (m - pulled.of_side(minus)).norm() < 1e-12)
-            .unwrap_or_else(|| panic!("{method}: vertex {v} moved {m:?}, with neither piece"))
-    };
-    for t in &capped.triangles {
-        let p = t.map(piece);
-        assert!(
-            p[0] == p[1] && p[1] == p[2],
-            "{method}: triangle {t:?} stretched across"
-        );
-    }
+    let what = method.to_string();
+    let piece = piece_pulled(&pulled, &e, &x, &what);
+    triangles_with_one_piece(&capped.triangles, &piece, &what);
     for v in 0..own as u32 {
         let y = e.rest[v as usize][1];
         if (y - Y0).abs() > H {
             assert_eq!(piece(v), y < Y0, "{method}: vertex {v} at y {y}");
         }
     }
-    one_copy_per_piece(added, &e.rest, piece, &method.to_string());
+    one_copy_per_piece(added, &e.rest, &piece, &what);
     // Each piece moved rigidly: the enclosed volume is still the box's.
     let v = enclosed_volume(&x, &capped.triangles);
     assert!(
@@ -184,6 +172,39 @@ fn a_blade_stopping_inside_leaves_the_surface_closed(
         .filter(|&v| (e.rest[v][2] - 0.012).abs() < 1e-9)
         .count();
     assert_eq!(ends, 2, "{method}: slit ends");
+}
+
+/// Whether embedded vertex `v` moved with the piece on the negative side when the box's pieces
+/// are pulled apart (`x`: the embedding evaluated at `pulled.x`); a vertex that moved with
+/// neither fails, named with `what`.
+pub(crate) fn piece_pulled<'a>(
+    pulled: &'a Pulled,
+    e: &'a Embedding,
+    x: &'a [[f64; 3]],
+    what: &'a str,
+) -> impl Fn(u32) -> bool + 'a {
+    move |v: u32| {
+        let m = Vector3::from(x[v as usize]) - Vector3::from(e.rest[v as usize]);
+        [true, false]
+            .into_iter()
+            .find(|&minus| (m - pulled.of_side(minus)).norm() < 1e-12)
+            .unwrap_or_else(|| panic!("{what}: vertex {v} moved {m:?}, with neither piece"))
+    }
+}
+
+/// Every triangle moves with one piece (`piece` as [`piece_pulled`] gives it).
+pub(crate) fn triangles_with_one_piece(
+    triangles: &[[u32; 3]],
+    piece: impl Fn(u32) -> bool,
+    what: &str,
+) {
+    for t in triangles {
+        let p = t.map(&piece);
+        assert!(
+            p[0] == p[1] && p[1] == p[2],
+            "{what}: triangle {t:?} stretched across"
+        );
+    }
 }
 
 /// Each point on the cut among the `added` vertices has two copies, one moving with each piece

@@ -136,20 +136,9 @@ fn cut_and_check(method: CutMethod, (surface, strokes, plane): (RenderSurface, V
     // cut with the piece of their side, the two copies of each point on it one with each.
     let pulled = Pulled::apart(mesh);
     let x = e.evaluate(&pulled.x);
-    let piece = |v: u32| {
-        let m = Vector3::from(x[v as usize]) - Vector3::from(e.rest[v as usize]);
-        [true, false]
-            .into_iter()
-            .find(|&minus| (m - pulled.of_side(minus)).norm() < 1e-12)
-            .unwrap_or_else(|| panic!("{method}: vertex {v} moved {m:?}, with neither piece"))
-    };
-    for t in &capped.triangles {
-        let p = t.map(piece);
-        assert!(
-            p[0] == p[1] && p[1] == p[2],
-            "{method}: triangle {t:?} stretched across"
-        );
-    }
+    let what = method.to_string();
+    let piece = crate::surface_cap::piece_pulled(&pulled, &e, &x, &what);
+    crate::surface_cap::triangles_with_one_piece(&capped.triangles, &piece, &what);
     for t in &capped.triangles {
         for &v in t {
             let d = plane.distance(&e.rest[v as usize]);
@@ -158,7 +147,7 @@ fn cut_and_check(method: CutMethod, (surface, strokes, plane): (RenderSurface, V
             }
         }
     }
-    crate::surface_cap::one_copy_per_piece(own..e.len(), &e.rest, piece, &method.to_string());
+    crate::surface_cap::one_copy_per_piece(own..e.len(), &e.rest, &piece, &what);
     let v = enclosed_volume(&x, &capped.triangles);
     assert!(
         (v - volume).abs() < 1e-9 * volume,
