@@ -123,7 +123,7 @@ pub struct CutOutcome {
     /// Seconds spent editing the mesh and model and building the diff.
     pub edit_s: f64,
     /// The tets this cut removed, gave new corners or made, sorted: what a render surface
-    /// embedded in the mesh rebinds ([`crate::surface::Embedding::rebind`]).
+    /// embedded in the mesh rebinds ([`crate::surface::Rebinder::rebind`]).
     pub tets_changed: Vec<TetKey>,
 }
 
