@@ -24,6 +24,7 @@
 pub mod cap;
 #[cfg(feature = "cut")]
 mod cap_bind;
+#[cfg(feature = "cut")]
 mod cap_fill;
 pub mod colour;
 pub mod embed;
