@@ -14,7 +14,7 @@ use crate::mesh::generate::{beam, BoxGrid};
 use crate::mesh::io::pvd::PvdWriter;
 use crate::mesh::TetMesh;
 use crate::model::ModelConfig;
-use crate::world::WorldBuilder;
+use crate::world::{World, WorldBuilder};
 
 /// Overrides from the command line or the embedding program.
 #[derive(Debug, Clone, Default)]
@@ -396,6 +396,9 @@ pub fn run_scene_with(
             }
             break;
         }
+        if done == steps {
+            finish_surface(&mut world, surface.as_mut());
+        }
         let frame_due = done % every == 0 || done == steps;
         if frame_due && (frames.is_some() || outputs.is_active()) {
             // Cuts add nodes at the end and never remove any, so the cut mesh's node order is
@@ -417,6 +420,8 @@ pub fn run_scene_with(
             )?;
         }
     }
+    // A run stopped early (divergence, a cut under `Stop`): its last strokes too.
+    finish_surface(&mut world, surface.as_mut());
     let sim = world.sim();
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.steps = sim.steps();
@@ -445,6 +450,18 @@ pub fn run_scene_with(
     summary.cuts = world.cut_report();
     finish(scene, world.mesh(), sim.model(), &x, method, &mut summary);
     Ok(summary)
+}
+
+/// At the end of a run, give the render surface (if any) the strokes each blade swept since
+/// its last cut ([`World::finish_cuts`]): a blade still moving inside the tissue at the end
+/// cut the surface along them too. Calling it again gives nothing more.
+fn finish_surface(world: &mut World, surface: Option<&mut super::surface::SurfaceStage>) {
+    if let Some(s) = surface {
+        world.finish_cuts();
+        if let Some(cut) = world.cutting_mut() {
+            s.after_cuts(cut);
+        }
+    }
 }
 
 /// Fill in the end-of-run measures and check the expectations.

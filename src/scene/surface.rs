@@ -202,7 +202,8 @@ impl SurfaceStage {
     }
 
     /// Measure the gap to the simulation boundary at the end of the run (`mesh` as cut, node
-    /// positions `x`).
+    /// positions `x`). The runner has given the surface the blades' last strokes before
+    /// ([`crate::world::World::finish_cuts`], then [`SurfaceStage::after_cuts`]).
     pub fn finish(&mut self, mesh: &TetMesh, x: &[[f64; 3]]) {
         self.gap_end = boundary_gap(&self.embedding, mesh, x);
     }

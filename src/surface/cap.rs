@@ -57,7 +57,8 @@
 //! along the same lines (a blade moving straight without turning) is merged with it into one
 //! quad, so that a cut's sweep stays a few triangles over any number of steps. Strokes that
 //! changed no tet are taken too ([`Capper::follow`], given by the world with the blade's next
-//! cut, or when it leaves the tissue or stops): the surface is split along every stroke, but
+//! cut, or when it leaves the tissue or stops, or when the run ends:
+//! [`crate::world::World::finish_cuts`]): the surface is split along every stroke, but
 //! only when the mesh changed. A stroke in another plane starts a
 //! new cut, applied after the earlier ones to their result. The vertices of the surface as read
 //! keep their indices; the new ones are appended after them, made again at each cut.

@@ -253,8 +253,8 @@ pub struct Cutting {
 /// A blade's strokes that changed no tet (separating opens a tet only once the blade is
 /// through it; a blade moving within a cell) still cut the render surface where the mesh
 /// opens later: they come with the blade's next cut as `earlier`, or, when the blade leaves
-/// the tissue or stops with no further cut, as a `CutMade` of their own with no tets and an
-/// empty `sweep`, so that the render surface is split along every stroke but only when the
+/// the tissue or stops with no further cut, or the run ends ([`Cutting::finish_strokes`]), as
+/// a `CutMade` of their own with no tets and an empty `sweep`, so that the render surface is split along every stroke but only when the
 /// mesh changed (or the blade left or stopped).
 #[derive(Debug, Clone)]
 pub struct CutMade {
@@ -275,6 +275,10 @@ impl Cutting {
     }
 
     /// The cuts made since the last call, in order (empty unless [`Cutting::follow_cuts`]).
+    /// At the end of a run call [`Cutting::finish_strokes`] (or [`World::finish_cuts`]) first,
+    /// so that the strokes since each blade's last cut come too.
+    ///
+    /// [`World::finish_cuts`]: super::World::finish_cuts
     pub fn take_cuts(&mut self) -> Vec<CutMade> {
         self.made.as_mut().map(std::mem::take).unwrap_or_default()
     }
@@ -503,6 +507,23 @@ impl Cutting {
             }
         }
         Ok(())
+    }
+
+    /// End the run's cutting for a render surface: every blade's strokes since its last cut
+    /// that changed no tet (a blade still moving inside the tissue when the run ends, or in
+    /// the void a carving left) are handed over as a [`CutMade`] with no tets, as when a blade
+    /// leaves the tissue or stops, so that the next [`Cutting::take_cuts`] gives the render
+    /// surface the whole sweep. Without it those last strokes would wait for a cut, a leaving
+    /// or a stop that never comes. Cutting may go on after it (it only empties what was kept);
+    /// calling it again with no stroke since gives nothing.
+    pub fn finish_strokes(&mut self) {
+        for slot in 0..self.blades.len() {
+            let blade = &mut self.blades[slot];
+            if let Some(outside) = blade.outside.as_mut() {
+                blade.unfollowed.append(outside);
+            }
+            self.follow_unfollowed(slot);
+        }
     }
 
     /// Hand the strokes blade `slot` swept without cutting since its last cut to the render

@@ -226,6 +226,20 @@ impl World {
         self.cutting.as_mut()
     }
 
+    /// End the run for a render surface following the cuts ([`Cutting::follow_cuts`]): hand
+    /// it the strokes each blade swept since its last cut without changing a tet (a blade still
+    /// moving inside the tissue at the end), which would otherwise never come, since they wait
+    /// for the blade's next cut, its leaving the tissue or its stopping. Call it after the last
+    /// [`World::step`], then take the cuts ([`Cutting::take_cuts`]) and give them to the
+    /// surface one last time (the scene runner does, before its last frame). Stepping may go on
+    /// after it; nothing happens without cutting.
+    #[cfg(feature = "cut")]
+    pub fn finish_cuts(&mut self) {
+        if let Some(c) = self.cutting.as_mut() {
+            c.finish_strokes();
+        }
+    }
+
     /// What the cuts did so far, finished at the current positions (latency percentiles,
     /// fragments, opening), when cutting is enabled.
     #[cfg(feature = "cut")]

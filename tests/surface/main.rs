@@ -13,6 +13,7 @@ mod surface_cap;
 mod surface_cut;
 mod surface_embed;
 mod surface_follow;
+mod surface_last_strokes;
 mod surface_on_sweep;
 mod surface_read;
 mod surface_scene;
