@@ -49,7 +49,7 @@ fn scene(steps: u64) -> (Scene, std::path::PathBuf) {
 
 #[test]
 fn strokes_after_the_last_cut_are_applied_when_the_run_ends() {
-    let steps = 36;
+    let steps = 35;
     let (scene, path) = scene(steps);
     let opts = RunOptions {
         no_output: true,
@@ -73,6 +73,14 @@ fn strokes_after_the_last_cut_are_applied_when_the_run_ends() {
     );
     let cuts = summary.cuts.as_ref().unwrap();
     assert!(cuts.cuts > 0, "it cut: {cuts:#?}");
+    // The blade's last cut came more than a render row (3.3 mm) above where it ends: a surface
+    // split only along the strokes up to a cut would end its slit there, not at the blade.
+    let last_cut = cuts.events.last().unwrap().step;
+    let at_last_cut = TOP + (BOTTOM - TOP) * last_cut as f64 * summary.dt_final / DURATION;
+    assert!(
+        at_last_cut - edge > 0.004,
+        "the last cut at step {last_cut} (z = {at_last_cut}), the blade ends at z = {edge}"
+    );
     let s = summary.surface.as_ref().unwrap();
     assert_eq!(s.open_rims, 0, "{s:#?}");
     let drawn = &last.tissue.surface;
