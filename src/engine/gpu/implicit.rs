@@ -16,6 +16,14 @@
 //! springs' solve computes each spring's Jacobian block from its geometry
 //! (`shaders/implicit_tensor.wgsl`); the conjugate gradients and the block-Jacobi
 //! preconditioner are the same passes. Twin: [`crate::twin::implicit_tensor`].
+//!
+//! With the corotational force model the solve is the tensor-mass one on blocks the
+//! corotational block pass writes each step (`R K R^T` per slot,
+//! [`super::corotational_implicit`]), bound in group 1 with the tet table's node rows, records
+//! and corner forces: the setup's force is those corner forces gathered
+//! (`shaders/implicit_corotational.wgsl`), the rest unchanged. The engine records the tet and
+//! block passes before the setup ([`ImplicitSolver::step`]'s prelude). Twin:
+//! [`crate::twin::corotational_implicit`].
 
 use bytemuck::{Pod, Zeroable};
 
