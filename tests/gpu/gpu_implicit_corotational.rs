@@ -246,33 +246,52 @@ fn the_corotational_implicit_step_equals_its_twin(
 }
 
 /// The GPU's corotational backward Euler in every layout follows the float64 reference
-/// engine's (20 steps at ten times the explicit bound, damped, under gravity, from a state
+/// engine's (10 steps at ten times the explicit bound, damped, under gravity, from a state
 /// turned by 0.6 rad with random displacements and velocities) within the solvers' tolerance
-/// (relative residual 1e-5 each) and float32 rounding: relative L2 error below 5e-5 (1.2e-5 on
-/// lavapipe in each layout). The linear model stepped the same (what the step would be with
-/// every rotation the identity) is far off (0.26): the rotations are what is solved with.
-#[rstest]
-fn gpu_corotational_backward_euler_follows_the_float64_reference(
-    #[values(LayoutKind::Connectivity, LayoutKind::Valence, LayoutKind::Edges)] layout: LayoutKind,
-) {
+/// (relative residual 1e-5 each) and float32 rounding (the device's rotations converge to
+/// 1e-6 rad, the reference's SVD to float64): relative L2 error below 1e-4 (3.3e-5 on lavapipe
+/// in each layout; 1.2e-5 after 20 steps, where the settling motion outgrows the first
+/// steps' error). The linear model stepped the same (what the step would be with every
+/// rotation the identity) is far off (0.27): the rotations are what is solved with. The
+/// reference runs once for the three layouts.
+#[test]
+fn gpu_corotational_backward_euler_follows_the_float64_reference() {
+    use lancet::engine::{EngineKind, Simulation};
+    use lancet::report::bench::relative_l2;
     let Some(_) = common::gpu() else { return };
     let model = jittered_box(3, true, 0.08);
     let config = config(&model, Integrator::BackwardEuler, 10.0);
     let (x, v) = random_state(&model, 5, 1e-3, 0.6);
-    let (err, apart) = crate::fem_gpu_checks::against_the_reference(
-        &model,
-        config,
-        (&x, &v),
-        layout,
-        20,
-        ForceModelKind::TensorMass,
+    let run = |kind: EngineKind, config: SimConfig, layout: LayoutKind| {
+        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
+        sim.set_state(&x, &v).unwrap();
+        sim.run(10).unwrap();
+        sim.positions()
+    };
+    let reference = run(EngineKind::Reference, config, LayoutKind::Connectivity);
+    let linear = SimConfig {
+        force_model: ForceModelKind::TensorMass,
+        ..config
+    };
+    let apart = relative_l2(
+        &model.rest,
+        &run(EngineKind::Reference, linear, LayoutKind::Connectivity),
+        &reference,
     );
-    eprintln!("{layout:?}: gpu {err:e}, linear {apart:e}");
-    assert!(err < 5e-5, "{layout:?}: relative L2 error {err:e}");
-    assert!(
-        apart > 100.0 * err.max(1e-6),
-        "linear {apart:e}, gpu {err:e}"
-    );
+    for layout in [
+        LayoutKind::Connectivity,
+        LayoutKind::Valence,
+        LayoutKind::Edges,
+    ] {
+        let gpu = run(EngineKind::Gpu, config, layout);
+        let err = relative_l2(&model.rest, &gpu, &reference);
+        eprintln!("{layout:?}: gpu {err:e}, linear {apart:e}");
+        assert!(err < 1e-4, "{layout:?}: relative L2 error {err:e}");
+        assert!(
+            apart > 100.0 * err.max(1e-6),
+            "linear {apart:e}, gpu {err:e}"
+        );
+    }
 }
 
 /// Cuts through a corotational model under backward Euler on the GPU (valence layout,
