@@ -69,8 +69,8 @@ impl CorotationalBlocks {
         corot: &CorotationalPasses,
         layout: &PackedLayout,
     ) -> Result<Self> {
-        let mut ro = vec![true; 5];
-        ro[4] = false;
+        // Pair rows, pairs, shapes, rotations (read); the blocks (written).
+        let ro = [true, true, true, true, false];
         let entries: Vec<_> = std::iter::once(buffers::uniform_entry(0))
             .chain(
                 ro.iter()
