@@ -15,6 +15,8 @@ fn node_terms(i: u32, ui: vec3<f32>, vi: vec3<f32>) -> Terms {
         let j = slots[k].other;
         tensor_terms(&terms, k * stride, false, cur[j].xyz - ui, vel[j].xyz - vi);
     }
+    // The force model's force (implicit_tensor_force.wgsl, implicit_corotational.wgsl).
+    terms.f = element_force(i, terms.f);
     return terms;
 }
 

@@ -7,8 +7,11 @@
 // - springs: implicit_springs.wgsl, then implicit_slots.wgsl (the walk) with
 //   implicit_slots_springs.wgsl and the connectivity table's or the valence buckets' `row_of`,
 //   or implicit_edges.wgsl;
-// - tensor-mass: implicit_tensor.wgsl (the blocks), then implicit_slots.wgsl with
-//   implicit_slots_tensor.wgsl and `row_of`, or implicit_tensor_edges.wgsl.
+// - tensor-mass: implicit_tensor.wgsl (the blocks) and implicit_tensor_force.wgsl (the force
+//   from the blocks), then implicit_slots.wgsl with implicit_slots_tensor.wgsl and `row_of`, or
+//   implicit_tensor_edges.wgsl;
+// - corotational: the same with implicit_corotational.wgsl for the force (the tet pass's
+//   corner forces gathered), on the blocks `corotational_blocks.wgsl` writes each step.
 // Every pass reads the solve's status word first and does nothing once it is set, so that the
 // host can record many iterations per submission and read back only that word.
 //

@@ -34,6 +34,8 @@ fn node_terms(i: u32, ui: vec3<f32>, vi: vec3<f32>) -> Terms {
         }
         tensor_terms(&terms, r * stride, t, cur[j].xyz - ui, vel[j].xyz - vi);
     }
+    // The force model's force (implicit_tensor_force.wgsl, implicit_corotational.wgsl).
+    terms.f = element_force(i, terms.f);
     return terms;
 }
 

@@ -16,6 +16,7 @@ pub mod edges;
 pub mod patch;
 pub mod rcm;
 pub mod tensor_blocks;
+pub mod tet_pairs;
 pub mod tet_table;
 pub mod valence;
 mod verify;

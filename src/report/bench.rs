@@ -87,11 +87,6 @@ fn implicit_skip(opts: &BenchOptions, engine: EngineKind, atomic: bool) -> Optio
              table (the edge layout's gather variant)"
                 .into(),
         ),
-        EngineKind::Gpu if opts.force_model == ForceModelKind::Corotational => Some(
-            "gpu rows skipped: the GPU engine solves backward Euler with springs and \
-             tensor-mass, not yet with the corotational force model"
-                .into(),
-        ),
         _ => None,
     }
 }

@@ -302,8 +302,9 @@ pub struct Scene {
     #[serde(default)]
     pub solver: crate::physics::SolverSettings,
     /// Force model: `Springs` (the default), `TensorMass` or `Corotational` (finite elements
-    /// from each region's Young's modulus and Poisson ratio, on `engine: Reference`, or
-    /// `engine: Fast` with an explicit integrator; cuts update them tet by tet).
+    /// from each region's Young's modulus and Poisson ratio, on every engine and GPU layout,
+    /// explicit or `BackwardEuler`; the GPU edge layout's atomic variants refuse tensor-mass
+    /// and backward Euler; cuts update them tet by tet).
     #[serde(default)]
     pub force_model: crate::physics::ForceModelKind,
     /// Run even if dt is above the stable bound.

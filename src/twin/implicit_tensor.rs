@@ -119,6 +119,20 @@ pub fn setup_cpu(
     cur: &[[f32; 4]],
     vel: &[[f32; 4]],
 ) -> SolveVectors {
+    setup_forced(p, blocks, rows, inv_mass, (cur, vel), None)
+}
+
+/// [`setup_cpu`] with each node's force given (`element_force` of
+/// `implicit_corotational.wgsl`: the corotational corner forces gathered), where `forces` is
+/// `Some`; the blocks' own force (`implicit_tensor_force.wgsl`) where it is `None`.
+pub fn setup_forced(
+    p: &SolveParams,
+    blocks: &TensorBlocks,
+    rows: &[Vec<Neighbour>],
+    inv_mass: &[f32],
+    (cur, vel): (&[[f32; 4]], &[[f32; 4]]),
+    forces: Option<&[[f32; 3]]>,
+) -> SolveVectors {
     let identity = [[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 0.0]];
     let stride = blocks.stride();
     setup_with(cur.len(), |i| {
@@ -131,6 +145,9 @@ pub fn setup_cpu(
             let j = j as usize;
             let (du, dv) = (sub(v3(cur[j]), ui), sub(v3(vel[j]), vi));
             tensor_terms(p, blocks, &mut terms, (slot * stride, t), du, dv);
+        }
+        if let Some(f) = forces {
+            terms.f = f[i];
         }
         finish_setup(p, inv_mass[i], vi, &terms)
     })
@@ -216,8 +233,22 @@ pub fn implicit_step_cpu(
     cur: &[[f32; 4]],
     vel: &[[f32; 4]],
 ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Scalars) {
+    implicit_step_forced(p, blocks, layout, inv_mass, cur, vel, None)
+}
+
+/// [`implicit_step_cpu`] with each node's force given where `forces` is `Some` (see
+/// [`setup_forced`]): the corotational step's solve.
+pub fn implicit_step_forced(
+    p: &SolveParams,
+    blocks: &TensorBlocks,
+    layout: &PackedLayout,
+    inv_mass: &[f32],
+    cur: &[[f32; 4]],
+    vel: &[[f32; 4]],
+    forces: Option<&[[f32; 3]]>,
+) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Scalars) {
     let rows = tensor_rows(layout);
-    let mut v = setup_cpu(p, blocks, &rows, inv_mass, cur, vel);
+    let mut v = setup_forced(p, blocks, &rows, inv_mass, (cur, vel), forces);
     start_cpu(p, &mut v);
     let mut values = Vec::new();
     if let PackedLayout::Edges(e) = layout {

@@ -49,6 +49,7 @@ pub mod accumulate_float;
 pub mod broad_self;
 pub mod broad_tool;
 pub mod corotational;
+pub mod corotational_implicit;
 pub mod device_copy;
 pub mod edge_spring;
 pub mod embed_surface;

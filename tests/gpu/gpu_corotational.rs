@@ -22,7 +22,7 @@ use rstest::rstest;
 /// [`random_box`] with every free node's rest position moved by up to `jitter` of a cell, and
 /// two nodes pulled towards a neighbour so that a few tets are slivers (a tenth of a cell's
 /// height or less).
-fn jittered_box(seed: u64, damped: bool, jitter: f64) -> PackedModel {
+pub(crate) fn jittered_box(seed: u64, damped: bool, jitter: f64) -> PackedModel {
     let mut model = random_box(seed, damped);
     let mut rng = Rng(seed ^ 0x5151);
     for (r, fixed) in model.rest.iter_mut().zip(&model.fixed) {
@@ -35,7 +35,7 @@ fn jittered_box(seed: u64, damped: bool, jitter: f64) -> PackedModel {
     model
 }
 
-fn config(model: &PackedModel, integrator: Integrator, fraction: f64) -> SimConfig {
+pub(crate) fn config(model: &PackedModel, integrator: Integrator, fraction: f64) -> SimConfig {
     let kind = ForceModelKind::Corotational;
     SimConfig {
         integrator,
@@ -46,7 +46,7 @@ fn config(model: &PackedModel, integrator: Integrator, fraction: f64) -> SimConf
 
 /// Random displacements of `scale` (m) on top of a rotation of `angle` (rad) about z through
 /// the box's base corner, and random velocities.
-fn random_state(
+pub(crate) fn random_state(
     model: &PackedModel,
     seed: u64,
     scale: f64,
@@ -71,7 +71,7 @@ fn random_state(
     (x, vel)
 }
 
-fn inv_mass(layout: &PackedLayout) -> Vec<f32> {
+pub(crate) fn inv_mass(layout: &PackedLayout) -> Vec<f32> {
     match layout {
         PackedLayout::Connectivity(c) => c.nodes.inv_mass.clone(),
         PackedLayout::Valence(v) => v.nodes.inv_mass.clone(),

@@ -63,6 +63,15 @@ struct TableBuffers {
     incidence: wgpu::Buffer,
 }
 
+/// The table's device buffers the implicit step binds ([`CorotationalPasses::device_table`]).
+pub(super) struct DeviceTable<'a> {
+    pub shape: &'a wgpu::Buffer,
+    pub rotations: &'a wgpu::Buffer,
+    pub rows: &'a wgpu::Buffer,
+    pub incidence: &'a wgpu::Buffer,
+    pub forces: &'a wgpu::Buffer,
+}
+
 /// The corotational model of a GPU engine with its passes.
 pub struct CorotationalPasses {
     /// The float64 model, patched by every cut: the source of the table.
@@ -93,7 +102,8 @@ fn elements(model: &ElementForces) -> &[TetElement] {
 
 impl CorotationalPasses {
     /// The corotational model of `model` beside `layout` (already uploaded by `passes`), with
-    /// its pipelines. Explicit integrators only.
+    /// its pipelines. Under backward Euler the tet pass runs alone, before the block pass
+    /// (`super::corotational_implicit`) and the solve, which read its rotations and forces.
     pub(super) fn new(
         ctx: &GpuContext,
         model: &PackedModel,
@@ -226,15 +236,35 @@ impl CorotationalPasses {
     /// Record one step in phase `phase`: the tet pass, then the node pass over `nodes`
     /// workgroups.
     pub(super) fn record(&self, pass: &mut wgpu::ComputePass<'_>, phase: usize, nodes: (u32, u32)) {
+        self.record_tets(pass, phase);
         let g = &self.bind_groups[phase];
-        if !self.table.is_empty() {
-            pass.set_pipeline(&self.pipelines[0]);
-            pass.set_bind_group(0, &g[0], &[]);
-            pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
-        }
         pass.set_pipeline(&self.pipelines[1]);
         pass.set_bind_group(0, &g[1], &[]);
         pass.dispatch_workgroups(nodes.0, nodes.1, 1);
+    }
+
+    /// Record the tet pass alone in phase `phase` (rotations and corner forces): the implicit
+    /// step's first pass, before its blocks and its solve.
+    pub(super) fn record_tets(&self, pass: &mut wgpu::ComputePass<'_>, phase: usize) {
+        if !self.table.is_empty() {
+            pass.set_pipeline(&self.pipelines[0]);
+            pass.set_bind_group(0, &self.bind_groups[phase][0], &[]);
+            pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        }
+    }
+
+    /// The device buffers the implicit step reads beside the table: the tets' shapes and
+    /// rotations (the block pass), the node rows, records and corner forces (the solve's
+    /// force).
+    pub(super) fn device_table(&self) -> DeviceTable<'_> {
+        let t = &self.buffers;
+        DeviceTable {
+            shape: &t.shape,
+            rotations: &t.rotations,
+            rows: &t.rows,
+            incidence: &t.incidence,
+            forces: &t.forces,
+        }
     }
 
     /// Follow `diff` (applied to `model`; `layout` already patched): the float64 model's

@@ -16,6 +16,14 @@
 //! springs' solve computes each spring's Jacobian block from its geometry
 //! (`shaders/implicit_tensor.wgsl`); the conjugate gradients and the block-Jacobi
 //! preconditioner are the same passes. Twin: [`crate::twin::implicit_tensor`].
+//!
+//! With the corotational force model the solve is the tensor-mass one on blocks the
+//! corotational block pass writes each step (`R K R^T` per slot,
+//! [`super::corotational_implicit`]), bound in group 1 with the tet table's node rows, records
+//! and corner forces: the setup's force is those corner forces gathered
+//! (`shaders/implicit_corotational.wgsl`), the rest unchanged. The engine records the tet and
+//! block passes before the setup ([`ImplicitSolver::step`]'s prelude). Twin:
+//! [`crate::twin::corotational_implicit`].
 
 use bytemuck::{Pod, Zeroable};
 
@@ -65,6 +73,7 @@ const TENSOR_CONNECTIVITY: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
     include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_tensor_force.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
     include_str!("../../../shaders/implicit_connectivity.wgsl")
@@ -75,6 +84,7 @@ const TENSOR_VALENCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
     include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_tensor_force.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
     include_str!("../../../shaders/valence_buckets.wgsl"),
@@ -86,8 +96,65 @@ const TENSOR_EDGES: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
     include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_tensor_force.wgsl"),
     include_str!("../../../shaders/implicit_tensor_edges.wgsl")
 );
+
+/// The corotational solve over the connectivity table: the tensor-mass solve on the blocks the
+/// corotational block pass writes each step, its force the tet pass's corner forces.
+const COROTATIONAL_CONNECTIVITY: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_corotational.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_connectivity.wgsl")
+);
+
+/// The corotational solve over the valence buckets.
+const COROTATIONAL_VALENCE: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_corotational.wgsl"),
+    include_str!("../../../shaders/implicit_slots.wgsl"),
+    include_str!("../../../shaders/implicit_slots_tensor.wgsl"),
+    include_str!("../../../shaders/valence_buckets.wgsl"),
+    include_str!("../../../shaders/implicit_valence.wgsl")
+);
+
+/// The corotational solve over the edge layout's records and incidence table.
+const COROTATIONAL_EDGES: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_tensor.wgsl"),
+    include_str!("../../../shaders/implicit_corotational.wgsl"),
+    include_str!("../../../shaders/implicit_tensor_edges.wgsl")
+);
+
+/// What the solve's stiffness and force are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveModel {
+    /// Each spring's Jacobian block from its geometry.
+    Springs,
+    /// The constant tensor-mass blocks (group 1).
+    TensorMass,
+    /// The corotational blocks of the step (group 1, with the tet table's node rows, records
+    /// and corner forces, whose sum is the force).
+    Corotational,
+}
+
+impl SolveModel {
+    /// Storage buffers the model binds in group 1.
+    fn group_one(self) -> u32 {
+        match self {
+            SolveModel::Springs => 0,
+            SolveModel::TensorMass => 1,
+            SolveModel::Corotational => 4,
+        }
+    }
+}
 
 /// The solver vectors held in one buffer, in this order (see the shader).
 const VECTORS: u64 = 7;
@@ -196,7 +263,8 @@ pub struct ImplicitSolver {
     /// The workgroups of a dispatch over the spring records (edge layout).
     spring_groups: (u32, u32),
     /// The tensor-mass blocks' layout (group 1) and its bind group once bound; `None` for
-    /// springs.
+    /// springs. Its bindings: the blocks, then the corotational solve's tet rows, records and
+    /// corner forces.
     blocks_layout: Option<wgpu::BindGroupLayout>,
     blocks_group: Option<wgpu::BindGroup>,
     vectors: wgpu::Buffer,
@@ -213,14 +281,14 @@ fn group_count(groups: (u32, u32)) -> u32 {
 
 impl ImplicitSolver {
     /// The pipelines and buffers of a solve with `settings` at step constants `p`, on the
-    /// springs' Jacobian or (`tensor`) on the tensor-mass blocks.
+    /// springs' Jacobian or on the blocks of `model`.
     pub(super) fn new(
         ctx: &GpuContext,
         settings: SolverSettings,
         p: &StepParams,
         state: &StateBuffers,
         kind: LayoutKind,
-        tensor: bool,
+        model: SolveModel,
     ) -> Result<Self> {
         if settings.newton_iterations > 1 {
             return Err(Error::Unsupported(format!(
@@ -254,29 +322,29 @@ impl ImplicitSolver {
         // slots, masses, velocities, displacements (read); next displacements, next velocities,
         // solver vectors, scalars and partials (written); the valence layout's bucket table.
         let mut bindings = vec![true, true, true, true, false, false, false, false];
-        let source = match (kind, tensor) {
-            (LayoutKind::Connectivity, false) => CONNECTIVITY,
-            (LayoutKind::Connectivity, true) => TENSOR_CONNECTIVITY,
-            (LayoutKind::Valence, _) => {
+        let (connectivity, valence, edges) = match model {
+            SolveModel::Springs => (CONNECTIVITY, VALENCE, EDGES),
+            SolveModel::TensorMass => (TENSOR_CONNECTIVITY, TENSOR_VALENCE, TENSOR_EDGES),
+            SolveModel::Corotational => (
+                COROTATIONAL_CONNECTIVITY,
+                COROTATIONAL_VALENCE,
+                COROTATIONAL_EDGES,
+            ),
+        };
+        let source = match kind {
+            LayoutKind::Connectivity => connectivity,
+            LayoutKind::Valence => {
                 bindings.push(true);
-                if tensor {
-                    TENSOR_VALENCE
-                } else {
-                    VALENCE
-                }
+                valence
             }
-            (LayoutKind::Edges, _) => {
+            LayoutKind::Edges => {
                 // Incidence rows and entries (read), the spring values (written).
                 bindings.extend([true, true, false]);
-                if tensor {
-                    TENSOR_EDGES
-                } else {
-                    EDGES
-                }
+                edges
             }
         };
-        // The tensor-mass blocks are one more, in group 1.
-        let count = bindings.len() as u32 + tensor as u32;
+        // The blocks (and the corotational tet table's buffers) are more, in group 1.
+        let count = bindings.len() as u32 + model.group_one();
         let most = ctx.limits.max_storage_buffers_per_shader_stage;
         if count > 8 && most < count {
             return Err(Error::Unsupported(format!(
@@ -287,11 +355,14 @@ impl ImplicitSolver {
         }
         let edges = kind == LayoutKind::Edges;
         let layout = buffers::pass_layout(ctx, "implicit solve", &bindings);
-        let blocks_layout = tensor.then(|| {
+        let blocks_layout = (model != SolveModel::Springs).then(|| {
+            let entries: Vec<_> = (0..model.group_one())
+                .map(|b| buffers::storage_entry(b, true))
+                .collect();
             ctx.device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("implicit tensor blocks"),
-                    entries: &[buffers::storage_entry(0, true)],
+                    entries: &entries,
                 })
         });
         let groups: Vec<&wgpu::BindGroupLayout> =
@@ -357,8 +428,9 @@ impl ImplicitSolver {
     }
 
     /// Bind the layout's slot (or edge spring) and mass buffers, its further tables (the
-    /// valence buckets; the edge layout's incidence rows and entries), the tensor-mass blocks
-    /// (where the solve runs on them) and the node state (again after a patch, which may have
+    /// valence buckets; the edge layout's incidence rows and entries), the group 1 buffers
+    /// (the blocks, and for the corotational solve the tet rows, records and corner forces;
+    /// empty for springs) and the node state (again after a patch, which may have
     /// replaced any of them), with the dispatch sizes and connectivity width of now; the solver
     /// buffers grow with the state and the springs.
     #[allow(clippy::too_many_arguments)]
@@ -368,7 +440,7 @@ impl ImplicitSolver {
         slots: &wgpu::Buffer,
         inv_mass: &wgpu::Buffer,
         tables: &[&wgpu::Buffer],
-        blocks: Option<&wgpu::Buffer>,
+        blocks: &[&wgpu::Buffer],
         state: &StateBuffers,
         n: u32,
         width: u32,
@@ -388,23 +460,18 @@ impl ImplicitSolver {
             self.spring_values =
                 buffers::zeroed_storage(ctx, "solver spring values", want, buffers::Sizing::Exact)?;
         }
-        self.blocks_group = match (&self.blocks_layout, blocks) {
-            (Some(layout), Some(b)) => {
-                Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("implicit tensor blocks"),
-                    layout,
-                    entries: &[wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: b.as_entire_binding(),
-                    }],
-                }))
-            }
-            (Some(_), None) => {
+        self.blocks_group = match &self.blocks_layout {
+            Some(_) if blocks.is_empty() => {
                 return Err(Error::Gpu(
-                    "the tensor-mass implicit solve was given no blocks to bind".into(),
-                ))
+                    "the implicit solve on blocks was given no blocks to bind".into(),
+                ));
             }
-            (None, _) => None,
+            Some(layout) => Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("implicit tensor blocks"),
+                layout,
+                entries: &buffers::entries(blocks),
+            })),
+            None => None,
         };
         self.spring_groups = springs.1;
         let u = &mut self.uniform_data;
@@ -528,12 +595,15 @@ impl ImplicitSolver {
     }
 
     /// One implicit step in `phase`: the solve in batches until the device says it has ended,
-    /// the next state written into the phase's output buffers. Returns the final scalars.
+    /// the next state written into the phase's output buffers. `prelude` records what the
+    /// setup reads that changes every step (the corotational tet and block passes) at the
+    /// start of the first batch. Returns the final scalars.
     pub(super) fn step(
         &mut self,
         ctx: &GpuContext,
         phase: usize,
         groups: (u32, u32),
+        prelude: &dyn Fn(&mut wgpu::ComputePass<'_>),
     ) -> Result<Scalars> {
         let max = self.uniform_data.max_iterations;
         // The cap ends the solve on the device; the bound only guards against a status word
@@ -551,6 +621,7 @@ impl ImplicitSolver {
                     timestamp_writes: None,
                 });
                 if batch == 0 {
+                    prelude(&mut pass);
                     self.record(&mut pass, SolvePass::Setup, phase, groups);
                     self.record(&mut pass, SolvePass::Start, phase, groups);
                 }

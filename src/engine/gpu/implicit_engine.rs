@@ -44,13 +44,23 @@ impl GpuEngine {
                 )))
             }
         };
+        // Group 1: the tensor-mass blocks, or the corotational blocks with the tet table's
+        // node rows, records and corner forces (the solve's force).
+        let group_one: Vec<&wgpu::Buffer> = match (&self.tensor, &self.corot, &self.corot_blocks) {
+            (Some(t), _, _) => vec![t.buffer()],
+            (None, Some(c), Some(b)) => {
+                let t = c.device_table();
+                vec![b.buffer(), t.rows, t.incidence, t.forces]
+            }
+            _ => Vec::new(),
+        };
         solver.set_damped(&self.ctx, self.uniform_data.damped != 0);
         solver.rebind(
             &self.ctx,
             buffer(records)?,
             buffer(LayoutArray::InvMass)?,
             &tables,
-            self.tensor.as_ref().map(|t| t.buffer()),
+            &group_one,
             &self.state,
             self.layout.node_slots() as u32,
             width,
@@ -61,13 +71,23 @@ impl GpuEngine {
     }
 
     /// `steps` implicit steps, each solved to its end before the next (the state rotates as
-    /// for symplectic Euler). A device failure is reported and stops the steps.
+    /// for symplectic Euler); with the corotational force model each step first runs the tet
+    /// pass (rotations, corner forces) and the block pass. A device failure is reported and
+    /// stops the steps.
     pub(super) fn step_implicit(&mut self, steps: u32) {
         let Some(solver) = self.implicit.as_mut() else {
             return;
         };
         for _ in 0..steps {
-            match solver.step(&self.ctx, self.phase, self.dispatch.nodes) {
+            let phase = self.phase;
+            let (corot, blocks) = (&self.corot, &self.corot_blocks);
+            let prelude = |pass: &mut wgpu::ComputePass<'_>| {
+                if let (Some(c), Some(b)) = (corot, blocks) {
+                    c.record_tets(pass, phase);
+                    b.record(pass);
+                }
+            };
+            match solver.step(&self.ctx, self.phase, self.dispatch.nodes, &prelude) {
                 Ok(_) => self.phase = (self.phase + 1) % self.state.phases(),
                 Err(e) => {
                     eprintln!("lancet: the implicit step failed: {e}");

@@ -15,6 +15,7 @@ pub mod broad_tool;
 pub mod buffers;
 pub mod context;
 pub mod corotational;
+pub mod corotational_implicit;
 pub mod embed_surface;
 pub mod health;
 pub mod host_buffers;
@@ -204,6 +205,9 @@ pub struct GpuEngine {
     /// The corotational model and its passes, which replace the springs' force
     /// (`config.force_model` Corotational); `None` otherwise.
     corot: Option<corotational::CorotationalPasses>,
+    /// The corotational model's block pass under backward Euler (the blocks its solve reads);
+    /// `None` otherwise.
+    corot_blocks: Option<corotational_implicit::CorotationalBlocks>,
 }
 
 impl GpuEngine {
@@ -309,6 +313,11 @@ impl GpuEngine {
             Integrator::Verlet => Some(time_step::RescalePass::new(&ctx)?),
             Integrator::SymplecticEuler | Integrator::BackwardEuler => None,
         };
+        let solve_model = match (&tensor, &corot) {
+            (Some(_), _) => implicit::SolveModel::TensorMass,
+            (_, Some(_)) => implicit::SolveModel::Corotational,
+            _ => implicit::SolveModel::Springs,
+        };
         let implicit = match config.integrator.is_implicit() {
             true => Some(implicit::ImplicitSolver::new(
                 &ctx,
@@ -316,9 +325,15 @@ impl GpuEngine {
                 &params,
                 &state,
                 layout.kind(),
-                tensor.is_some(),
+                solve_model,
             )?),
             false => None,
+        };
+        let corot_blocks = match (&corot, config.integrator.is_implicit()) {
+            (Some(c), true) => Some(corotational_implicit::CorotationalBlocks::new(
+                &ctx, c, &layout,
+            )?),
+            _ => None,
         };
         let mut engine = GpuEngine {
             implicit,
@@ -336,6 +351,7 @@ impl GpuEngine {
             patches: 0,
             tensor,
             corot,
+            corot_blocks,
             ctx,
             config,
             layout,
@@ -513,6 +529,23 @@ impl GpuEngine {
         self.corot.as_ref()
     }
 
+    /// The corotational block pass, when the engine runs that force model under backward
+    /// Euler.
+    pub fn corotational_blocks(&self) -> Option<&corotational_implicit::CorotationalBlocks> {
+        self.corot_blocks.as_ref()
+    }
+
+    /// The blocks the corotational implicit solve read at the last step (`R K R^T` per slot,
+    /// layout order), read back; `None` for every other engine.
+    pub fn corotational_block_values(
+        &self,
+    ) -> Result<Option<crate::layout::tensor_blocks::TensorBlocks>> {
+        self.corot_blocks
+            .as_ref()
+            .map(|b| b.read_blocks(&self.ctx))
+            .transpose()
+    }
+
     /// The device's per-tet rotations of a corotational engine (unit quaternions, in the
     /// model's tet order); empty for every other force model.
     pub fn tet_rotations(&self) -> Result<Vec<[f32; 4]>> {
@@ -551,8 +584,9 @@ fn tensor_passes(
     }
 }
 
-/// The corotational passes where `config` asks for that force model (explicit integrators
-/// only, any layout: the element path is the same for all); `None` for the others.
+/// The corotational passes where `config` asks for that force model (any layout: the element
+/// path is the same for all; under backward Euler its tet pass runs before the block pass and
+/// the solve); `None` for the others.
 fn corotational_passes(
     ctx: &GpuContext,
     model: &PackedModel,
@@ -564,14 +598,6 @@ fn corotational_passes(
 ) -> Result<Option<corotational::CorotationalPasses>> {
     if config.force_model != crate::physics::ForceModelKind::Corotational {
         return Ok(None);
-    }
-    if config.integrator.is_implicit() {
-        return Err(crate::Error::Unsupported(
-            "the corotational force model runs on the GPU with the explicit integrators only \
-             (Verlet, SymplecticEuler): the GPU implicit solve takes the springs' stiffness as \
-             its Jacobian. Choose an explicit integrator, or engine: Fast or Reference"
-                .into(),
-        ));
     }
     Ok(Some(corotational::CorotationalPasses::new(
         ctx, model, layout, passes, uniform, state,

@@ -75,6 +75,9 @@ impl GpuEngine {
         if let Some(c) = self.corot.as_mut() {
             tensor_bytes = c.patch(&self.ctx, model, diff, &self.layout)?;
             self.uniform_data.damped = c.damped() as u32;
+            if let Some(b) = self.corot_blocks.as_mut() {
+                tensor_bytes += b.patch(&self.ctx, c, &self.layout)?;
+            }
         }
         let layout_bytes = self.layout.upload_bytes();
         let mut cost = PatchCost {

@@ -182,7 +182,9 @@ impl Engine for GpuEngine {
             // The element path reads no spring: its own traffic replaces the springs' passes'.
             m.bytes_per_step = c.bytes_per_step(self.layout.node_slots() as u64);
             let before = m.stats.total.max(1) as f64;
-            for (name, bytes) in c.buffers() {
+            // Under backward Euler the block pass's pair lists and blocks are beside them.
+            let blocks = self.corot_blocks.iter().flat_map(|b| b.buffers());
+            for (name, bytes) in c.buffers().into_iter().chain(blocks) {
                 m.stats.total += bytes;
                 m.stats.buffers.push((name, bytes));
             }
