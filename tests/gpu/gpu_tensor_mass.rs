@@ -131,6 +131,43 @@ fn gpu_tensor_mass_follows_the_float64_reference(
     );
 }
 
+/// The energy a GPU engine reports for its divergence checks is that of the finite elements it
+/// steps, as the float64 reference engine's is, not the springs' (which differ by far more than
+/// float32 rounding on this state).
+#[rstest]
+fn a_gpu_engine_weighs_the_energy_of_its_finite_elements(
+    #[values(ForceModelKind::TensorMass, ForceModelKind::Corotational)] kind: ForceModelKind,
+) {
+    use lancet::engine::{EngineKind, Simulation};
+    let Some(_) = common::gpu() else { return };
+    let model = jittered_box(4, false);
+    let (x, v) = random_state(&model, 6);
+    let elastic = |engine: EngineKind, kind: ForceModelKind| {
+        let config = SimConfig {
+            force_model: kind,
+            ..config(&model, Integrator::Verlet, 0.5)
+        };
+        let mut sim =
+            Simulation::with_gpu(model.clone(), engine, config, LayoutKind::Valence.into())
+                .unwrap();
+        sim.set_state(&x, &v).unwrap();
+        sim.energy().elastic
+    };
+    let gpu = elastic(EngineKind::Gpu, kind);
+    let reference = elastic(EngineKind::Reference, kind);
+    let springs = elastic(EngineKind::Reference, ForceModelKind::Springs);
+    // Positions stored in float32 (about 4e-9 m on displacements of 5e-4 m): the energy to
+    // a relative 1e-4.
+    assert!(
+        (gpu - reference).abs() < 1e-4 * reference,
+        "{kind:?}: GPU {gpu:e} J, reference {reference:e} J"
+    );
+    assert!(
+        (springs - reference).abs() > 1e-2 * reference,
+        "springs {springs:e} J against {reference:e} J: the state does not tell the models apart"
+    );
+}
+
 /// Memory per layout counts the blocks: a 3x3 block of three vec4 rows per slot in use (six
 /// when damped), beside the springs' buffers.
 #[test]

@@ -199,6 +199,20 @@ impl Engine for GpuEngine {
         self.describe()
     }
 
+    /// The finite elements' energy when the engine steps them (the float64 model its passes
+    /// keep patched, in model indices), else the springs': the divergence check and a cut's
+    /// energy bookkeeping must weigh the forces this engine applies.
+    fn elastic_energy(&self, model: &PackedModel, x: &[[f64; 3]]) -> f64 {
+        use crate::physics::ForceModel;
+        if let Some(t) = &self.tensor {
+            return t.model().potential_energy(x);
+        }
+        if let Some(c) = &self.corot {
+            return c.model().potential_energy(x);
+        }
+        model.elastic_energy(x)
+    }
+
     fn patch(&mut self, model: &PackedModel, diff: &ModelDiff) -> Result<Option<PatchCost>> {
         GpuEngine::patch(self, model, diff).map(Some)
     }

@@ -32,7 +32,7 @@ use super::*;
 pub struct Energy {
     /// Kinetic.
     pub kinetic: f64,
-    /// Elastic (springs).
+    /// Elastic, of the force model the engine steps (springs or finite elements).
     pub elastic: f64,
     /// Gravitational, zero at rest positions.
     pub gravity: f64,
