@@ -98,7 +98,8 @@ impl FastEngine {
 
     /// Apply `diff` (already applied to `model`) to the engine's arrays, keeping the state.
     /// `None` where the engine must be rebuilt instead (the first damped spring of an undamped
-    /// model needs the damping array built for every row).
+    /// model needs the damping array built for every row; a spring off a uniform layout's
+    /// material needs every row's constants stored).
     pub(in crate::engine) fn patch_in_place(
         &mut self,
         model: &PackedModel,
@@ -113,6 +114,18 @@ impl FastEngine {
                 .chain(&diff.changed_springs)
                 .any(|s| s.damping != 0.0);
         if damped_now && !self.graph.springs.damped {
+            return None;
+        }
+        // A uniform layout takes springs of its one material only: another stiffness or
+        // damping (a subdividing cut's new springs, say) needs the constants per end, which a
+        // rebuild lays out for every row. Checked before anything is changed.
+        let ends: Vec<(Entry, f32)> = diff
+            .added_springs
+            .iter()
+            .chain(&diff.changed_springs)
+            .map(|s| entry_of(s, 0, 0, &model.rest))
+            .collect();
+        if !self.graph.springs.fits(ends.iter()) {
             return None;
         }
         let n0 = self.order.len();
@@ -349,11 +362,11 @@ mod tests {
         if method != CutMethod::Remove {
             assert!(compactions >= 1, "{cuts} cuts compacted nothing");
         }
-        // The check that `lancet run --check` makes sees one wrong stiffness.
+        // The check that `lancet run --check` makes sees one wrong edge.
         let sl = &mut engine.graph.springs;
         assert!(sl.len(0) > 0);
         let start = sl.slices[0][0] as usize;
-        sl.groups[start].k[0] *= 1.5;
+        sl.groups[start].edge[0][0] *= 1.5;
         assert_eq!(engine.graph_differences(&packed).len(), 1);
     }
 
