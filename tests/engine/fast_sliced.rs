@@ -217,6 +217,21 @@ fn one_material_layout_steps_as_the_reference_and_a_cut_off_its_material_rebuild
             let (e, node) = one_step_error(&mut fresh, &off, config, &x, &v);
             assert!(e < TOLERANCE, "{what}, rebuilt: node {node} off by {e:.2e}");
         }
+        // One spring prestressed by 1e-5 of its length (20 float32 ulps): its rest length is
+        // no longer its edge's, so the constants are stored per end (a rest length taken from
+        // the edge would silently drop the prestress).
+        let mut loaded = model.clone();
+        loaded.springs_mut()[11].rest_length *= 1.0 + 1e-5;
+        loaded.reindex();
+        let config = SimConfig::new(0.5 * stable_time_step(&loaded).dt);
+        let mut fast = FastEngine::new(&loaded, config);
+        assert_eq!(fast.uniform_springs(), None, "seed {seed}");
+        let (x, v) = random_state(&loaded, seed + 30);
+        let (e, node) = one_step_error(&mut fast, &loaded, config, &x, &v);
+        assert!(
+            e < TOLERANCE,
+            "seed {seed} prestressed: node {node} off by {e:.2e}"
+        );
     }
 }
 

@@ -366,7 +366,7 @@ mod tests {
         let sl = &mut engine.graph.springs;
         assert!(sl.len(0) > 0);
         let start = sl.slices[0][0] as usize;
-        sl.groups[start].edge[0][0] *= 1.5;
+        sl.groups[start].edge[0][0] += 1e-3;
         assert_eq!(engine.graph_differences(&packed).len(), 1);
     }
 
@@ -403,12 +403,15 @@ mod tests {
         };
         let before = rows(&moved);
         let g = &mut moved.graph.springs;
+        assert!(g.uniform.is_none(), "the elastic material's stiffness varies");
         g.groups.reserve(g.groups.len());
+        g.material.reserve(g.material.len());
         g.damping.reserve(g.damping.len());
         for b in (0..g.slices.len()).rev().step_by(3) {
             let [s, e] = g.slices[b];
             let at = g.groups.len() as u32;
             g.groups.extend_from_within(s as usize..e as usize);
+            g.material.extend_from_within(s as usize..e as usize);
             g.damping.extend_from_within(s as usize..e as usize);
             g.slices[b] = [at, at + e - s];
             g.holes += (e - s) as usize;
@@ -423,6 +426,7 @@ mod tests {
         assert!(g.compact() > 0);
         assert_eq!(g.holes, 0);
         assert_eq!(g.groups.len(), len - holes);
+        assert_eq!(g.material.len(), len - holes);
         assert_eq!(g.damping.len(), len - holes);
         assert_eq!((g.groups.capacity(), g.groups.as_ptr()), (capacity, at));
         assert_eq!(g.compact(), 0, "nothing left to slide");
