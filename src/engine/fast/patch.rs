@@ -403,7 +403,10 @@ mod tests {
         };
         let before = rows(&moved);
         let g = &mut moved.graph.springs;
-        assert!(g.uniform.is_none(), "the elastic material's stiffness varies");
+        assert!(
+            g.uniform.is_none(),
+            "the elastic material's stiffness varies"
+        );
         g.groups.reserve(g.groups.len());
         g.material.reserve(g.material.len());
         g.damping.reserve(g.damping.len());
