@@ -224,6 +224,9 @@ pub struct BenchRow {
     /// Median device time per step from timestamp queries, ms: the GPU engine on adapters
     /// with `TIMESTAMP_QUERY`; none otherwise.
     pub gpu_ms_per_step: Option<f64>,
+    /// Process CPU time (every thread's) over the timed steps, per step, ms: less sensitive to
+    /// other processes' load than the wall time; none where the platform does not report it.
+    pub cpu_ms_per_step: Option<f64>,
     /// Springs evaluated per second (each spring counted once per step).
     pub spring_evals_per_s: f64,
     /// `bytes_per_step / time per step`.
@@ -244,6 +247,25 @@ pub struct BenchRow {
     /// Implicit integrators: the bytes one iteration moves at least, where the engine counts
     /// them (then the bandwidth columns are per iteration, not per step).
     pub bytes_per_cg_iteration: Option<u64>,
+}
+
+/// CPU time this process has used so far, every thread's, s; `None` where the platform does
+/// not report it.
+fn process_cpu_seconds() -> Option<f64> {
+    #[cfg(unix)]
+    {
+        let mut t = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: `t` is a valid timespec for the call to write.
+        let ok = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) } == 0;
+        ok.then_some(t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
 }
 
 /// The time step implicit integrators are benchmarked at, s: a haptic loop's 1 ms, far above
@@ -463,6 +485,7 @@ pub fn run_bench(
             let mut times = Vec::new();
             let mut device_times = Vec::new();
             let mut done = 0;
+            let cpu_before = process_cpu_seconds();
             while done < total {
                 let n = opts.chunk.min(total - done);
                 let t = Instant::now();
@@ -474,6 +497,9 @@ pub fn run_bench(
                 }
                 done += n;
             }
+            let cpu_ms_per_step = cpu_before
+                .zip(process_cpu_seconds())
+                .map(|(a, b)| (b - a) / total as f64 * 1e3);
             // Only when every chunk was timed, so the median is over the same chunks.
             let gpu_ms_per_step = (device_times.len() == times.len()).then(|| {
                 device_times.sort_by(f64::total_cmp);
@@ -512,6 +538,7 @@ pub fn run_bench(
                 bytes_per_step: memory.bytes_per_step,
                 ms_per_step: per_step * 1e3,
                 gpu_ms_per_step,
+                cpu_ms_per_step,
                 spring_evals_per_s: model.springs().len() as f64 / per_step,
                 achieved_bytes_per_s: achieved,
                 bandwidth_bytes_per_s: bandwidth.bytes_per_s,

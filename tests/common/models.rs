@@ -66,6 +66,28 @@ pub fn random_model(seed: u64, damped: bool) -> PackedModel {
     model
 }
 
+/// `model` with one spring material: every spring the mean stiffness and mean damping of
+/// `model`'s, its rest length the length of its rest edge (as a scene of one spring material
+/// built at rest has, and the fast engine then stores its springs' constants once).
+pub fn one_material(mut model: PackedModel) -> PackedModel {
+    let count = model.springs().len() as f64;
+    let k = model.springs().iter().map(|s| s.stiffness).sum::<f64>() / count;
+    let c = model.springs().iter().map(|s| s.damping).sum::<f64>() / count;
+    let rest = model.rest.clone();
+    for s in model.springs_mut().iter_mut() {
+        s.stiffness = k;
+        s.damping = c;
+        s.rest_length = rest_length(&rest, s.nodes);
+    }
+    model
+}
+
+/// The distance between nodes `a` and `b` of `rest`.
+pub fn rest_length(rest: &[[f64; 3]], [a, b]: [u32; 2]) -> f64 {
+    let (ra, rb) = (rest[a as usize], rest[b as usize]);
+    (0..3).map(|c| (rb[c] - ra[c]).powi(2)).sum::<f64>().sqrt()
+}
+
 /// A random box around a random one of the positions `x` (1-21 mm half-widths), and a box
 /// holding it, grown by up to 5 mm a side: what a cut asks for and what was read ahead.
 pub fn boxes_near(rng: &mut Rng, x: &[[f64; 3]]) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {

@@ -1,26 +1,33 @@
 //! The fast engine's AVX2/FMA kernels (used where the CPU has them) step like its baseline
-//! kernels: the same physics, differing only by fused-multiply-add rounding.
+//! kernels: the same physics, differing only by fused-multiply-add rounding, with the springs'
+//! constants per end and with one material kept once.
 
 use crate::models;
 use lancet::engine::fast::FastEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
 use lancet::model::stable_time_step;
 use lancet::report::bench::relative_l2;
-use models::{random_model, random_state};
+use models::{one_material, random_model, random_state};
 use rstest::rstest;
 
 #[rstest]
 fn wide_and_baseline_kernels_agree(
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
     #[values(false, true)] damped: bool,
+    #[values(false, true)] one: bool,
 ) {
-    let model = random_model(71, damped);
+    let model = if one {
+        one_material(random_model(71, damped))
+    } else {
+        random_model(71, damped)
+    };
     let mut config = SimConfig::new(0.5 * stable_time_step(&model).dt);
     config.integrator = integrator;
     let (x, v) = random_state(&model, 71);
     let run = |wide: bool| {
         let mut e = FastEngine::new(&model, config);
         let used = e.set_wide_simd(wide);
+        assert_eq!(e.uniform_springs().is_some(), one);
         e.set_state(&x, &v);
         e.step(300);
         (used, e.positions())

@@ -9,7 +9,7 @@
 //! passes and a spring lost, doubled or read from the wrong lane (a whole term, 1e-2 and more
 //! of the sum) fails, even on a node whose forces nearly cancel.
 
-use crate::models::{random_diff, random_model, random_state, Rng};
+use crate::models::{one_material, random_diff, random_model, random_state, rest_length, Rng};
 use lancet::engine::fast::FastEngine;
 use lancet::engine::reference::ReferenceEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
@@ -136,37 +136,149 @@ fn the_sliced_layout_steps_as_the_reference_on_slivers_and_after_patches() {
     }
 }
 
+/// One spring material (one stiffness and damping, each rest length its rest edge's, on the same
+/// slivers): the layout keeps the constants once and the step takes each rest length from its
+/// edge vector, and steps as the reference to float32 rounding, before and after patches of
+/// the same material. A patch bringing a spring of another stiffness is refused (a uniform
+/// layout cannot hold it) before anything changes, and the simulation rebuilds the engine with
+/// per-end constants: the rebuilt engine steps as one built on the new model, and as the
+/// reference.
+#[test]
+fn one_material_layout_steps_as_the_reference_and_a_cut_off_its_material_rebuilds() {
+    use lancet::engine::{EngineKind, Simulation};
+    use lancet::model::{ModelDiff, PackedSpring};
+    for (seed, damped) in [(5u64, false), (6, true)] {
+        let model = one_material(sliver_model(seed, damped));
+        let (k, c) = (model.springs()[0].stiffness, model.springs()[0].damping);
+        for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+            let mut config = SimConfig::new(0.5 * stable_time_step(&model).dt);
+            config.integrator = integrator;
+            config.allow_unstable = true;
+            let mut fast = FastEngine::new(&model, config);
+            let what = format!("seed {seed} damped {damped} {integrator:?}");
+            assert_eq!(
+                fast.uniform_springs(),
+                Some((k as f32 as f64, c as f32 as f64))
+            );
+            let (x, v) = random_state(&model, seed + 10);
+            let (e, node) = one_step_error(&mut fast, &model, config, &x, &v);
+            assert!(
+                e < TOLERANCE,
+                "{what}: node {node} off by {e:.2e} of its terms"
+            );
+            let mut patched = model.clone();
+            for round in 0..3 {
+                let mut diff = random_diff(&patched, seed * 100 + round);
+                // The new and changed springs of the one material, at rest.
+                let mut rest = patched.rest.clone();
+                rest.extend(diff.added_nodes.iter().map(|a| a.rest));
+                for s in diff
+                    .added_springs
+                    .iter_mut()
+                    .chain(&mut diff.changed_springs)
+                {
+                    (s.stiffness, s.damping) = (k, c);
+                    s.rest_length = rest_length(&rest, s.nodes);
+                }
+                patched.apply(&diff).unwrap();
+                assert!(fast.patch(&patched, &diff).unwrap().is_some(), "{what}");
+                assert!(fast.uniform_springs().is_some(), "{what} round {round}");
+                let rebuilt = fast.differences_from_rebuild(&patched).unwrap();
+                assert!(rebuilt.is_empty(), "{what} round {round}: {rebuilt:?}");
+                let (x, v) = random_state(&patched, seed + round);
+                let (e, node) = one_step_error(&mut fast, &patched, config, &x, &v);
+                assert!(
+                    e < TOLERANCE,
+                    "{what} after patch {round}: node {node} off by {e:.2e} of its terms"
+                );
+            }
+            // One spring made 1.5 times as stiff.
+            let s = patched.springs()[7];
+            let stiffer = ModelDiff {
+                changed_springs: vec![PackedSpring {
+                    stiffness: 1.5 * s.stiffness,
+                    ..s
+                }],
+                ..Default::default()
+            };
+            let mut off = patched.clone();
+            off.apply(&stiffer).unwrap();
+            assert!(fast.patch(&off, &stiffer).unwrap().is_none(), "{what}");
+            let mut sim = Simulation::new(patched.clone(), EngineKind::Fast, config).unwrap();
+            let (x, v) = random_state(&patched, seed + 20);
+            sim.set_state(&x, &v).unwrap();
+            assert!(sim.apply(&stiffer).unwrap().reallocated, "{what}");
+            let mut fresh = FastEngine::new(&off, config);
+            assert_eq!(fresh.uniform_springs(), None, "{what}");
+            fresh.set_state(&x, &v);
+            sim.step_unchecked(3);
+            fresh.step(3);
+            assert_eq!(sim.positions(), fresh.positions(), "{what}");
+            let (e, node) = one_step_error(&mut fresh, &off, config, &x, &v);
+            assert!(e < TOLERANCE, "{what}, rebuilt: node {node} off by {e:.2e}");
+        }
+        // One spring prestressed by 1e-5 of its length (20 float32 ulps): its rest length is
+        // no longer its edge's, so the constants are stored per end (a rest length taken from
+        // the edge would silently drop the prestress).
+        let mut loaded = model.clone();
+        loaded.springs_mut()[11].rest_length *= 1.0 + 1e-5;
+        loaded.reindex();
+        let config = SimConfig::new(0.5 * stable_time_step(&loaded).dt);
+        let mut fast = FastEngine::new(&loaded, config);
+        assert_eq!(fast.uniform_springs(), None, "seed {seed}");
+        let (x, v) = random_state(&loaded, seed + 30);
+        let (e, node) = one_step_error(&mut fast, &loaded, config, &x, &v);
+        assert!(
+            e < TOLERANCE,
+            "seed {seed} prestressed: node {node} off by {e:.2e}"
+        );
+    }
+}
+
 /// Each spring end is stored once, in the sliced layout, and the valence sort keeps the slices'
 /// padding small: on the peer benchmark's five-tet grid (a small one) and on a six-tet box,
-/// damped, the engine's memory is its node arrays (four 16-byte state buffers, order and rank,
-/// inverse mass, fixed flag, row length, slice bounds) plus at most 28 bytes a spring end
-/// (24 of spring, 4 of damping) and the padding, which is under a tenth of the spring bytes.
+/// damped and undamped, the engine's memory is its node arrays (four 16-byte state buffers,
+/// order and rank, inverse mass, fixed flag, row length, slice bounds) plus 16 bytes a spring
+/// end (neighbour and rest edge vector: the benchmark's springs are of one material, whose
+/// stiffness and damping are kept once) and the padding, which is under a tenth of the spring
+/// bytes; with the stiffness varied per spring (the random box's), 24 bytes an end, 28 damped.
 /// A second, row-wise copy of the springs (36 bytes an end) would double the spring bytes.
 #[test]
 fn each_spring_end_is_stored_once_with_little_padding() {
     use lancet::mesh::generate::{BoxGrid, TetSplit};
     use lancet::report::bench::Preset;
+    let node_bytes = |n: u64| n * (4 * 16 + 8 + 4 + 1 + 4) + n.div_ceil(8) * 8;
     for split in [TetSplit::Five, TetSplit::Six] {
         let mut grid = BoxGrid::cube_cells([12, 8, 8], Preset::CELL);
         grid.split = split;
         let mesh = grid.build().unwrap();
-        let model = Preset::Damped.model(&mesh).unwrap();
-        let fast = FastEngine::new(&model, SimConfig::new(Preset::DT));
+        for preset in [Preset::Damped, Preset::Undamped] {
+            let model = preset.model(&mesh).unwrap();
+            let fast = FastEngine::new(&model, SimConfig::new(Preset::DT));
+            let mem = fast.memory().stats;
+            let ends = 2 * model.springs().len() as u64;
+            let spring_bytes = mem.total - node_bytes(model.node_count() as u64);
+            let live = ends * 16;
+            assert!(
+                spring_bytes >= live && spring_bytes - mem.padding == live,
+                "{split:?} {preset:?}: {spring_bytes} B of springs, {} B of padding, {live} B \
+                 of spring ends",
+                mem.padding
+            );
+            assert!(
+                mem.padding * 10 < spring_bytes,
+                "{split:?}: padding {} B of {spring_bytes} B of springs",
+                mem.padding
+            );
+        }
+    }
+    for (damped, per_end) in [(false, 24), (true, 28)] {
+        let model = random_model(9, damped);
+        let fast = FastEngine::new(&model, SimConfig::new(1e-5));
+        assert_eq!(fast.uniform_springs(), None);
         let mem = fast.memory().stats;
-        let n = model.node_count() as u64;
-        let ends = 2 * model.springs().len() as u64;
-        let node_bytes = n * (4 * 16 + 8 + 4 + 1 + 4) + n.div_ceil(8) * 8;
-        let spring_bytes = mem.total - node_bytes;
-        let live = ends * 28;
-        assert!(
-            spring_bytes >= live && spring_bytes - mem.padding == live,
-            "{split:?}: {spring_bytes} B of springs, {} B of padding, {live} B of spring ends",
-            mem.padding
-        );
-        assert!(
-            mem.padding * 10 < spring_bytes,
-            "{split:?}: padding {} B of {spring_bytes} B of springs",
-            mem.padding
-        );
+        let spring_bytes = mem.total - node_bytes(model.node_count() as u64);
+        let live = 2 * model.springs().len() as u64 * per_end;
+        assert_eq!(spring_bytes - mem.padding, live, "damped {damped}");
     }
 }

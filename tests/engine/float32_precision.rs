@@ -176,6 +176,29 @@ fn float32_follows_float64_at_a_sixteenth_and_a_sixty_fourth_of_the_bound_on_eve
     }
 }
 
+/// The same on the settling beam with springs of one material (its springs' mean stiffness,
+/// the same damping, rest lengths its rest edges'), where the fast engine keeps the constants
+/// once and takes each rest length from the float32 rest edge vector in the step rather than
+/// a stored float32 rest length (`sliced.rs`).
+#[test]
+fn float32_follows_float64_with_springs_of_one_material_taking_rest_lengths_from_their_edges() {
+    let model = crate::models::one_material(settling_beam());
+    let fast = lancet::engine::fast::FastEngine::new(&model, SimConfig::new(1e-5));
+    assert!(fast.uniform_springs().is_some());
+    let ladder = vec![1.0 / 16.0, 1.0 / 64.0];
+    for integrator in [Integrator::Verlet, Integrator::SymplecticEuler] {
+        let mut opts = options(
+            vec![EngineKind::Reference, EngineKind::Fast],
+            ladder.clone(),
+        );
+        opts.times = vec![0.15, 0.3];
+        let report =
+            model_accuracy("one material", &model, integrator, 0.3, &opts, |_| {}).unwrap();
+        let checked = assert_float32_follows_float64(&report, &format!("{integrator:?}"), true);
+        assert_eq!(checked, ladder.len());
+    }
+}
+
 /// The beam with the springs of its clamped half `contrast` times stiffer: the global bound is
 /// set there, so the free half runs at about `1 / sqrt(contrast)` of its own bound.
 fn stiffness_contrast(contrast: f64) -> PackedModel {
@@ -290,9 +313,16 @@ fn fast_on_threads(
 #[test]
 fn the_fast_engine_is_bit_identical_on_one_and_two_threads() {
     // 3,321 nodes: blocks of 1,024 nodes go to both threads.
+    // Springs of the elastic material (constants per end) and of one material (kept once).
     let mesh = beam(0.1, 0.02, 0.02, 40, 8).unwrap();
-    for damping in [0.0, SPRING_DAMPING] {
-        let mut material = Material::elastic(50e3, 0.25, 1000.0);
+    let materials = [
+        Material::elastic(50e3, 0.25, 1000.0),
+        Material::springs(500.0, 1e-3),
+    ];
+    for (damping, mut material) in [0.0, SPRING_DAMPING]
+        .into_iter()
+        .flat_map(|c| materials.map(move |m| (c, m)))
+    {
         if damping > 0.0 {
             material.damping = SpringDamping::Absolute(damping);
         }
@@ -319,7 +349,7 @@ fn the_fast_engine_is_bit_identical_on_one_and_two_threads() {
                 .zip(&two)
                 .filter(|(a, b)| a.map(f64::to_bits) != b.map(f64::to_bits))
                 .count();
-            assert_eq!(differ, 0, "damping {damping}, {integrator:?}");
+            assert_eq!(differ, 0, "damping {damping}, {material:?}, {integrator:?}");
         }
     }
 }

@@ -12,7 +12,7 @@
 //! the new rows transposed back and stored whole; given the same forces it gives the same
 //! bits.
 
-use super::sliced::{Sliced, LANES};
+use super::sliced::{Sliced, Uniform, LANES};
 use super::{Graph, Params, P};
 use std::arch::x86_64::*;
 
@@ -92,7 +92,7 @@ fn store_rows(v: [__m256; 4], out: &mut [P]) {
 /// exists.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn slice_forces<const DAMPED: bool>(
+unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
     sl: &Sliced,
     x: &[P],
     w: &[P],
@@ -107,24 +107,41 @@ unsafe fn slice_forces<const DAMPED: bool>(
     let mut acc = [zero; 3];
     let [start, end] = sl.slices[b];
     let (start, end) = (start as usize, end as usize);
-    // SAFETY (the loads): `Group` and the damping rows are arrays of eight f32 (`loadu`).
+    let u = sl.uniform.unwrap_or(Uniform { k: 0.0, c: 0.0 });
+    let (k_all, c_all) = (_mm256_set1_ps(u.k), _mm256_set1_ps(u.c));
+    // SAFETY (the loads): `Group`, `Material` and the damping rows are arrays of eight f32
+    // (`loadu`).
     let load = |a: &[f32; LANES]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
     for (k, g) in sl.groups[start..end].iter().enumerate() {
         // SAFETY: the groups' neighbours are below `sl.nodes()`, the length of `x` and `w`.
         let uj = unsafe { rows_of(x, &g.other) };
+        let e: [__m256; 3] = std::array::from_fn(|a| load(&g.edge[a]));
         let d: [__m256; 3] =
-            std::array::from_fn(|a| _mm256_add_ps(load(&g.edge[a]), _mm256_sub_ps(uj[a], ui[a])));
+            std::array::from_fn(|a| _mm256_add_ps(e[a], _mm256_sub_ps(uj[a], ui[a])));
         let l2 = _mm256_fmadd_ps(
             d[2],
             d[2],
             _mm256_fmadd_ps(d[1], d[1], _mm256_mul_ps(d[0], d[0])),
         );
         // A zero-length spring (padding, coincident nodes) has no direction: nothing.
-        let inv = _mm256_and_ps(
-            _mm256_div_ps(one, _mm256_sqrt_ps(l2)),
-            _mm256_cmp_ps::<_CMP_GT_OQ>(l2, zero),
-        );
-        let mut s = _mm256_mul_ps(load(&g.k), _mm256_fnmadd_ps(load(&g.rest), inv, one));
+        let some = _mm256_cmp_ps::<_CMP_GT_OQ>(l2, zero);
+        // `k (1 - L / l)`, and the damping's `1 / l^2` as two factors (see `group_force`).
+        let (mut s, f1, f2) = if UNIFORM {
+            // L / l = sqrt(|e|^2 / l^2): the rest length is the edge's, never stored.
+            let le2 = _mm256_fmadd_ps(
+                e[2],
+                e[2],
+                _mm256_fmadd_ps(e[1], e[1], _mm256_mul_ps(e[0], e[0])),
+            );
+            let inv2 = _mm256_and_ps(_mm256_div_ps(one, l2), some);
+            let ratio = _mm256_sqrt_ps(_mm256_mul_ps(le2, inv2));
+            (_mm256_mul_ps(k_all, _mm256_sub_ps(one, ratio)), inv2, one)
+        } else {
+            let inv = _mm256_and_ps(_mm256_div_ps(one, _mm256_sqrt_ps(l2)), some);
+            let m = &sl.material[start + k];
+            let s = _mm256_mul_ps(load(&m.k), _mm256_fnmadd_ps(load(&m.rest), inv, one));
+            (s, inv, inv)
+        };
         if DAMPED {
             let wj = unsafe { rows_of(w, &g.other) };
             let dw: [__m256; 3] = std::array::from_fn(|a| _mm256_sub_ps(wj[a], wi[a]));
@@ -133,10 +150,14 @@ unsafe fn slice_forces<const DAMPED: bool>(
                 d[2],
                 _mm256_fmadd_ps(dw[1], d[1], _mm256_mul_ps(dw[0], d[0])),
             );
-            let c = load(&sl.damping[start + k]);
+            let c = if UNIFORM {
+                c_all
+            } else {
+                load(&sl.damping[start + k])
+            };
             s = _mm256_fmadd_ps(
                 _mm256_mul_ps(c, along),
-                _mm256_mul_ps(ws, _mm256_mul_ps(inv, inv)),
+                _mm256_mul_ps(ws, _mm256_mul_ps(f1, f2)),
                 s,
             );
         }
@@ -155,7 +176,7 @@ unsafe fn slice_forces<const DAMPED: bool>(
 /// The CPU has AVX2 and FMA; `x` and `s` hold the `sl.nodes()` nodes the layout indexes.
 #[target_feature(enable = "avx2,fma")]
 #[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn block<const DAMPED: bool, const VERLET: bool>(
+pub(super) unsafe fn block<const DAMPED: bool, const UNIFORM: bool, const VERLET: bool>(
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -177,7 +198,7 @@ pub(super) unsafe fn block<const DAMPED: bool, const VERLET: bool>(
         let (xi, si) = unsafe { (rows4(x, &own), rows4(s, &own)) };
         let w_scale = if VERLET { p.inv_h } else { 1.0 };
         // SAFETY: as above; slice `b` exists since its nodes are being stepped.
-        let f = unsafe { slice_forces::<DAMPED>(sl, x, s, b, w_scale, &xi, &si) };
+        let f = unsafe { slice_forces::<DAMPED, UNIFORM>(sl, x, s, b, w_scale, &xi, &si) };
         let mut inv_mass = [0.0f32; LANES];
         let mut fixed = [0i32; LANES];
         for l in 0..xo.len() {

@@ -2,7 +2,7 @@
 //! Verlet and symplectic Euler updates of a block of nodes (AVX2/FMA where the processor has them, chosen
 //! at run time), and the parallel iteration over blocks.
 
-use super::sliced::{group_force, Sliced, LANES as SLICE, V3};
+use super::sliced::{group_force, Material, Sliced, LANES as SLICE, V3};
 use super::*;
 
 /// Whether the kernels may use AVX2 and FMA on this CPU.
@@ -25,7 +25,7 @@ pub(super) mod wide {
 
     #[target_feature(enable = "avx2,fma")]
     #[allow(clippy::too_many_arguments)]
-    pub(in crate::engine::fast) fn verlet_block<const DAMPED: bool>(
+    pub(in crate::engine::fast) fn verlet_block<const DAMPED: bool, const UNIFORM: bool>(
         g: &Graph,
         sl: &Sliced,
         p: Params,
@@ -36,12 +36,14 @@ pub(super) mod wide {
         dout: &mut [P],
     ) {
         // SAFETY: this function's own features; the step checks the state's length.
-        unsafe { super::super::gather::block::<DAMPED, true>(g, sl, p, x, d, start, xo, dout) }
+        unsafe {
+            super::super::gather::block::<DAMPED, UNIFORM, true>(g, sl, p, x, d, start, xo, dout)
+        }
     }
 
     #[target_feature(enable = "avx2,fma")]
     #[allow(clippy::too_many_arguments)]
-    pub(in crate::engine::fast) fn euler_block<const DAMPED: bool>(
+    pub(in crate::engine::fast) fn euler_block<const DAMPED: bool, const UNIFORM: bool>(
         g: &Graph,
         sl: &Sliced,
         p: Params,
@@ -52,7 +54,47 @@ pub(super) mod wide {
         vo: &mut [P],
     ) {
         // SAFETY: as above.
-        unsafe { super::super::gather::block::<DAMPED, false>(g, sl, p, x, v, start, xo, vo) }
+        unsafe {
+            super::super::gather::block::<DAMPED, UNIFORM, false>(g, sl, p, x, v, start, xo, vo)
+        }
+    }
+}
+
+/// Step the block from `start` with the AVX2 kernel where `wide`, else the portable one:
+/// Verlet's where `VERLET`, symplectic Euler's otherwise.
+///
+/// # Safety
+/// `wide` only where the CPU has AVX2 and FMA ([`wide_simd`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn step_block<const DAMPED: bool, const UNIFORM: bool, const VERLET: bool>(
+    wide: bool,
+    g: &Graph,
+    sl: &Sliced,
+    p: Params,
+    x: &[P],
+    s: &[P],
+    start: usize,
+    xo: &mut [P],
+    so: &mut [P],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if wide {
+        // SAFETY: the caller's.
+        unsafe {
+            if VERLET {
+                wide::verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+            } else {
+                wide::euler_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+            }
+        }
+        return;
+    }
+    let _ = wide;
+    if VERLET {
+        verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+    } else {
+        euler_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
     }
 }
 
@@ -60,7 +102,13 @@ pub(super) mod wide {
 /// node hold nothing useful), on displacements `x` with damping on the second state `w` scaled
 /// by `w_scale` (`1 / h` for Verlet's steps, 1 for velocities).
 #[inline(always)]
-fn slice_forces<const DAMPED: bool>(sl: &Sliced, x: &[P], w: &[P], b: usize, w_scale: f32) -> V3 {
+fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
+    sl: &Sliced,
+    x: &[P],
+    w: &[P],
+    b: usize,
+    w_scale: f32,
+) -> V3 {
     let base = b * SLICE;
     let mut ui = [[0.0f32; SLICE]; 3];
     let mut wi = [[0.0f32; SLICE]; 3];
@@ -74,10 +122,23 @@ fn slice_forces<const DAMPED: bool>(sl: &Sliced, x: &[P], w: &[P], b: usize, w_s
     }
     let mut acc = [[0.0f32; SLICE]; 3];
     let [start, end] = sl.slices[b];
+    // A uniform layout's constants, in every lane (the kernel reads lane 0).
+    let u = sl
+        .uniform
+        .unwrap_or(super::sliced::Uniform { k: 0.0, c: 0.0 });
+    let one = Material {
+        rest: [0.0; SLICE],
+        k: [u.k; SLICE],
+    };
+    let one_c = [u.c; SLICE];
     const NONE: [f32; SLICE] = [0.0; SLICE];
     for k in start as usize..end as usize {
-        let c = if DAMPED { &sl.damping[k] } else { &NONE };
-        group_force::<DAMPED>(&sl.groups[k], c, x, w, &ui, &wi, w_scale, &mut acc);
+        let (m, c) = if UNIFORM {
+            (&one, &one_c)
+        } else {
+            (&sl.material[k], if DAMPED { &sl.damping[k] } else { &NONE })
+        };
+        group_force::<DAMPED, UNIFORM>(&sl.groups[k], m, c, x, w, &ui, &wi, w_scale, &mut acc);
     }
     acc
 }
@@ -87,7 +148,7 @@ fn slice_forces<const DAMPED: bool>(sl: &Sliced, x: &[P], w: &[P], b: usize, w_s
 /// [`advance`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn verlet_block<const DAMPED: bool>(
+pub(super) fn verlet_block<const DAMPED: bool, const UNIFORM: bool>(
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -99,7 +160,7 @@ pub(super) fn verlet_block<const DAMPED: bool>(
 ) {
     for (s, (xo, dout)) in xo.chunks_mut(SLICE).zip(dout.chunks_mut(SLICE)).enumerate() {
         let b = start / SLICE + s;
-        let f = slice_forces::<DAMPED>(sl, x, d, b, p.inv_h);
+        let f = slice_forces::<DAMPED, UNIFORM>(sl, x, d, b, p.inv_h);
         for (l, (xo, dout)) in xo.iter_mut().zip(dout.iter_mut()).enumerate() {
             let i = b * SLICE + l;
             let (xi, di) = (x[i], d[i]);
@@ -124,7 +185,7 @@ pub(super) fn verlet_block<const DAMPED: bool>(
 /// `v+ = v + h a(u, v)`, `u+ = u + h v+` (compensated, [`advance`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn euler_block<const DAMPED: bool>(
+pub(super) fn euler_block<const DAMPED: bool, const UNIFORM: bool>(
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -136,7 +197,7 @@ pub(super) fn euler_block<const DAMPED: bool>(
 ) {
     for (s, (xo, vo)) in xo.chunks_mut(SLICE).zip(vo.chunks_mut(SLICE)).enumerate() {
         let b = start / SLICE + s;
-        let f = slice_forces::<DAMPED>(sl, x, v, b, 1.0);
+        let f = slice_forces::<DAMPED, UNIFORM>(sl, x, v, b, 1.0);
         for (l, (xo, vo)) in xo.iter_mut().zip(vo.iter_mut()).enumerate() {
             let i = b * SLICE + l;
             let (xi, vi) = (x[i], v[i]);

@@ -260,55 +260,41 @@ impl FastEngine {
 
     /// One step of position Verlet on (displacement, last step); then swap old and new.
     fn step_verlet(&mut self) {
-        let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
-        let (x, d) = (&self.x, &self.second);
-        // The AVX2 kernel reads neighbours unchecked: the layout's indices are below its node
-        // count, so the state must hold that many nodes.
-        assert!(sl.nodes() == x.len() && d.len() == x.len());
-        let (damped, wide) = (self.damped, self.wide);
-        for_block_pairs(
-            &mut self.x_next,
-            &mut self.second_next,
-            |start, xo, dout| {
-                match (damped, wide) {
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-                    (true, true) => unsafe {
-                        wide::verlet_block::<true>(g, sl, p, x, d, start, xo, dout)
-                    },
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: as above.
-                    (false, true) => unsafe {
-                        wide::verlet_block::<false>(g, sl, p, x, d, start, xo, dout)
-                    },
-                    (true, _) => verlet_block::<true>(g, sl, p, x, d, start, xo, dout),
-                    (false, _) => verlet_block::<false>(g, sl, p, x, d, start, xo, dout),
-                }
-            },
-        );
-        std::mem::swap(&mut self.x, &mut self.x_next);
-        std::mem::swap(&mut self.second, &mut self.second_next);
+        self.step_explicit::<true>();
     }
 
     /// One step of symplectic Euler; then swap old and new.
     fn step_euler(&mut self) {
+        self.step_explicit::<false>();
+    }
+
+    /// One explicit step (Verlet's where `VERLET`, else symplectic Euler's) from the state into
+    /// the output buffers, the kernel chosen by damping, the layout's constants (per end or
+    /// [`sliced::Uniform`]) and the CPU; then swap old and new.
+    fn step_explicit<const VERLET: bool>(&mut self) {
         let (g, sl, p) = (&self.graph, &self.graph.springs, self.params);
-        let (x, v) = (&self.x, &self.second);
-        // As in `step_verlet`: the AVX2 kernel reads neighbours unchecked.
-        assert!(sl.nodes() == x.len() && v.len() == x.len());
-        let (damped, wide) = (self.damped, self.wide);
-        for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, vo| {
-            match (damped, wide) {
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
-                (true, true) => unsafe { wide::euler_block::<true>(g, sl, p, x, v, start, xo, vo) },
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: as above.
-                (false, true) => unsafe {
-                    wide::euler_block::<false>(g, sl, p, x, v, start, xo, vo)
-                },
-                (true, _) => euler_block::<true>(g, sl, p, x, v, start, xo, vo),
-                (false, _) => euler_block::<false>(g, sl, p, x, v, start, xo, vo),
+        let (x, s) = (&self.x, &self.second);
+        // The AVX2 kernel reads neighbours unchecked: the layout's indices are below its node
+        // count, so the state must hold that many nodes.
+        assert!(sl.nodes() == x.len() && s.len() == x.len());
+        let (damped, uniform, wide) = (self.damped, sl.uniform.is_some(), self.wide);
+        for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, so| {
+            // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
+            unsafe {
+                match (damped, uniform) {
+                    (true, true) => {
+                        step_block::<true, true, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                    }
+                    (true, false) => {
+                        step_block::<true, false, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                    }
+                    (false, true) => {
+                        step_block::<false, true, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                    }
+                    (false, false) => {
+                        step_block::<false, false, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                    }
+                }
             }
         });
         std::mem::swap(&mut self.x, &mut self.x_next);
@@ -382,6 +368,14 @@ impl FastEngine {
     /// Number of entries of the adjacency: twice the number of springs.
     pub fn adjacency_len(&self) -> usize {
         self.graph.springs.live
+    }
+
+    /// The stiffness (N/m) and damping (N s/m) every spring shares, where the layout keeps
+    /// them once instead of per spring end (every spring of one material with its rest length
+    /// its rest edge's: 16 bytes an end instead of 24, or 28 damped); `None` where they are
+    /// stored per end.
+    pub fn uniform_springs(&self) -> Option<(f64, f64)> {
+        self.graph.springs.uniform.map(|u| (u.k as f64, u.c as f64))
     }
 
     /// Largest `|internal index of a node - internal index of a neighbour|` (the bandwidth the
@@ -481,7 +475,11 @@ impl Engine for FastEngine {
         let springs = sl.groups.len() as u64 * sl.group_bytes() as u64 + sl.index_bytes();
         let mut buffers = vec![
             (
-                "springs (slices of 8 nodes, a node a lane)".to_string(),
+                match sl.uniform {
+                    Some(_) => "springs (slices of 8 nodes, a node a lane; one material)",
+                    None => "springs (slices of 8 nodes, a node a lane)",
+                }
+                .to_string(),
                 springs,
             ),
             ("order and rank".to_string(), n * 8),

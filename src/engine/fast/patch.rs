@@ -98,7 +98,8 @@ impl FastEngine {
 
     /// Apply `diff` (already applied to `model`) to the engine's arrays, keeping the state.
     /// `None` where the engine must be rebuilt instead (the first damped spring of an undamped
-    /// model needs the damping array built for every row).
+    /// model needs the damping array built for every row; a spring off a uniform layout's
+    /// material needs every row's constants stored).
     pub(in crate::engine) fn patch_in_place(
         &mut self,
         model: &PackedModel,
@@ -113,6 +114,18 @@ impl FastEngine {
                 .chain(&diff.changed_springs)
                 .any(|s| s.damping != 0.0);
         if damped_now && !self.graph.springs.damped {
+            return None;
+        }
+        // A uniform layout takes springs of its one material only: another stiffness or
+        // damping (a subdividing cut's new springs, say) needs the constants per end, which a
+        // rebuild lays out for every row. Checked before anything is changed.
+        let ends: Vec<(Entry, f32)> = diff
+            .added_springs
+            .iter()
+            .chain(&diff.changed_springs)
+            .map(|s| entry_of(s, 0, 0, &model.rest))
+            .collect();
+        if !self.graph.springs.fits(ends.iter()) {
             return None;
         }
         let n0 = self.order.len();
@@ -349,11 +362,11 @@ mod tests {
         if method != CutMethod::Remove {
             assert!(compactions >= 1, "{cuts} cuts compacted nothing");
         }
-        // The check that `lancet run --check` makes sees one wrong stiffness.
+        // The check that `lancet run --check` makes sees one wrong edge.
         let sl = &mut engine.graph.springs;
         assert!(sl.len(0) > 0);
         let start = sl.slices[0][0] as usize;
-        sl.groups[start].k[0] *= 1.5;
+        sl.groups[start].edge[0][0] += 1e-3;
         assert_eq!(engine.graph_differences(&packed).len(), 1);
     }
 
@@ -390,12 +403,18 @@ mod tests {
         };
         let before = rows(&moved);
         let g = &mut moved.graph.springs;
+        assert!(
+            g.uniform.is_none(),
+            "the elastic material's stiffness varies"
+        );
         g.groups.reserve(g.groups.len());
+        g.material.reserve(g.material.len());
         g.damping.reserve(g.damping.len());
         for b in (0..g.slices.len()).rev().step_by(3) {
             let [s, e] = g.slices[b];
             let at = g.groups.len() as u32;
             g.groups.extend_from_within(s as usize..e as usize);
+            g.material.extend_from_within(s as usize..e as usize);
             g.damping.extend_from_within(s as usize..e as usize);
             g.slices[b] = [at, at + e - s];
             g.holes += (e - s) as usize;
@@ -410,6 +429,7 @@ mod tests {
         assert!(g.compact() > 0);
         assert_eq!(g.holes, 0);
         assert_eq!(g.groups.len(), len - holes);
+        assert_eq!(g.material.len(), len - holes);
         assert_eq!(g.damping.len(), len - holes);
         assert_eq!((g.groups.capacity(), g.groups.as_ptr()), (capacity, at));
         assert_eq!(g.compact(), 0, "nothing left to slide");

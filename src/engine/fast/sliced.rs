@@ -7,11 +7,21 @@
 //! finite elements' rows) reads its row out of its lane ([`Sliced::row`]); no row-wise copy
 //! of the springs is kept.
 //!
-//! Per spring end a group stores 24 bytes: the neighbour (u32), the rest edge vector and the
-//! rest length and stiffness (f32), plus 4 bytes of damping in a parallel array when any spring
-//! is damped; each node keeps its row length (4 bytes) so that a row is read without its
-//! padding. Padding lanes point at their own node with zero edge and zero stiffness, so they
-//! contribute exactly nothing (a zero-length spring has no direction: see [`group_force`]).
+//! Per spring end a group stores 16 bytes: the neighbour (u32) and the rest edge vector (f32).
+//! Where the springs' materials are one ([`Uniform`]: one stiffness, one damping coefficient,
+//! and every rest length the length of its rest edge, as in the peer benchmark and any scene
+//! of one spring material at rest), that is all: the stiffness and damping are two constants
+//! of the step and the rest length is recomputed from the edge vector (`|e|^2 / |d|^2` under
+//! the square root the force takes anyway), 16 bytes an end where storing them takes 28.
+//! Otherwise parallel arrays keep each end's rest length and stiffness ([`Material`], 8 bytes)
+//! and, when any spring is damped, its damping (4 bytes). Each node keeps its row length
+//! (4 bytes) so that a row is read without its padding. Padding lanes point at their own node
+//! with zero edge and zero stiffness, so they contribute exactly nothing (a zero-length spring
+//! has no direction: see [`group_force`]).
+//!
+//! Which of the two a layout is is fixed when it is built; a patch whose springs leave the
+//! uniform material (a subdividing cut whose new springs take another stiffness) is refused
+//! ([`Sliced::fits`]) and the engine rebuilt with per-end constants.
 //!
 //! A patch rewrites the slices of the rows it edits: in place when the slice does not widen,
 //! appended otherwise, leaving a hole; holes are compacted in place (slices slid down over
@@ -23,7 +33,7 @@ use super::{Entry, P};
 /// Nodes per slice: one AVX2 vector of f32.
 pub(super) const LANES: usize = 8;
 
-/// The k-th spring of the eight nodes of a slice.
+/// The k-th spring of the eight nodes of a slice: what every layout stores.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(32))]
 pub(super) struct Group {
@@ -31,15 +41,68 @@ pub(super) struct Group {
     pub other: [u32; LANES],
     /// Rest vector from the lane's node to the other end, per axis, m.
     pub edge: [[f32; LANES]; 3],
+}
+
+/// The constants of a group's springs where they are stored per end (not [`Uniform`]).
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(32))]
+pub(super) struct Material {
     /// Rest length, m.
     pub rest: [f32; LANES],
     /// Stiffness, N/m (0 for padding).
     pub k: [f32; LANES],
 }
 
+/// One stiffness and one damping coefficient for every spring, each rest length the length of
+/// its rest edge: the constants a uniform layout keeps once instead of per end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Uniform {
+    /// Stiffness, N/m.
+    pub k: f32,
+    /// Damping along the spring, N s/m.
+    pub c: f32,
+}
+
+impl Uniform {
+    /// The constants shared by every spring end in `ends`, if they are shared (and every rest
+    /// length is its edge's length to float32 rounding); `None` for a layout with no springs,
+    /// which has nothing to share.
+    fn of<'a>(mut ends: impl Iterator<Item = &'a (Entry, f32)>) -> Option<Uniform> {
+        let (first, c) = ends.next()?;
+        let u = Uniform { k: first.k, c: *c };
+        (u.fits(first, *c) && ends.all(|(e, c)| u.fits(e, *c))).then_some(u)
+    }
+
+    /// Whether the spring end `e` with damping `c` has these constants and a rest length its
+    /// edge's, within a few float32 roundings (the edge is rounded from float64 once per axis,
+    /// the rest length once: a spring built at rest differs by an ulp or two; a prestressed
+    /// one by its strain, 1e-6 of it or far more).
+    pub fn fits(&self, e: &Entry, c: f32) -> bool {
+        let len = e
+            .edge
+            .iter()
+            .map(|&a| (a as f64) * (a as f64))
+            .sum::<f64>()
+            .sqrt();
+        e.k.to_bits() == self.k.to_bits()
+            && c.to_bits() == self.c.to_bits()
+            && (len - e.rest as f64).abs() <= 4.0 * f32::EPSILON as f64 * len
+    }
+}
+
+/// The rest length of a uniform layout's spring: its edge's length, in float32 (as a row is
+/// read out; the step takes it under the square root of its force, [`group_force`]).
+#[inline(always)]
+pub(super) fn rest_of(edge: [f32; 3]) -> f32 {
+    (edge[0] * edge[0] + edge[1] * edge[1] + edge[2] * edge[2]).sqrt()
+}
+
 const BLANK: Group = Group {
     other: [0; LANES],
     edge: [[0.0; LANES]; 3],
+};
+
+const NO_MATERIAL: Material = Material {
     rest: [0.0; LANES],
     k: [0.0; LANES],
 };
@@ -53,8 +116,14 @@ pub(super) struct Sliced {
     /// Each slice's groups, as (start, end): `groups[start..end]`.
     pub slices: Vec<[u32; 2]>,
     pub groups: Vec<Group>,
-    /// Damping of each lane's spring, N s/m (empty when no spring is damped).
+    /// Rest length and stiffness of each lane's spring (empty when [`Sliced::uniform`]).
+    pub material: Vec<Material>,
+    /// Damping of each lane's spring, N s/m (empty when no spring is damped or when
+    /// [`Sliced::uniform`]).
     pub damping: Vec<[f32; LANES]>,
+    /// The springs' one material, when they have one: the step reads it instead of
+    /// `material` and `damping` (fixed for the layout's life, as `damped` is).
+    pub uniform: Option<Uniform>,
     /// Each node's row length (the lanes of its slice past it are padding).
     lens: Vec<u32>,
     /// Spring ends in all rows: twice the springs.
@@ -63,8 +132,8 @@ pub(super) struct Sliced {
     pub holes: usize,
     /// Compactions run since the layout was built.
     pub compactions: usize,
-    /// Whether `damping` is kept (fixed for the layout's life: the first damped spring of an
-    /// undamped model rebuilds the engine).
+    /// Whether any spring is damped (fixed for the layout's life: the first damped spring of
+    /// an undamped model rebuilds the engine).
     pub damped: bool,
 }
 
@@ -82,10 +151,14 @@ impl Sliced {
                 .unwrap_or(0)
         };
         let total: usize = (0..count).map(width).sum();
+        let uniform = Uniform::of(rows.iter().flatten());
+        let room = |kept: bool| if kept { total + spare(total) } else { 0 };
         let mut s = Sliced {
             slices: Vec::with_capacity(count + spare(count)),
             groups: Vec::with_capacity(total + spare(total)),
-            damping: Vec::with_capacity(if damped { total + spare(total) } else { 0 }),
+            material: Vec::with_capacity(room(uniform.is_none())),
+            damping: Vec::with_capacity(room(damped && uniform.is_none())),
+            uniform,
             lens: Vec::with_capacity(n + spare(n)),
             live: 0,
             holes: 0,
@@ -103,6 +176,18 @@ impl Sliced {
         s.lens = rows.iter().map(|r| row_len(r.len())).collect();
         s.live = rows.iter().map(Vec::len).sum();
         s
+    }
+
+    /// Whether the layout keeps each end's damping (`damping`).
+    fn damping_kept(&self) -> bool {
+        self.damped && self.uniform.is_none()
+    }
+
+    /// Whether every spring end of `rows` fits the layout: any does where constants are kept
+    /// per end; in a uniform layout, those of its material only.
+    pub fn fits<'a>(&self, mut ends: impl Iterator<Item = &'a (Entry, f32)>) -> bool {
+        self.uniform
+            .is_none_or(|u| ends.all(|(e, c)| u.fits(e, *c)))
     }
 
     /// Nodes laid out.
@@ -124,13 +209,22 @@ impl Sliced {
         let len = self.lens.get(i).map_or(0, |&n| n as usize);
         (start..start + len).map(move |k| {
             let g = &self.groups[k];
+            let edge = [g.edge[0][l], g.edge[1][l], g.edge[2][l]];
+            let (rest, stiffness, c) = match self.uniform {
+                Some(u) => (rest_of(edge), u.k, u.c),
+                None => {
+                    let m = &self.material[k];
+                    let c = if self.damped { self.damping[k][l] } else { 0.0 };
+                    (m.rest[l], m.k[l], c)
+                }
+            };
             let e = Entry {
                 other: g.other[l],
-                edge: [g.edge[0][l], g.edge[1][l], g.edge[2][l]],
-                rest: g.rest[l],
-                k: g.k[l],
+                edge,
+                rest,
+                k: stiffness,
             };
-            (e, if self.damped { self.damping[k][l] } else { 0.0 })
+            (e, c)
         })
     }
 
@@ -139,12 +233,17 @@ impl Sliced {
     /// rows and of new nodes are rewritten, in place (only the changed lanes) when they do not
     /// widen. Returns the lanes written with new rows and the lanes copied (a widened slice's
     /// unchanged lanes moved with it, and the slices compaction slid), a group holding
-    /// [`LANES`], and whether compaction ran (rewriting every slice's bounds).
+    /// [`LANES`], and whether compaction ran (rewriting every slice's bounds). Every new row
+    /// must [`Sliced::fits`] the layout.
     pub fn patch(
         &mut self,
         n: usize,
         mut rows: std::collections::BTreeMap<usize, Row>,
     ) -> (usize, usize, bool) {
+        debug_assert!(
+            self.fits(rows.values().flatten()),
+            "a row off the uniform material"
+        );
         let count = n.div_ceil(LANES);
         let old_n = self.lens.len();
         let mut dirty: Vec<usize> = rows.keys().map(|i| i / LANES).collect();
@@ -235,7 +334,10 @@ impl Sliced {
             let (start, len) = (start as usize, (end - start) as usize);
             if start != to {
                 self.groups.copy_within(start..start + len, to);
-                if self.damped {
+                if self.uniform.is_none() {
+                    self.material.copy_within(start..start + len, to);
+                }
+                if self.damping_kept() {
                     self.damping.copy_within(start..start + len, to);
                 }
                 moved += len;
@@ -244,15 +346,22 @@ impl Sliced {
             to += len;
         }
         self.groups.truncate(to);
-        self.damping.truncate(if self.damped { to } else { 0 });
+        self.material
+            .truncate(if self.uniform.is_none() { to } else { 0 });
+        self.damping
+            .truncate(if self.damping_kept() { to } else { 0 });
         self.holes = 0;
         self.compactions += 1;
         moved
     }
 
-    /// The first slice whose groups differ from `other`'s, bit for bit (damping missing on one
-    /// side reads as zeros), or whose count or row lengths differ.
+    /// The first slice whose groups differ from `other`'s, bit for bit (constants missing on
+    /// one side read as zeros), or whose count or row lengths differ; slice 0 where one layout
+    /// is uniform and the other is not, or their materials differ.
     pub fn first_difference(&self, other: &Sliced) -> Option<usize> {
+        if self.uniform != other.uniform {
+            return Some(0);
+        }
         let bits = |s: &Sliced, b: usize| -> Vec<u32> {
             let [start, end] = s.slices[b];
             let lens = s.lens[b * LANES..((b + 1) * LANES).min(s.lens.len())]
@@ -261,7 +370,8 @@ impl Sliced {
             lens.chain((start as usize..end as usize).flat_map(|k| {
                 let g = &s.groups[k];
                 let c = s.damping.get(k).copied().unwrap_or([0.0; LANES]);
-                let floats = g.edge.iter().chain([&g.rest, &g.k, &c]).flatten();
+                let m = s.material.get(k).copied().unwrap_or(NO_MATERIAL);
+                let floats = g.edge.iter().chain([&m.rest, &m.k, &c]).flatten();
                 g.other
                     .into_iter()
                     .chain(floats.map(|f| f.to_bits()))
@@ -282,14 +392,12 @@ impl Sliced {
         (self.holes * self.group_bytes()) as u64 + lanes.saturating_sub(self.live) as u64 * per_lane
     }
 
-    /// Bytes per group, damping included where kept.
+    /// Bytes per group, the per-end constants included where kept.
     pub fn group_bytes(&self) -> usize {
+        let kept = |yes: bool, size: usize| if yes { size } else { 0 };
         std::mem::size_of::<Group>()
-            + if self.damped {
-                std::mem::size_of::<[f32; LANES]>()
-            } else {
-                0
-            }
+            + kept(self.uniform.is_none(), std::mem::size_of::<Material>())
+            + kept(self.damping_kept(), std::mem::size_of::<[f32; LANES]>())
     }
 
     /// Bytes of everything but the groups: the slice bounds and the row lengths.
@@ -298,13 +406,14 @@ impl Sliced {
     }
 
     /// (capacity, length, bytes per item) of each array, for a patch's growth report.
-    pub fn capacities(&self) -> [(usize, usize, usize); 4] {
+    pub fn capacities(&self) -> [(usize, usize, usize); 5] {
         fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
             (v.capacity(), v.len(), std::mem::size_of::<T>())
         }
         [
             of(&self.slices),
             of(&self.groups),
+            of(&self.material),
             of(&self.damping),
             of(&self.lens),
         ]
@@ -312,7 +421,10 @@ impl Sliced {
 
     fn append(&mut self, w: usize) {
         self.groups.resize(self.groups.len() + w, BLANK);
-        if self.damped {
+        if self.uniform.is_none() {
+            self.material.resize(self.groups.len(), NO_MATERIAL);
+        }
+        if self.damping_kept() {
             self.damping.resize(self.groups.len(), [0.0; LANES]);
         }
     }
@@ -320,13 +432,11 @@ impl Sliced {
     /// Write slice `b`'s rows `lanes` (fewer than [`LANES`] in a last, partial slice) into
     /// `w` groups from `at`, padding lanes with null springs; only the lanes `mask` holds.
     fn write(&mut self, b: usize, at: usize, w: usize, lanes: &[Row], mask: [bool; LANES]) {
+        let (per_end, damping) = (self.uniform.is_none(), self.damping_kept());
         for k in 0..w {
             let grp = &mut self.groups[at + k];
-            let mut c = if self.damped {
-                self.damping[at + k]
-            } else {
-                [0.0f32; LANES]
-            };
+            let mut m = self.material.get(at + k).copied().unwrap_or(NO_MATERIAL);
+            let mut c = self.damping.get(at + k).copied().unwrap_or([0.0; LANES]);
             for (l, cl) in c.iter_mut().enumerate() {
                 if !mask[l] {
                     continue;
@@ -343,8 +453,8 @@ impl Sliced {
                         for a in 0..3 {
                             grp.edge[a][l] = e.edge[a];
                         }
-                        grp.rest[l] = e.rest;
-                        grp.k[l] = e.k;
+                        m.rest[l] = e.rest;
+                        m.k[l] = e.k;
                         *cl = *d;
                     }
                     None => {
@@ -352,13 +462,16 @@ impl Sliced {
                         for a in 0..3 {
                             grp.edge[a][l] = 0.0;
                         }
-                        grp.rest[l] = 0.0;
-                        grp.k[l] = 0.0;
+                        m.rest[l] = 0.0;
+                        m.k[l] = 0.0;
                         *cl = 0.0;
                     }
                 }
             }
-            if self.damped {
+            if per_end {
+                self.material[at + k] = m;
+            }
+            if damping {
                 self.damping[at + k] = c;
             }
         }
@@ -374,13 +487,17 @@ fn row_len(n: usize) -> u32 {
 pub(super) type V3 = [[f32; LANES]; 3];
 
 /// The spring force of one group on its eight nodes, added to `acc`: elastic `k (l - L) / l`
-/// times the spring vector `e + (u_j - u_i)`, plus, when `DAMPED`, `c ((w_j - w_i) . d) / l^2`
-/// times it, `w` scaled by `w_scale`. A zero-length spring (padding, or coincident nodes) has
-/// no direction and gives nothing, as in the reference engine.
+/// times the spring vector `d = e + (u_j - u_i)`, plus, when `DAMPED`, `c ((w_j - w_i) . d) /
+/// l^2` times it, `w` scaled by `w_scale`; `k`, `L` and `c` from `m` and `c` per lane, or, when
+/// `UNIFORM`, `k` and `c` the lanes' one value (lane 0) and `k (1 - L / l)` taken as
+/// `k (1 - sqrt(|e|^2 / l^2))`: the rest length's square root and the spring's division are the
+/// same two operations as `1 / sqrt(l^2)`. A zero-length spring (padding, or coincident nodes)
+/// has no direction and gives nothing, as in the reference engine.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn group_force<const DAMPED: bool>(
+pub(super) fn group_force<const DAMPED: bool, const UNIFORM: bool>(
     grp: &Group,
+    m: &Material,
     c: &[f32; LANES],
     x: &[P],
     w: &[P],
@@ -406,12 +523,22 @@ pub(super) fn group_force<const DAMPED: bool>(
     }
     for l in 0..LANES {
         let l2 = d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l];
-        let inv_raw = 1.0 / l2.sqrt();
-        let inv = if l2 > 0.0 { inv_raw } else { 0.0 };
-        let mut s = grp.k[l] * (1.0 - grp.rest[l] * inv);
+        // The damping's 1 / l^2 as two factors: 1 / l twice (per end), or 1 / l^2 and 1
+        // (uniform); zero for a spring of no length.
+        let (mut s, f1, f2) = if UNIFORM {
+            let e = [grp.edge[0][l], grp.edge[1][l], grp.edge[2][l]];
+            let le2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+            let inv2 = if l2 > 0.0 { 1.0 / l2 } else { 0.0 };
+            (m.k[0] * (1.0 - (le2 * inv2).sqrt()), inv2, 1.0)
+        } else {
+            let inv_raw = 1.0 / l2.sqrt();
+            let inv = if l2 > 0.0 { inv_raw } else { 0.0 };
+            (m.k[l] * (1.0 - m.rest[l] * inv), inv, inv)
+        };
         if DAMPED {
             let along = dw[0][l] * d[0][l] + dw[1][l] * d[1][l] + dw[2][l] * d[2][l];
-            s += c[l] * along * w_scale * inv * inv;
+            let cl = if UNIFORM { c[0] } else { c[l] };
+            s += cl * along * w_scale * f1 * f2;
         }
         for a in 0..3 {
             acc[a][l] += s * d[a][l];
