@@ -38,7 +38,10 @@ pub(crate) fn accuracy(
         ),
         Some(p) => (Scene::read(p)?, p.to_path_buf()),
     };
-    if let Some(w) = model_error.expect_within.filter(|w| !(w.is_finite() && *w > 0.0)) {
+    if let Some(w) = model_error
+        .expect_within
+        .filter(|w| !(w.is_finite() && *w > 0.0))
+    {
         return Err(lancet::Error::Options(format!(
             "--expect-within takes a positive fraction of the analytic answer (0.03 for 3%), \
              got {w}"

@@ -107,7 +107,11 @@ fn the_cantilever_is_within_3_percent_of_timoshenko_on_a_refined_mesh() {
         errors.windows(2).all(|w| w[1].abs() < 0.5 * w[0].abs()),
         "{errors:?}"
     );
-    assert!(errors[2].abs() < 0.03, "{:.2}% on 80 x 12 x 12", 100.0 * errors[2]);
+    assert!(
+        errors[2].abs() < 0.03,
+        "{:.2}% on 80 x 12 x 12",
+        100.0 * errors[2]
+    );
     assert!(report.beyond(0.03).is_empty(), "{:?}", report.beyond(0.03));
     // The meshes converge to within 2% of the beam: what is left is the mesh's, not the
     // model's (a clamped 3D bar is not quite Timoshenko's beam at its root).

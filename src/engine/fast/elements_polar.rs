@@ -116,7 +116,8 @@ mod tests {
         let axis = Unit::new_normalize(Vector3::new(1.0, seed.sin(), 0.3 + seed.cos()));
         let r = Rotation3::from_axis_angle(&axis, angle);
         let q = Rotation3::from_euler_angles(0.3 * seed, 1.1, -0.7 + seed);
-        let stretch = q.matrix() * Matrix3::from_diagonal(&Vector3::from(s)) * q.matrix().transpose();
+        let stretch =
+            q.matrix() * Matrix3::from_diagonal(&Vector3::from(s)) * q.matrix().transpose();
         r.matrix() * stretch
     }
 
