@@ -138,7 +138,7 @@ impl ModelErrorReport {
                 continue;
             }
             seen.push(&row.force_model);
-            if !(row.relative_error.abs() <= within) {
+            if row.relative_error.is_nan() || row.relative_error.abs() > within {
                 out.push(format!(
                     "{} on {} x {} x {} cells ({} tets): {:+.2}% from the analytic tip \
                      deflection, beyond {:.2}%",

@@ -59,8 +59,8 @@ pub(super) fn rotation(f: &M3d) -> Option<M3d> {
     let scale2 = frobenius2(&x) / 3.0;
     let c = cofactor(&x);
     let det: f64 = (0..3).map(|k| x[0][k] * c[0][k]).sum();
-    // `!(.. > ..)` so that NaN goes to the decomposition too.
-    if !(det > DEGENERATE * scale2 * scale2.sqrt()) {
+    // NaN goes to the decomposition too.
+    if det.is_nan() || det <= DEGENERATE * scale2 * scale2.sqrt() {
         return None;
     }
     let (mut c, mut det) = (c, det);
@@ -93,7 +93,7 @@ pub(super) fn rotation(f: &M3d) -> Option<M3d> {
         scaling = change > 1e-4;
         c = cofactor(&x);
         det = (0..3).map(|k| x[0][k] * c[0][k]).sum();
-        if !(det > 0.0) {
+        if det.is_nan() || det <= 0.0 {
             return None;
         }
     }
