@@ -10,6 +10,16 @@ pub(crate) struct ModelErrorArgs {
     pub refinements: usize,
     /// Skip the time-step ladder.
     pub only: bool,
+    /// The force models of the table.
+    pub force_models: Vec<lancet::physics::ForceModelKind>,
+    /// The beam's cells along, across and split, where they replace the scene's.
+    pub cells_along: Option<usize>,
+    /// Cells across each side of the section.
+    pub cells_across: Option<usize>,
+    /// How cells are split.
+    pub split: Option<lancet::mesh::generate::TetSplit>,
+    /// The largest error on the finest mesh the run accepts (a fraction).
+    pub expect_within: Option<f64>,
 }
 
 /// Run the accuracy report, print it, write its plots; with `--model-error`, the model error
@@ -28,16 +38,28 @@ pub(crate) fn accuracy(
         ),
         Some(p) => (Scene::read(p)?, p.to_path_buf()),
     };
+    if let Some(w) = model_error
+        .expect_within
+        .filter(|w| !(w.is_finite() && *w > 0.0))
+    {
+        return Err(lancet::Error::Options(format!(
+            "--expect-within takes a positive fraction of the analytic answer (0.03 for 3%), \
+             got {w}"
+        )));
+    }
     let models = if model_error.on {
-        use lancet::physics::ForceModelKind;
-        let kinds = [
-            ForceModelKind::Springs,
-            ForceModelKind::TensorMass,
-            ForceModelKind::Corotational,
-        ];
+        use lancet::report::model_error::with_beam_cells;
+        let meshed = match (
+            model_error.cells_along,
+            model_error.cells_across,
+            model_error.split,
+        ) {
+            (None, None, None) => scene.clone(),
+            (along, across, split) => with_beam_cells(&scene, along, across, split)?,
+        };
         Some(lancet::report::model_error::model_error(
-            &scene,
-            &kinds,
+            &meshed,
+            &model_error.force_models,
             model_error.refinements,
             |line| {
                 if !json {
@@ -48,6 +70,22 @@ pub(crate) fn accuracy(
     } else {
         None
     };
+    // `--expect-within`: the finest mesh's error of each element model, checked after the
+    // tables are printed, so that a failing run still shows them.
+    let beyond = match (&models, model_error.expect_within) {
+        (Some(m), Some(within)) => m.beyond(within),
+        _ => Vec::new(),
+    };
+    let verdict = || {
+        for b in &beyond {
+            eprintln!("error: {b}");
+        }
+        if beyond.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::FAILURE
+        }
+    };
     if model_error.only {
         let m = models.expect("--model-error-only requires --model-error");
         if json {
@@ -56,7 +94,7 @@ pub(crate) fn accuracy(
         } else {
             print_model_error(&m);
         }
-        return Ok(ExitCode::SUCCESS);
+        return Ok(verdict());
     }
     let report = lancet::report::accuracy::scene_accuracy(&scene, &path, opts, |line| {
         if !json {
@@ -78,7 +116,7 @@ pub(crate) fn accuracy(
     if json {
         let v = json!({ "report": report, "model_error": models, "plots": plots });
         println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
-        return Ok(ExitCode::SUCCESS);
+        return Ok(verdict());
     }
     print_accuracy(&report);
     print_time_to_error(&report, opts.target_error);
@@ -92,7 +130,7 @@ pub(crate) fn accuracy(
             }
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(verdict())
 }
 
 /// The model-error table.

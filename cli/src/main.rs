@@ -317,6 +317,23 @@ enum ReportCommand {
         /// Only the model error: skip the time-step ladder.
         #[arg(long, requires = "model_error")]
         model_error_only: bool,
+        /// Force models of the model-error table, comma-separated.
+        #[arg(long, value_enum, value_delimiter = ',', requires = "model_error",
+              default_values = ["springs", "tensor-mass", "corotational"])]
+        force_models: Vec<ForceModelArg>,
+        /// Cells along the beam of the model-error table's first mesh (default: the scene's).
+        #[arg(long, requires = "model_error")]
+        cells_along: Option<usize>,
+        /// Cells across each side of the beam's section (default: the scene's).
+        #[arg(long, requires = "model_error")]
+        cells_across: Option<usize>,
+        /// How the beam's cells are split into tets (default: the scene's).
+        #[arg(long, value_enum, requires = "model_error")]
+        split: Option<SplitArg>,
+        /// Exit with failure unless every finite-element model's error on its finest mesh is
+        /// within this fraction of the analytic answer (0.03: 3%); springs are not checked.
+        #[arg(long, requires = "model_error")]
+        expect_within: Option<f64>,
     },
 }
 
@@ -644,6 +661,11 @@ fn main() -> ExitCode {
                     model_error,
                     refinements,
                     model_error_only,
+                    force_models,
+                    cells_along,
+                    cells_across,
+                    split,
+                    expect_within,
                 },
         } => {
             let opts = lancet::report::accuracy::AccuracyOptions {
@@ -670,6 +692,11 @@ fn main() -> ExitCode {
                 on: model_error,
                 refinements,
                 only: model_error_only,
+                force_models: force_models.iter().map(|&m| m.into()).collect(),
+                cells_along,
+                cells_across,
+                split: split.map(Into::into),
+                expect_within,
             };
             accuracy(scene.as_deref(), &opts, json, plot, model_error)
         }

@@ -92,6 +92,71 @@ pub fn richardson(coarse: f64, middle: f64, fine: f64) -> Option<(f64, f64)> {
     Some((fine + d2 / (ratio - 1.0), order))
 }
 
+/// `scene` with its beam meshed differently: `cells_along` cells along x, `cells_across` across
+/// each side of the section, split by `split` (each `None` keeps the scene's). Refused, with
+/// the reason, for a scene whose mesh is not a generated beam or for zero cells.
+pub fn with_beam_cells(
+    scene: &Scene,
+    cells_along: Option<usize>,
+    cells_across: Option<usize>,
+    split: Option<crate::mesh::generate::TetSplit>,
+) -> Result<Scene> {
+    let mut out = scene.clone();
+    let MeshSource::Beam {
+        cells_along: along,
+        cells_across: across,
+        split: how,
+        ..
+    } = &mut out.mesh
+    else {
+        return Err(unsupported(
+            "the scene's mesh is not a Beam, so it has no beam cells to set",
+        ));
+    };
+    if cells_along == Some(0) || cells_across == Some(0) {
+        return Err(Error::Options(
+            "a beam needs at least one cell along and one across (got 0)".into(),
+        ));
+    }
+    *along = cells_along.unwrap_or(*along);
+    *across = cells_across.unwrap_or(*across);
+    *how = split.unwrap_or(*how);
+    Ok(out)
+}
+
+impl ModelErrorReport {
+    /// The finite-element models (not springs: a spring network converges to no continuum)
+    /// whose error on their finest mesh is larger than `within` (a fraction, 0.03 for 3%),
+    /// each as a sentence naming the mesh and the error. Empty when all are within.
+    pub fn beyond(&self, within: f64) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut seen: Vec<&str> = Vec::new();
+        for row in self.rows.iter().rev() {
+            if row.force_model == ForceModelKind::Springs.to_string()
+                || seen.contains(&row.force_model.as_str())
+            {
+                continue;
+            }
+            seen.push(&row.force_model);
+            if row.relative_error.is_nan() || row.relative_error.abs() > within {
+                out.push(format!(
+                    "{} on {} x {} x {} cells ({} tets): {:+.2}% from the analytic tip \
+                     deflection, beyond {:.2}%",
+                    row.force_model,
+                    row.cells_along,
+                    row.cells_across,
+                    row.cells_across,
+                    row.tets,
+                    100.0 * row.relative_error,
+                    100.0 * within
+                ));
+            }
+        }
+        out.reverse();
+        out
+    }
+}
+
 /// The beam a scene describes, with its material and load.
 struct BeamCase {
     length: f64,

@@ -36,6 +36,8 @@ use crate::physics::{ElementForces, ForceModel, ForceModelKind, TetElement};
 
 #[path = "elements_jacobian.rs"]
 mod jacobian;
+#[path = "elements_polar.rs"]
+mod polar;
 
 type M3 = [f32; 9];
 
@@ -83,6 +85,37 @@ struct Tets {
     /// Each tet's rotation at the last element pass that kept them (backward Euler's), row
     /// major.
     rotations: Vec<M3>,
+    /// Where each corner pair `(a, b)` of each tet is in the springs' row of corner `a`
+    /// ([`pair_index`] orders the twelve pairs; [`NO_SLOT`] where the row has no such entry):
+    /// backward Euler's blocks go straight to their entry instead of searching the row.
+    /// Written with the tet, rewritten for the tets at every node a cut touches.
+    slots: Vec<[u16; 12]>,
+}
+
+/// A corner pair with no entry in the row (an edge without a spring: never, in a model the
+/// packer built).
+const NO_SLOT: u16 = u16::MAX;
+
+/// Index of corner pair `(a, b)`, `a != b`, among a tet's twelve.
+#[inline(always)]
+fn pair_index(a: usize, b: usize) -> usize {
+    3 * a + b - usize::from(b > a)
+}
+
+/// Where each corner pair of the tet with internal corners `nodes` is in the springs' rows
+/// of `graph` (see [`Tets::slots`]).
+fn slots_of(nodes: [u32; 4], graph: &Graph) -> [u16; 12] {
+    let mut out = [NO_SLOT; 12];
+    for (a, &i) in nodes.iter().enumerate() {
+        for (k, (e, _)) in graph.springs.row(i as usize).enumerate() {
+            for (b, &j) in nodes.iter().enumerate() {
+                if b != a && e.other == j && k < NO_SLOT as usize {
+                    out[pair_index(a, b)] = k as u16;
+                }
+            }
+        }
+    }
+    out
 }
 
 #[derive(Debug)]
@@ -120,9 +153,10 @@ fn mul_t(m: &M3, v: [f32; 3]) -> [f32; 3] {
 }
 
 impl Tets {
-    fn push(&mut self, e: &TetElement, rank: &[u32]) {
+    fn push(&mut self, e: &TetElement, rank: &[u32], graph: &Graph) {
         let t = self.nodes.len();
         let nodes = e.nodes.map(|n| rank[n as usize]);
+        self.slots.push(slots_of(nodes, graph));
         for (c, &i) in nodes.iter().enumerate() {
             self.incidence[i as usize].push((4 * t + c) as u32);
         }
@@ -141,7 +175,7 @@ impl Tets {
         self.rotations.push([0.0; 9]);
     }
 
-    fn of(elements: &[&TetElement], rank: &[u32], nodes: usize) -> Self {
+    fn of(elements: &[&TetElement], rank: &[u32], nodes: usize, graph: &Graph) -> Self {
         let mut t = Tets {
             nodes: Vec::with_capacity(elements.len()),
             edges: Vec::with_capacity(elements.len()),
@@ -153,11 +187,28 @@ impl Tets {
             by_corners: FxHashMap::default(),
             forces: Vec::with_capacity(elements.len()),
             rotations: Vec::with_capacity(elements.len()),
+            slots: Vec::with_capacity(elements.len()),
         };
         for e in elements {
-            t.push(e, rank);
+            t.push(e, rank, graph);
         }
         t
+    }
+
+    /// Rewrite the row slots of every tet at one of the internal nodes `touched`, whose
+    /// springs' rows a cut rewrote (the other rows keep their order).
+    fn reslot(&mut self, touched: &[usize], graph: &Graph) {
+        let mut tets: Vec<usize> = touched
+            .iter()
+            .filter_map(|&i| self.incidence.get(i))
+            .flatten()
+            .map(|&k| (k / 4) as usize)
+            .collect();
+        tets.sort_unstable();
+        tets.dedup();
+        for t in tets {
+            self.slots[t] = slots_of(self.nodes[t], graph);
+        }
     }
 
     /// Remove the tet with model corners `corners`, moving the last tet into its place (as
@@ -188,6 +239,7 @@ impl Tets {
         self.beta.swap_remove(t);
         self.forces.swap_remove(t);
         self.rotations.swap_remove(t);
+        self.slots.swap_remove(t);
         self.keys.swap_remove(t);
         if let Some(&moved) = self.keys.get(t) {
             self.by_corners.insert(moved, t);
@@ -207,7 +259,12 @@ impl Tets {
         });
         let g = &self.gradients[t];
         let f = Matrix3::from_fn(|i, j| (0..3).map(|a| d[a][i] * g[a][j]).sum::<f64>());
-        let r = polar_rotation(&f);
+        // Newton's iteration where it converges to the rotation, the decomposition where the
+        // tet is inverted or degenerate (`elements_polar.rs`).
+        let r = match polar::rotation(&[0, 1, 2].map(|i| [0, 1, 2].map(|j| f[(i, j)]))) {
+            Some(r) => Matrix3::from_fn(|i, j| r[i][j]),
+            None => polar_rotation(&f),
+        };
         // Local displacements R^T (x_a - x_0) - (X_a - X_0); corner 0's is zero.
         let mut local = [[0.0f32; 3]; 4];
         for a in 0..3 {
@@ -435,6 +492,7 @@ impl FastElements {
                 &c.elements().iter().collect::<Vec<_>>(),
                 rank,
                 order.len(),
+                graph,
             )),
         };
         Ok(Some(FastElements {
@@ -504,9 +562,15 @@ impl FastElements {
                 }
                 for tet in &diff.added_tets {
                     let e = TetElement::new(&model.rest, tet, t.nodes.len())?;
-                    t.push(&e, rank);
-                    written += (std::mem::size_of::<[M3; 16]>() + 160) as u64;
+                    t.push(&e, rank, graph);
+                    written += (std::mem::size_of::<[M3; 16]>() + 160 + 24) as u64;
                 }
+                let touched: Vec<usize> = diff
+                    .touched_nodes(nodes_before)
+                    .iter()
+                    .map(|&o| rank[o as usize] as usize)
+                    .collect();
+                t.reslot(&touched, graph);
             }
             _ => unreachable!("the layout is of the reference's kind"),
         }
@@ -559,6 +623,12 @@ impl FastElements {
             (Layout::Tets(a), Layout::Tets(b)) => {
                 if a.nodes != b.nodes || a.stiffness != b.stiffness || a.beta != b.beta {
                     out.push("fast engine: the corotational tets differ from a rebuild".into());
+                } else if a.slots != b.slots {
+                    out.push(
+                        "fast engine: a corotational tet's row slots differ from a rebuild's \
+                         (backward Euler would search for its blocks)"
+                            .into(),
+                    );
                 }
                 let sorted = |t: &Tets| -> Vec<Vec<u32>> {
                     t.incidence
@@ -598,7 +668,8 @@ impl FastElements {
             Layout::Tets(t) => vec![
                 (
                     "corotational tets".into(),
-                    (t.nodes.len() * (16 + 72 + 72 + std::mem::size_of::<[M3; 16]>() + 4 + 48 + 36))
+                    (t.nodes.len()
+                        * (16 + 72 + 72 + std::mem::size_of::<[M3; 16]>() + 4 + 48 + 36 + 24))
                         as u64,
                 ),
                 (

@@ -13,7 +13,9 @@
 //! so conjugate gradients always apply). Rayleigh's damping is `beta` times the same block.
 //! The rotations come from the element pass that also forms the force; node `i` then forms the
 //! blocks `R K_ab R^T` of its own corners `a` (row `a` of each tet), so every block of a tet is
-//! formed once and rows are written by the task that owns the node.
+//! formed once and rows are written by the task that owns the node. Each block goes to the
+//! entry of the row that the tet's slot table names (`Tets::slots`, written with the layout and
+//! patched at cuts), not searched for.
 
 use super::{FastElements, Layout, Tets, M3};
 use crate::engine::fast::implicit::FullBlock;
@@ -91,13 +93,19 @@ impl Tets {
             for b in (0..4).filter(|&b| b != a) {
                 let block = corotate(r, &self.stiffness[t][4 * a + b]);
                 let j = self.nodes[t][b];
+                let slot = self.slots[t][super::pair_index(a, b)] as usize;
                 let dv = [0, 1, 2].map(|c| v[j as usize][c] - vi[c]);
                 let q = super::mul(&block, dv);
                 for c in 0..3 {
                     kv[c] -= q[c];
                 }
-                // Rows hold a dozen or two entries: a scan finds the other corner's.
-                match row.iter_mut().find(|e| e.other == j) {
+                // The slot written with the tet; checked, so that a stale one (which the
+                // rebuild comparison reports) costs a scan of the row, never a wrong block.
+                let entry = match row.get_mut(slot) {
+                    Some(e) if e.other == j => Some(e),
+                    _ => row.iter_mut().find(|e| e.other == j),
+                };
+                match entry {
                     Some(e) => {
                         for (m, b) in e.m.iter_mut().zip(block) {
                             *m += scale * b;
