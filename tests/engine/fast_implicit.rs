@@ -264,10 +264,11 @@ fn the_factored_preconditioner_reaches_the_reference_solution_in_a_few_iteration
     let stats = sim.solver_stats().unwrap();
     assert_eq!((stats.solves, stats.capped), (4, 0), "{stats:?}");
     assert!(stats.last_residual <= 1e-7, "{stats:?}");
-    // A solve past the refresh bound (6) refactors before the next one.
+    // Four steps take fewer iterations together than block Jacobi's first alone: the state
+    // moves, but the factor (refreshed past 6 iterations) stays close to the inverse.
     assert!(
-        stats.max_iterations <= 6 || stats.factorisations > 1,
-        "{stats:?}"
+        stats.iterations < jacobi.iterations,
+        "{stats:?} against {jacobi:?}"
     );
     let e = relative_l2(&model.rest, &sim.positions(), &reference);
     assert!(e < 1e-4, "seed {seed}: {e:.2e} off the reference");

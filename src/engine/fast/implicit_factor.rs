@@ -39,6 +39,11 @@ use faer::{Conj, MatMut, Par, Side};
 /// costs more per step than refactoring every few steps would.
 pub(super) const REFRESH_ITERATIONS: u32 = 6;
 
+/// The factor's arithmetic: float64, so that the factor of a stiff system (its diagonal
+/// blocks 1e3 to 1e5 times its mass, the 1 MPa cylinder's at 1 ms) keeps the digits the
+/// float32 product resolves.
+type Real = f64;
+
 /// The factor, the system it was taken of, and the scratch of its solves.
 pub(super) struct Factor {
     /// How many nodes the factor covers: those that existed when it was taken.
@@ -47,14 +52,14 @@ pub(super) struct Factor {
     /// `3 i + c` for node `i`'s component `c`), column by column.
     col_ptr: Vec<u32>,
     row_idx: Vec<u32>,
-    values: Vec<f64>,
+    values: Vec<Real>,
     /// The symbolic factorisation of that pattern (kept while the pattern stays the same:
     /// only a cut changes it).
     symbolic: SymbolicCholesky<u32>,
     /// The numeric factor `L`.
-    l: Vec<f64>,
+    l: Vec<Real>,
     /// The right-hand side and solution of the triangular solves.
-    rhs: Vec<f64>,
+    rhs: Vec<Real>,
     scratch: MemBuffer,
     /// Whether the next solve should refactor first.
     stale: bool,
@@ -71,15 +76,14 @@ fn lower_triangle(
     g: &Graph,
     col_ptr: &mut Vec<u32>,
     row_idx: &mut Vec<u32>,
-    values: &mut Vec<f64>,
+    values: &mut Vec<Real>,
 ) {
-    let n = nodes.len();
     col_ptr.clear();
     row_idx.clear();
     values.clear();
     col_ptr.push(0);
     let mut below: Vec<(usize, [[f64; 3]; 3])> = Vec::new();
-    for j in 0..n {
+    for (j, node) in nodes.iter().enumerate() {
         if g.fixed[j] {
             for c in 0..3 {
                 row_idx.push((3 * j + c) as u32);
@@ -108,17 +112,18 @@ fn lower_triangle(
             }
             same
         });
-        let d = nodes[j].diag.map(f64::from);
+        let d = node.diag.map(f64::from);
         let diag = [[d[0], d[3], d[4]], [d[3], d[1], d[5]], [d[4], d[5], d[2]]];
         for c in 0..3 {
             for (r, row) in diag.iter().enumerate().skip(c) {
                 row_idx.push((3 * j + r) as u32);
-                values.push(row[c]);
+                values.push(row[c] as Real);
             }
             for (i, a) in &below {
-                for r in 0..3 {
+                // Row `3 i + r` of column `3 j + c`: `A_ij[r][c] = A_ji[c][r]`.
+                for (r, v) in a[c].iter().enumerate() {
                     row_idx.push((3 * i + r) as u32);
-                    values.push(a[c][r]);
+                    values.push(*v as Real);
                 }
             }
             col_ptr.push(row_idx.len() as u32);
@@ -142,7 +147,7 @@ impl Factor {
             row_idx,
             values,
             rhs: vec![0.0; 3 * nodes.len()],
-            scratch: MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
+            scratch: MemBuffer::new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq)),
             l: vec![0.0; symbolic.len_val()],
             symbolic,
             stale: false,
@@ -172,7 +177,7 @@ impl Factor {
             let Some(symbolic) = analyse(nodes.len(), &self.col_ptr, &self.row_idx) else {
                 return false;
             };
-            self.scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+            self.scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
             self.l.resize(symbolic.len_val(), 0.0);
             self.symbolic = symbolic;
             self.nodes = nodes.len();
@@ -192,7 +197,7 @@ impl Factor {
         let a = SparseColMatRef::new(pattern, &self.values);
         let mut stack = MemBuffer::new(
             self.symbolic
-                .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+                .factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
         );
         self.factorisations += 1;
         self.symbolic
@@ -227,7 +232,7 @@ impl Factor {
         let n = self.nodes.min(cg.len());
         for (i, it) in cg[..n].iter().enumerate() {
             for c in 0..3 {
-                self.rhs[3 * i + c] = it.r[c] as f64;
+                self.rhs[3 * i + c] = it.r[c] as Real;
             }
         }
         let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, 3 * self.nodes, 1);
