@@ -218,6 +218,12 @@ pub(crate) fn print_summary(s: &RunSummary) {
              residual {:.2e} (tolerance {:.0e})",
             r.mean_iterations, r.max_iterations, r.final_residual, r.tolerance
         );
+        if r.factorisations > 0 {
+            println!(
+                "solver: {} sparse Cholesky factorisations, {:.3} s",
+                r.factorisations, r.factor_seconds
+            );
+        }
         if r.capped > 0 {
             println!(
                 "warning: {} of {} solves stopped at the iteration cap ({}) above the \

@@ -56,6 +56,10 @@ pub struct SolverReport {
     pub tolerance: f64,
     /// The iteration cap asked for.
     pub iteration_cap: u32,
+    /// Sparse Cholesky factorisations taken (the factored preconditioner only).
+    pub factorisations: u64,
+    /// Wall time of those factorisations, seconds.
+    pub factor_seconds: f64,
 }
 
 impl SolverReport {
@@ -72,6 +76,8 @@ impl SolverReport {
             capped: stats.capped,
             tolerance: settings.tolerance,
             iteration_cap: settings.max_iterations,
+            factorisations: stats.factorisations,
+            factor_seconds: stats.factor_seconds,
         }
     }
 }

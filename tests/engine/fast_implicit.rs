@@ -224,3 +224,54 @@ fn warm_start_and_gauss_seidel_reach_the_cold_solution_in_fewer_iterations() {
         "{loose_warm:?} against {loose_cold:?}"
     );
 }
+
+/// The factored preconditioner (a sparse Cholesky factor of the system, float64) reaches the
+/// float64 reference's solution (itself the dense direct solve's: `src/physics/
+/// backward_euler_tests.rs`) on random models far above the bound, and in few iterations.
+///
+/// The bound: the first step's factor is of that very system, so the preconditioned operator
+/// is `(L L^T)^-1 A32 = I + (L L^T)^-1 E`, `E` the float32 product's rounding (a few times
+/// 6e-8 of each row's terms, amplified by the system's conditioning at 20x the bound, about
+/// 1e3 here); each conjugate-gradient iteration divides the error by at least `1 / |(L L^T)^-1
+/// E|` (~1e4), so 1e-7 takes two iterations, and three leave room. Block Jacobi needs tens on
+/// the same systems. Later steps reuse the factor (the state moves) and stay within the
+/// refresh policy's bound or refactor.
+#[rstest]
+fn the_factored_preconditioner_reaches_the_reference_solution_in_a_few_iterations(
+    #[values(1, 2, 3)] seed: u64,
+) {
+    use lancet::physics::Preconditioner::{BlockJacobi, Factored};
+    let model = random_model(seed, true);
+    let dt = 20.0 * stable_time_step(&model).dt;
+    let state = random_state(&model, seed + 10);
+    let mut config = implicit_config(dt);
+    config.solver.preconditioner = BlockJacobi;
+    let (reference, _) = run(&model, EngineKind::Reference, config, &state, 4);
+    let (_, jacobi) = run(&model, EngineKind::Fast, config, &state, 1);
+    config.solver.preconditioner = Factored;
+    let mut sim = Simulation::new(model.clone(), EngineKind::Fast, config).unwrap();
+    sim.set_state(&state.0, &state.1).unwrap();
+    sim.run(1).unwrap();
+    let first = sim.solver_stats().unwrap();
+    eprintln!(
+        "seed {seed}: the first solve in {} iterations with a fresh factor, {} with block Jacobi",
+        first.iterations, jacobi.iterations
+    );
+    assert_eq!(first.factorisations, 1, "{first:?}");
+    assert!(first.iterations <= 3, "{first:?}");
+    assert!(jacobi.iterations > 10, "{jacobi:?}");
+    sim.run(3).unwrap();
+    let stats = sim.solver_stats().unwrap();
+    assert_eq!((stats.solves, stats.capped), (4, 0), "{stats:?}");
+    assert!(stats.last_residual <= 1e-7, "{stats:?}");
+    // Four steps take fewer iterations together than block Jacobi's first alone: the state
+    // moves, but the factor (refreshed past 6 iterations) stays close to the inverse.
+    assert!(
+        stats.iterations < jacobi.iterations,
+        "{stats:?} against {jacobi:?}"
+    );
+    let e = relative_l2(&model.rest, &sim.positions(), &reference);
+    assert!(e < 1e-4, "seed {seed}: {e:.2e} off the reference");
+    let moved = relative_l2(&model.rest, &state.0, &reference);
+    assert!(moved > 1e-2, "{moved:.2e}");
+}

@@ -297,3 +297,30 @@ fn the_fast_engine_with_finite_elements_settles_the_beam_where_its_explicit_step
         "{kind}: implicit sag {sag:e} m, explicit {explicit_sag:e} m"
     );
 }
+
+/// `solver: (preconditioner: Factored)` parses (and runs: on the fast engine, which has it),
+/// and a misspelled one is refused with the nearest name.
+#[test]
+fn a_scene_takes_the_factored_preconditioner_and_a_misspelling_names_it() {
+    let mut scene = implicit_scene("solver: (preconditioner: Factored)");
+    assert_eq!(
+        scene.solver.preconditioner,
+        lancet::physics::Preconditioner::Factored
+    );
+    // The reference engine has no factor: refused with what to do.
+    let err = run_scene(&scene).unwrap_err().to_string();
+    assert!(err.contains("fast engine only"), "{err}");
+    scene.engine = EngineKind::Fast;
+    let solver = run_scene(&scene).unwrap().solver.unwrap();
+    assert_eq!(solver.capped, 0, "{solver:?}");
+    assert!(solver.factorisations >= 1, "{solver:?}");
+    let bad = r#"Scene(name: "x", mesh: Box((size: (0.02, 0.01, 0.01), cells: (2, 1, 1))),
+           material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.3), mass: Density(1000.0)),
+           steps: 1, integrator: BackwardEuler, solver: (preconditioner: Factord))"#;
+    let err = lancet::scene::Scene::from_ron(bad, std::path::Path::new("bad.ron")).unwrap_err();
+    let text = format!("{err}");
+    assert!(
+        text.contains("Factord") && text.contains("did you mean `Factored`"),
+        "{text}"
+    );
+}

@@ -53,6 +53,9 @@ use contact::{constrain, impulses};
 
 #[path = "implicit_contact.rs"]
 mod contact;
+#[path = "implicit_factor.rs"]
+mod factor;
+use factor::{apply_factor, prepare, Factor};
 #[path = "implicit_elements.rs"]
 mod element_system;
 #[path = "implicit_sliced.rs"]
@@ -140,6 +143,8 @@ pub(super) struct Implicit {
     pub(super) held: Held,
     /// Whether the CPU has AVX2 and FMA and the engine uses them (`FastEngine::wide`).
     wide: bool,
+    /// The sparse Cholesky factor of [`Preconditioner::Factored`], once taken.
+    factor: Option<Factor>,
 }
 
 impl Implicit {
@@ -174,6 +179,7 @@ impl Implicit {
             partials: room(nodes.div_ceil(BLOCK)),
             held: Held::default(),
             wide: false,
+            factor: None,
         }
     }
 
@@ -223,6 +229,10 @@ impl Implicit {
             (
                 "implicit: solver vectors (y, r, z, p, Ap, dv, Newton iterate)".to_string(),
                 n * (std::mem::size_of::<Iterate>() as u64 + 6 * p),
+            ),
+            (
+                "implicit: sparse Cholesky factor".to_string(),
+                self.factor.as_ref().map_or(0, Factor::bytes),
             ),
         ]
     }
@@ -329,6 +339,9 @@ impl FastEngine {
         let bb = constrain(imp, g, params, Some((&self.x, &self.second)), bb);
         let result = solve(imp, g, settings, bb, settings.warm_start);
         imp.record(result);
+        if let Some(f) = imp.factor.as_mut() {
+            f.observe(result.0);
+        }
         impulses(imp, g, params, true);
         update_dv(imp, params, &self.x, &self.second, true);
         for _ in 1..settings.newton_iterations.max(1) {
@@ -340,6 +353,9 @@ impl FastEngine {
             let bb = constrain(imp, g, params, None, bb);
             let result = solve(imp, g, settings, bb, false);
             imp.record(result);
+            if let Some(f) = imp.factor.as_mut() {
+                f.observe(result.0);
+            }
             impulses(imp, g, params, false);
             update_dv(imp, params, &self.x, &self.second, false);
         }
@@ -503,7 +519,11 @@ fn solve(
     bb: f64,
     guess: bool,
 ) -> (u32, f64) {
-    let sgs = settings.preconditioner != Preconditioner::BlockJacobi;
+    let factored = settings.preconditioner == Preconditioner::Factored;
+    let sgs = matches!(
+        settings.preconditioner,
+        Preconditioner::Auto | Preconditioner::SymmetricGaussSeidel
+    );
     let elements = imp.elements;
     let Implicit {
         starts,
@@ -518,10 +538,19 @@ fn solve(
         held,
         lanes,
         wide,
+        factor,
+        stats,
         ..
     } = imp;
     let (nodes, held) = (&nodes[..], &*held);
     let blocks = rows_of(starts, blocks, full, lanes, elements, *wide);
+    // The factor, taken or refreshed first where it is missing or stale; without one (a
+    // failed factorisation) the solve is block Jacobi's.
+    let mut factor = if factored {
+        prepare(factor, stats, nodes, blocks, g)
+    } else {
+        None
+    };
     if bb == 0.0 {
         cg.iter_mut().for_each(|it| it.y = [0.0; 4]);
         return (0, 0.0);
@@ -557,6 +586,9 @@ fn solve(
             [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
         })
     });
+    if let Some(f) = factor.as_deref_mut() {
+        rz = apply_factor(f, cg, partials, g, held)[1];
+    }
     let mut residual = rr.sqrt() / b_norm;
     if residual <= settings.tolerance {
         return (0, residual);
@@ -570,7 +602,11 @@ fn solve(
             return (iteration, residual);
         }
         let alpha = (rz / pap) as f32;
-        let [rr, rz_next] = advance(cg, partials, nodes, blocks, g, sgs, held, p, ap, alpha);
+        let [mut rr, mut rz_next] =
+            advance(cg, partials, nodes, blocks, g, sgs, held, p, ap, alpha);
+        if let Some(f) = factor.as_deref_mut() {
+            [rr, rz_next] = apply_factor(f, cg, partials, g, held);
+        }
         residual = rr.sqrt() / b_norm;
         if residual <= settings.tolerance {
             return (iteration, residual);

@@ -30,6 +30,32 @@ impl Rows<'_> {
         (self.starts[i + 1] - self.starts[i]) as usize
     }
 
+    /// `f(j, A_ij)` for each block of node `i`'s row, in row order: the system's own block
+    /// (the negated spring block, or the negated element block, row major), in float64.
+    pub(super) fn for_each_block(&self, i: usize, mut f: impl FnMut(usize, [[f64; 3]; 3])) {
+        let range = self.starts[i] as usize..self.starts[i + 1] as usize;
+        match self.entries {
+            Entries::Springs(b) => {
+                for b in &b[range] {
+                    let s = b.s.map(|v| -f64::from(v));
+                    f(
+                        b.other as usize,
+                        [[s[0], s[3], s[4]], [s[3], s[1], s[5]], [s[4], s[5], s[2]]],
+                    );
+                }
+            }
+            Entries::Elements(b) => {
+                for b in &b[range] {
+                    let m = b.m.map(|v| -f64::from(v));
+                    f(
+                        b.other as usize,
+                        [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
+                    );
+                }
+            }
+        }
+    }
+
     /// `acc + sum B_ij w_j` (or `-`, with `subtract`) over the blocks `part` of node `i`'s row
     /// (offsets within it), in row order, skipping those where `w(j)` is `None`.
     #[inline(always)]

@@ -68,14 +68,18 @@ fn make_engine(
     gpu: GpuOptions,
     host: &HostDevice,
 ) -> Result<Made> {
-    let sgs = crate::physics::Preconditioner::SymmetricGaussSeidel;
-    if config.integrator.is_implicit()
-        && config.solver.preconditioner == sgs
-        && matches!(kind, EngineKind::Reference | EngineKind::Gpu)
-    {
+    use crate::physics::Preconditioner;
+    let fast_only = match config.solver.preconditioner {
+        Preconditioner::SymmetricGaussSeidel => Some("symmetric Gauss-Seidel"),
+        Preconditioner::Factored => Some("factored (sparse Cholesky)"),
+        Preconditioner::Auto | Preconditioner::BlockJacobi => None,
+    };
+    if let Some(name) = fast_only.filter(|_| {
+        config.integrator.is_implicit() && matches!(kind, EngineKind::Reference | EngineKind::Gpu)
+    }) {
         return Err(Error::Unsupported(format!(
-            "the symmetric Gauss-Seidel preconditioner runs on the fast engine only, not on \
-             the {kind} engine: leave solver.preconditioner out (Auto) or choose BlockJacobi"
+            "the {name} preconditioner runs on the fast engine only, not on the {kind} \
+             engine: leave solver.preconditioner out (Auto) or choose BlockJacobi"
         )));
     }
     let fast = || -> Result<Box<dyn Engine>> {
@@ -98,6 +102,14 @@ fn make_engine(
             fast()?,
             EngineKind::Fast,
             Some(auto_fem_note(config.force_model)),
+        ),
+        EngineKind::Auto if fast_only.is_some() && config.integrator.is_implicit() => (
+            fast()?,
+            EngineKind::Fast,
+            Some(format!(
+                "Auto runs the {} preconditioner on the fast CPU engine, the only one that has it",
+                fast_only.unwrap_or_default()
+            )),
         ),
         EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
