@@ -122,6 +122,7 @@ fn random_cuts_under_backward_euler_keep_every_invariant_and_the_patched_engine_
 /// refactored for the cut. Conjugate gradients still converge to the same solution as block
 /// Jacobi's (both to 1e-8, so the runs agree to float32 rounding over the whole stroke), every
 /// invariant holds, and the factorisations stay far fewer than the steps.
+#[cfg(feature = "factor")]
 #[rstest]
 fn cuts_under_the_factored_preconditioner_reach_block_jacobi_s_solution(
     #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,

@@ -236,6 +236,7 @@ fn warm_start_and_gauss_seidel_reach_the_cold_solution_in_fewer_iterations() {
 /// E|` (~1e4), so 1e-7 takes two iterations, and three leave room. Block Jacobi needs tens on
 /// the same systems. Later steps reuse the factor (the state moves) and stay within the
 /// refresh policy's bound or refactor.
+#[cfg(feature = "factor")]
 #[rstest]
 fn the_factored_preconditioner_reaches_the_reference_solution_in_a_few_iterations(
     #[values(1, 2, 3)] seed: u64,

@@ -298,8 +298,9 @@ fn the_fast_engine_with_finite_elements_settles_the_beam_where_its_explicit_step
     );
 }
 
-/// `solver: (preconditioner: Factored)` parses (and runs: on the fast engine, which has it),
-/// and a misspelled one is refused with the nearest name.
+/// `solver: (preconditioner: Factored)` parses (and runs on the fast engine when lancet is
+/// built with the `factor` feature; without it the run is refused with the feature named), and
+/// a misspelled one is refused with the nearest name.
 #[test]
 fn a_scene_takes_the_factored_preconditioner_and_a_misspelling_names_it() {
     let mut scene = implicit_scene("solver: (preconditioner: Factored)");
@@ -311,9 +312,15 @@ fn a_scene_takes_the_factored_preconditioner_and_a_misspelling_names_it() {
     let err = run_scene(&scene).unwrap_err().to_string();
     assert!(err.contains("fast engine only"), "{err}");
     scene.engine = EngineKind::Fast;
-    let solver = run_scene(&scene).unwrap().solver.unwrap();
-    assert_eq!(solver.capped, 0, "{solver:?}");
-    assert!(solver.factorisations >= 1, "{solver:?}");
+    if cfg!(feature = "factor") {
+        let solver = run_scene(&scene).unwrap().solver.unwrap();
+        assert_eq!(solver.capped, 0, "{solver:?}");
+        assert!(solver.factorisations >= 1, "{solver:?}");
+    } else {
+        // Built without the factor: refused with the feature to build with.
+        let err = run_scene(&scene).unwrap_err().to_string();
+        assert!(err.contains("`factor` feature"), "{err}");
+    }
     let bad = r#"Scene(name: "x", mesh: Box((size: (0.02, 0.01, 0.01), cells: (2, 1, 1))),
            material: (stiffness: Material(youngs_modulus: 1e5, poisson_ratio: 0.3), mass: Density(1000.0)),
            steps: 1, integrator: BackwardEuler, solver: (preconditioner: Factord))"#;

@@ -53,7 +53,11 @@ use contact::{constrain, impulses};
 
 #[path = "implicit_contact.rs"]
 mod contact;
+#[cfg(feature = "factor")]
 #[path = "implicit_factor.rs"]
+mod factor;
+#[cfg(not(feature = "factor"))]
+#[path = "implicit_factor_off.rs"]
 mod factor;
 use factor::{apply_factor, prepare, Factor};
 #[path = "implicit_elements.rs"]

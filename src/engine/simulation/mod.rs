@@ -82,6 +82,17 @@ fn make_engine(
              engine: leave solver.preconditioner out (Auto) or choose BlockJacobi"
         )));
     }
+    if cfg!(not(feature = "factor"))
+        && config.integrator.is_implicit()
+        && config.solver.preconditioner == Preconditioner::Factored
+    {
+        return Err(Error::Unsupported(
+            "the factored (sparse Cholesky) preconditioner needs lancet built with the `factor` \
+             feature (`cargo build --release --features factor`): leave solver.preconditioner \
+             out (Auto) or choose SymmetricGaussSeidel or BlockJacobi"
+                .into(),
+        ));
+    }
     let fast = || -> Result<Box<dyn Engine>> {
         Ok(Box::new(
             fast::FastEngine::new(model, config).with_force_model(model, config.force_model)?,
