@@ -32,6 +32,7 @@ impl Rows<'_> {
 
     /// `f(j, A_ij)` for each block of node `i`'s row, in row order: the system's own block
     /// (the negated spring block, or the negated element block, row major), in float64.
+    #[cfg(feature = "factor")]
     pub(super) fn for_each_block(&self, i: usize, mut f: impl FnMut(usize, [[f64; 3]; 3])) {
         let range = self.starts[i] as usize..self.starts[i + 1] as usize;
         match self.entries {
