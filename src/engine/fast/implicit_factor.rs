@@ -1,7 +1,10 @@
 //! The factored preconditioner ([`Preconditioner::Factored`]): a sparse Cholesky factor
 //! `L L^T` (faer's supernodal factorisation after an approximate-minimum-degree ordering, in
 //! float64) of the implicit step's system `A` as it was at some step, applied as `z = (L
-//! L^T)^-1 r` by two triangular solves.
+//! L^T)^-1 r` by two triangular solves (`implicit_factor_solve.rs`: over a float32 copy of
+//! the factor for [`Preconditioner::Factored`], the float64 factor itself for
+//! [`Preconditioner::FactoredDouble`]). Conjugate gradients judge each residual before they
+//! precondition it, so a solve converged in `k` iterations applies the factor `k` times.
 //!
 //! On stiff tissue at small strains the system changes little from step to step, so a factor
 //! of an earlier step's `A` is close to the inverse of the current one and conjugate gradients
@@ -17,6 +20,7 @@
 //! The refresh policy replaces it when the iterations grow (a cut's changed rows raise them).
 //!
 //! [`Preconditioner::Factored`]: crate::physics::Preconditioner::Factored
+//! [`Preconditioner::FactoredDouble`]: crate::physics::Preconditioner::FactoredDouble
 
 use super::passes::over_blocks;
 use super::rows::{dot64, Rows};
@@ -43,9 +47,11 @@ use triangular::Triangular;
 /// costs more per step than refactoring every few steps would.
 pub(super) const REFRESH_ITERATIONS: u32 = 6;
 
-/// The factor's arithmetic: float64, so that the factor of a stiff system (its diagonal
-/// blocks 1e3 to 1e5 times its mass, the 1 MPa cylinder's at 1 ms) keeps the digits the
-/// float32 product resolves.
+/// The factorisation's arithmetic: float64, so that the factor of a stiff system (its
+/// diagonal blocks 1e3 to 1e5 times its mass, the 1 MPa cylinder's at 1 ms) keeps the digits
+/// the float32 product resolves. The solves may still read the finished factor rounded to
+/// float32: half the bytes, for at most about one more iteration a solve (the float32 and
+/// float64 factors' steps are compared in `tests/engine/fast_implicit.rs`).
 type Real = f64;
 
 /// The factor, the system it was taken of, and the scratch of its solves.

@@ -91,6 +91,9 @@ pub(super) struct Triangular<T: Real> {
     acc: [Vec<T>; 2],
     /// Each thread's gathered rows below a supernode (the longest list of them).
     tmp: [Vec<T>; 2],
+    /// Whether the CPU has AVX2: the solves are compiled a second time for it (the same
+    /// operations in the same order, on wider vectors: the same bits).
+    wide: bool,
 }
 
 /// The supernodal structure of `symbolic` (`None` for a simplicial one).
@@ -152,6 +155,10 @@ impl<T: Real> Triangular<T> {
             x: vec![T::default(); n],
             acc: [vec![T::default(); n], vec![T::default(); n]],
             tmp: [vec![T::default(); longest], vec![T::default(); longest]],
+            #[cfg(target_arch = "x86_64")]
+            wide: std::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            wide: false,
         })
     }
 
@@ -193,6 +200,7 @@ impl<T: Real> Triangular<T> {
             x,
             acc,
             tmp,
+            wide,
             ..
         } = self;
         let f = Factor {
@@ -201,17 +209,16 @@ impl<T: Real> Triangular<T> {
             rows,
             val,
             l,
+            wide: *wide,
         };
         let shared = Shared(x.as_mut_ptr());
         let [acc0, acc1] = acc;
         let [tmp0, tmp1] = tmp;
         let run = |group: &[u32], acc: &mut [T], tmp: &mut [T]| {
-            for &sn in group {
-                // SAFETY: a group writes its own supernodes' rows of `x` and its own `acc`;
-                // the two groups' subtrees are disjoint, so the two threads never touch the
-                // same row of `x`.
-                unsafe { f.forward_one(sn as usize, shared, Some(acc), tmp) };
-            }
+            // SAFETY: a group writes its own supernodes' rows of `x` and its own `acc`; the
+            // two groups' subtrees are disjoint, so the two threads never touch the same row
+            // of `x`.
+            unsafe { f.forward_list(group, shared, Some(acc), tmp) };
         };
         join(
             || run(&groups[0], acc0, tmp0),
@@ -229,10 +236,8 @@ impl<T: Real> Triangular<T> {
                 acc1[i] = T::default();
             }
         }
-        for &sn in top.iter() {
-            // SAFETY: one thread.
-            unsafe { f.forward_one(sn as usize, shared, None, tmp0) };
-        }
+        // SAFETY: one thread.
+        unsafe { f.forward_list(top, shared, None, tmp0) };
     }
 
     /// `L^T z = y` in place.
@@ -247,6 +252,7 @@ impl<T: Real> Triangular<T> {
             top,
             x,
             tmp,
+            wide,
             ..
         } = self;
         let f = Factor {
@@ -255,19 +261,16 @@ impl<T: Real> Triangular<T> {
             rows,
             val,
             l,
+            wide: *wide,
         };
         let shared = Shared(x.as_mut_ptr());
         let [tmp0, tmp1] = tmp;
-        for &sn in top.iter().rev() {
-            // SAFETY: one thread.
-            unsafe { f.backward_one(sn as usize, shared, tmp0) };
-        }
+        // SAFETY: one thread.
+        unsafe { f.backward_list(top, shared, tmp0) };
         let run = |group: &[u32], tmp: &mut [T]| {
-            for &sn in group.iter().rev() {
-                // SAFETY: a group writes only its own supernodes' rows and reads those and
-                // the top's (final by now); the groups' rows are disjoint.
-                unsafe { f.backward_one(sn as usize, shared, tmp) };
-            }
+            // SAFETY: a group writes only its own supernodes' rows and reads those and the
+            // top's (final by now); the groups' rows are disjoint.
+            unsafe { f.backward_list(group, shared, tmp) };
         };
         join(|| run(&groups[0], tmp0), || run(&groups[1], tmp1));
     }
@@ -280,6 +283,7 @@ struct Factor<'a, T> {
     rows: &'a [u32],
     val: &'a [usize],
     l: &'a [T],
+    wide: bool,
 }
 
 /// The solution vector, shared by the two groups, which write disjoint rows.
@@ -291,6 +295,85 @@ unsafe impl<T: Send> Send for Shared<T> {}
 unsafe impl<T: Send> Sync for Shared<T> {}
 
 impl<T: Real> Factor<'_, T> {
+    /// [`Factor::forward_one`] over `list` in order, compiled for AVX2 where the CPU has it.
+    ///
+    /// # Safety
+    /// As [`Factor::forward_one`], for every supernode of `list`.
+    unsafe fn forward_list(
+        &self,
+        list: &[u32],
+        x: Shared<T>,
+        acc: Option<&mut [T]>,
+        tmp: &mut [T],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` only where the CPU reported AVX2; the caller's contract.
+            return unsafe { self.forward_list_wide(list, x, acc, tmp) };
+        }
+        // SAFETY: the caller's contract.
+        unsafe { self.forward_list_in(list, x, acc, tmp) }
+    }
+
+    /// [`Factor::forward_list`] for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn forward_list_wide(
+        &self,
+        list: &[u32],
+        x: Shared<T>,
+        acc: Option<&mut [T]>,
+        tmp: &mut [T],
+    ) {
+        // SAFETY: the caller's contract.
+        unsafe { self.forward_list_in(list, x, acc, tmp) }
+    }
+
+    #[inline(always)]
+    unsafe fn forward_list_in(
+        &self,
+        list: &[u32],
+        x: Shared<T>,
+        mut acc: Option<&mut [T]>,
+        tmp: &mut [T],
+    ) {
+        for &sn in list {
+            // SAFETY: the caller's contract.
+            unsafe { self.forward_one(sn as usize, x, acc.as_deref_mut(), tmp) };
+        }
+    }
+
+    /// [`Factor::backward_one`] over `list` in reverse order, compiled for AVX2 where the CPU
+    /// has it.
+    ///
+    /// # Safety
+    /// As [`Factor::backward_one`], for every supernode of `list`.
+    unsafe fn backward_list(&self, list: &[u32], x: Shared<T>, tmp: &mut [T]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` only where the CPU reported AVX2; the caller's contract.
+            return unsafe { self.backward_list_wide(list, x, tmp) };
+        }
+        // SAFETY: the caller's contract.
+        unsafe { self.backward_list_in(list, x, tmp) }
+    }
+
+    /// [`Factor::backward_list`] for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn backward_list_wide(&self, list: &[u32], x: Shared<T>, tmp: &mut [T]) {
+        // SAFETY: the caller's contract.
+        unsafe { self.backward_list_in(list, x, tmp) }
+    }
+
+    #[inline(always)]
+    unsafe fn backward_list_in(&self, list: &[u32], x: Shared<T>, tmp: &mut [T]) {
+        for &sn in list.iter().rev() {
+            // SAFETY: the caller's contract.
+            unsafe { self.backward_one(sn as usize, x, tmp) };
+        }
+    }
+
     /// Supernode `sn`'s forward step: the updates its descendants gathered for its rows in
     /// `acc` (where given) subtracted, its diagonal block's solve, then its rows below updated:
     /// in `acc` (a group's: the rows below are its own subtree's or the top's, and `acc` is
@@ -300,7 +383,7 @@ impl<T: Real> Factor<'_, T> {
     ///
     /// # Safety
     /// No other thread may touch supernode `sn`'s rows, nor, without `acc`, its rows below.
-    #[inline]
+    #[inline(always)]
     unsafe fn forward_one(&self, sn: usize, x: Shared<T>, acc: Option<&mut [T]>, tmp: &mut [T]) {
         let (c0, c1) = (self.begin[sn] as usize, self.begin[sn + 1] as usize);
         let size = c1 - c0;
@@ -353,7 +436,7 @@ impl<T: Real> Factor<'_, T> {
     /// # Safety
     /// Supernode `sn`'s rows below must be final and no other thread may write them or
     /// touch `sn`'s own rows.
-    #[inline]
+    #[inline(always)]
     unsafe fn backward_one(&self, sn: usize, x: Shared<T>, tmp: &mut [T]) {
         let (c0, c1) = (self.begin[sn] as usize, self.begin[sn + 1] as usize);
         let size = c1 - c0;
