@@ -220,8 +220,11 @@ pub(crate) fn print_summary(s: &RunSummary) {
         );
         if r.factorisations > 0 {
             println!(
-                "solver: {} sparse Cholesky factorisations, {:.3} s",
-                r.factorisations, r.factor_seconds
+                "solver: {} sparse Cholesky factorisations, {:.3} s; {:.2} factor solves per \
+                 linear solve",
+                r.factorisations,
+                r.factor_seconds,
+                r.factor_solves as f64 / r.solves.max(1) as f64
             );
         }
         if r.capped > 0 {

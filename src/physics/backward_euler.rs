@@ -72,9 +72,11 @@ pub enum Preconditioner {
     /// positive definite like the system, and the same bits on any number of threads. Only the
     /// fast engine has it: the others refuse it.
     SymmetricGaussSeidel,
-    /// A sparse Cholesky factor `L L^T` of the system as it was at some step (float64,
-    /// supernodal, after an approximate-minimum-degree ordering), applied by two triangular
-    /// solves: on stiff tissue at small strains the system changes little from step to step,
+    /// A sparse Cholesky factor `L L^T` of the system as it was at some step (factorised in
+    /// float64, supernodal, after an approximate-minimum-degree ordering), applied by two
+    /// triangular solves that stream the factor in float32 (half the bytes; the solves are
+    /// bound by them) on up to two threads: on stiff tissue at small strains the system
+    /// changes little from step to step,
     /// so a factor of an earlier step's system is nearly its inverse and conjugate gradients
     /// converge in a few iterations (one or two with a fresh factor). The factor is taken at
     /// the first step and again at the next step after a solve needs more than a few
@@ -85,6 +87,21 @@ pub enum Preconditioner {
     /// the default); where a factorisation fails the solve falls back to block Jacobi. Only
     /// the fast engine has it: the others refuse it.
     Factored,
+    /// [`Preconditioner::Factored`] with triangular solves in float64 (twice the bytes a
+    /// solve streams): for comparison, or for systems too ill-conditioned for a float32 copy
+    /// of the factor to precondition.
+    FactoredDouble,
+}
+
+impl Preconditioner {
+    /// Whether this is one of the sparse Cholesky factors ([`Preconditioner::Factored`],
+    /// [`Preconditioner::FactoredDouble`]).
+    pub fn is_factored(self) -> bool {
+        matches!(
+            self,
+            Preconditioner::Factored | Preconditioner::FactoredDouble
+        )
+    }
 }
 
 impl Default for SolverSettings {
@@ -121,6 +138,10 @@ pub struct SolverStats {
     pub factorisations: u64,
     /// Wall time those factorisations took, seconds (ordering and symbolic analysis included).
     pub factor_seconds: f64,
+    /// Applications of the factor (a forward and a backward triangular solve each) over all
+    /// solves: one per iteration that did not converge, and none for a solve that converged
+    /// at its start.
+    pub factor_solves: u64,
 }
 
 impl SolverStats {

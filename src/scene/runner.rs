@@ -60,6 +60,8 @@ pub struct SolverReport {
     pub factorisations: u64,
     /// Wall time of those factorisations, seconds.
     pub factor_seconds: f64,
+    /// Applications of the factor (a pair of triangular solves each) over the run.
+    pub factor_solves: u64,
 }
 
 impl SolverReport {
@@ -78,6 +80,7 @@ impl SolverReport {
             iteration_cap: settings.max_iterations,
             factorisations: stats.factorisations,
             factor_seconds: stats.factor_seconds,
+            factor_solves: stats.factor_solves,
         }
     }
 }

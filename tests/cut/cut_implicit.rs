@@ -121,11 +121,14 @@ fn random_cuts_under_backward_euler_keep_every_invariant_and_the_patched_engine_
 /// nodes it covers keep it, the cut's new nodes get block Jacobi, and the step is not
 /// refactored for the cut. Conjugate gradients still converge to the same solution as block
 /// Jacobi's (both to 1e-8, so the runs agree to float32 rounding over the whole stroke), every
-/// invariant holds, and the factorisations stay far fewer than the steps.
+/// invariant holds, and the factorisations stay far fewer than the steps. The same with the
+/// factor's solves in float32 (`Factored`) and in float64 (`FactoredDouble`), each applying
+/// the factor once per iteration that did not converge.
 #[cfg(feature = "factor")]
 #[rstest]
 fn cuts_under_the_factored_preconditioner_reach_block_jacobi_s_solution(
     #[values(CutMethod::Separate, CutMethod::Remove)] method: CutMethod,
+    #[values("Factored", "FactoredDouble")] factor: &str,
 ) {
     let path = Path::new("implicit_cuts.ron");
     let run = |preconditioner: &str| {
@@ -145,7 +148,7 @@ fn cuts_under_the_factored_preconditioner_reach_block_jacobi_s_solution(
         }
         world
     };
-    let (factored, jacobi) = (run("Factored"), run("BlockJacobi"));
+    let (factored, jacobi) = (run(factor), run("BlockJacobi"));
     let report = &factored.cutting().unwrap().report;
     assert!(report.cuts > 0, "{method}: the blade cut nothing");
     assert_eq!(report.checks, report.cuts, "{method}");
@@ -174,6 +177,7 @@ fn cuts_under_the_factored_preconditioner_reach_block_jacobi_s_solution(
         against.mean_iterations()
     );
     assert_eq!(stats.capped, 0, "{method}: {stats:?}");
+    assert_eq!(stats.factor_solves, stats.iterations, "{method}: {stats:?}");
     // Refactored only when a solve went past the refresh bound, not at every step.
     assert!(
         2 * stats.factorisations < stats.solves,

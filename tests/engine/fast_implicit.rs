@@ -106,9 +106,23 @@ fn large_box() -> PackedModel {
 
 #[test]
 fn one_thread_and_two_give_the_same_bits() {
+    same_bits_on_one_thread_and_two(lancet::physics::Preconditioner::Auto);
+}
+
+/// The factored preconditioner's triangular solves run two subtrees of the elimination tree
+/// on two threads and add their updates to the rows above in a fixed order: the same bits as
+/// on one thread.
+#[cfg(feature = "factor")]
+#[test]
+fn the_factored_solves_give_the_same_bits_on_one_thread_and_two() {
+    same_bits_on_one_thread_and_two(lancet::physics::Preconditioner::Factored);
+}
+
+fn same_bits_on_one_thread_and_two(preconditioner: lancet::physics::Preconditioner) {
     let model = large_box();
     assert!(model.node_count() > 2048);
-    let config = implicit_config(30.0 * stable_time_step(&model).dt);
+    let mut config = implicit_config(30.0 * stable_time_step(&model).dt);
+    config.solver.preconditioner = preconditioner;
     let state = random_state(&model, 5);
     let on = |threads: usize| {
         lancet::engine::fast::on_threads(threads, || {
@@ -124,8 +138,13 @@ fn one_thread_and_two_give_the_same_bits() {
         .unwrap()
     };
     let (one, two) = (on(1), on(2));
-    assert!(one.2.iterations > 3, "{:?}", one.2);
-    assert_eq!(one.2, two.2);
+    assert!(one.2.iterations >= 3, "{:?}", one.2);
+    // Everything but the factorisations' wall time.
+    let counts = |s: lancet::physics::SolverStats| lancet::physics::SolverStats {
+        factor_seconds: 0.0,
+        ..s
+    };
+    assert_eq!(counts(one.2), counts(two.2));
     let bits =
         |x: &[[f64; 3]]| -> Vec<[u64; 3]> { x.iter().map(|p| p.map(f64::to_bits)).collect() };
     assert!(
@@ -275,4 +294,115 @@ fn the_factored_preconditioner_reaches_the_reference_solution_in_a_few_iteration
     assert!(e < 1e-4, "seed {seed}: {e:.2e} off the reference");
     let moved = relative_l2(&model.rest, &state.0, &reference);
     assert!(moved > 1e-2, "{moved:.2e}");
+}
+
+/// The float32 copy of the factor (`Factored`: the triangular solves stream the float64
+/// factorisation rounded to float32) preconditions as well as the float64 one
+/// (`FactoredDouble`): on random models far above the bound both reach the same steps.
+///
+/// The bound: both solve every step to a relative residual of 1e-7 with the same float32
+/// product, so their steps differ by what two solutions within 1e-7 of the same system can
+/// differ by, amplified by its conditioning (about 1e3 at 20x the bound, as above): 1e-4 of the
+/// step's velocity change at worst, and less of the motion, which the positions compare. A
+/// preconditioner that were not symmetric positive definite (a wrong row, a transposed block)
+/// would stall conjugate gradients at the cap instead. The float32 copy's rounding (about
+/// 6e-8 of each entry, amplified by the factor's conditioning) is far below the stale
+/// factor's own error, so it costs at most one iteration a solve.
+///
+/// The count: the residual is judged before the factor is applied, so every iteration that
+/// did not converge applies it once and the converged one applies nothing: factor solves
+/// equal iterations, not iterations plus one a solve.
+#[cfg(feature = "factor")]
+#[rstest]
+fn the_float32_factor_s_steps_equal_the_float64_factor_s(#[values(1, 2, 3)] seed: u64) {
+    use lancet::physics::Preconditioner::{Factored, FactoredDouble};
+    let model = random_model(seed, true);
+    let dt = 20.0 * stable_time_step(&model).dt;
+    let state = random_state(&model, seed + 10);
+    let mut config = implicit_config(dt);
+    config.solver.preconditioner = FactoredDouble;
+    let (double, d) = run(&model, EngineKind::Fast, config, &state, 6);
+    config.solver.preconditioner = Factored;
+    let (single, s) = run(&model, EngineKind::Fast, config, &state, 6);
+    eprintln!(
+        "seed {seed}: float32 factor {} iterations in {} solves, float64 {}",
+        s.iterations, s.solves, d.iterations
+    );
+    for stats in [&d, &s] {
+        assert_eq!((stats.solves, stats.capped), (6, 0), "{stats:?}");
+        assert_eq!(stats.factor_solves, stats.iterations, "{stats:?}");
+        assert!(stats.last_residual <= 1e-7, "{stats:?}");
+    }
+    assert!(
+        s.iterations <= d.iterations + s.solves,
+        "{s:?} against {d:?}"
+    );
+    let e = relative_l2(&model.rest, &single, &double);
+    assert!(
+        e < 1e-4,
+        "seed {seed}: {e:.2e} off the float64 factor's steps"
+    );
+    let moved = relative_l2(&model.rest, &state.0, &double);
+    assert!(moved > 1e-2, "{moved:.2e}");
+}
+
+/// A stiff column standing on its clamped base under its own weight, like the SOFA cylinder
+/// fixture (E = 1 MPa, 1000 kg/m^3, dt = 1 ms: over 15 times the explicit bound): the
+/// factored preconditioner's steps (float32 solves of the factor, refreshed past 6 iterations)
+/// equal the default symmetric Gauss-Seidel's, both solved to 1e-7, over 30 steps from rest,
+/// in a few iterations a step against tens, with one factor solve per iteration.
+///
+/// The bound on the agreement is the tolerance's, as in the test above (1e-7 of each step's
+/// system amplified by its conditioning, 1e3 to 1e4 here: 1e-3 of a step at worst, and the
+/// steps' errors are damped, not summed, over the run); the column (0.1 m) sags by about
+/// rho g L^2 / (2 E) = 4.9e-5 m, which the comparison is relative to.
+#[cfg(feature = "factor")]
+#[test]
+fn the_factored_steps_of_a_stiff_column_equal_gauss_seidel_s() {
+    use lancet::physics::Preconditioner::{Factored, SymmetricGaussSeidel};
+    let mesh = BoxGrid::cube_cells([3, 3, 50], 0.002).build().unwrap();
+    let mut config = ModelConfig::new(Material::elastic(1e6, 0.3, 1000.0));
+    config.gravity = [0.0, 0.0, -9.81];
+    config.mass_damping = 50.0;
+    config.fixed.push(FixedSelector::Plane {
+        point: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        tolerance: 1e-9,
+    });
+    let model = SpringModel::build(&mesh, &config)
+        .unwrap()
+        .pack(&mesh)
+        .unwrap();
+    let dt = 1e-3;
+    let bound = stable_time_step(&model).dt;
+    assert!(dt > 15.0 * bound, "dt is {:.1} times the bound", dt / bound);
+    let rest = (model.rest.clone(), vec![[0.0; 3]; model.node_count()]);
+    let mut sim_config = implicit_config(dt);
+    sim_config.solver.preconditioner = SymmetricGaussSeidel;
+    let (sgs, g) = run(&model, EngineKind::Fast, sim_config, &rest, 30);
+    sim_config.solver.preconditioner = Factored;
+    let (factored, f) = run(&model, EngineKind::Fast, sim_config, &rest, 30);
+    eprintln!(
+        "column: factored {:.1} iterations a solve (max {}, {} factorisations), Gauss-Seidel {:.1}",
+        f.mean_iterations(),
+        f.max_iterations,
+        f.factorisations,
+        g.mean_iterations()
+    );
+    assert_eq!((f.capped, g.capped), (0, 0), "{f:?} {g:?}");
+    assert_eq!(f.factor_solves, f.iterations, "{f:?}");
+    assert!(
+        f.mean_iterations() * 5.0 < g.mean_iterations(),
+        "{f:?} {g:?}"
+    );
+    assert!(
+        f.factorisations * 3 < f.solves,
+        "refactored at most steps: {f:?}"
+    );
+    let e = relative_l2(&model.rest, &factored, &sgs);
+    assert!(e < 1e-3, "{e:.2e} off Gauss-Seidel's steps");
+    let sag = (model.rest.iter().zip(&sgs))
+        .map(|(r, x)| r[2] - x[2])
+        .fold(0.0, f64::max);
+    assert!(sag > 1e-5, "the column did not sag ({sag:.2e} m)");
 }

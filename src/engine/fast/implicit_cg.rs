@@ -23,7 +23,8 @@ pub(super) fn solve(
     bb: f64,
     guess: bool,
 ) -> (u32, f64) {
-    let factored = settings.preconditioner == Preconditioner::Factored;
+    let factored = settings.preconditioner.is_factored();
+    let single = settings.preconditioner == Preconditioner::Factored;
     let sgs = matches!(
         settings.preconditioner,
         Preconditioner::Auto | Preconditioner::SymmetricGaussSeidel
@@ -51,7 +52,7 @@ pub(super) fn solve(
     // The factor, taken or refreshed first where it is missing or stale; without one (a
     // failed factorisation) the solve is block Jacobi's.
     let mut factor = if factored {
-        prepare(factor, stats, nodes, blocks, g)
+        prepare(factor, stats, nodes, blocks, g, single)
     } else {
         None
     };
@@ -90,12 +91,15 @@ pub(super) fn solve(
             [s[0] + dot64(it.r, it.r), s[1] + dot64(it.r, it.z)]
         })
     });
-    if let Some(f) = factor.as_deref_mut() {
-        rz = apply_factor(f, cg, partials, g, held)[1];
-    }
+    // The residual is judged before the factor is applied: a converged residual needs no
+    // preconditioning, and on the factored path that saves a pair of triangular solves, the
+    // most expensive pass of the iteration.
     let mut residual = rr.sqrt() / b_norm;
     if residual <= settings.tolerance {
         return (0, residual);
+    }
+    if let Some(f) = factor.as_deref_mut() {
+        rz = apply_factor(f, cg, partials, g, held, stats)[1];
     }
     direction(p, cg, partials, None);
     for iteration in 1..=settings.max_iterations {
@@ -106,14 +110,13 @@ pub(super) fn solve(
             return (iteration, residual);
         }
         let alpha = (rz / pap) as f32;
-        let [mut rr, mut rz_next] =
-            advance(cg, partials, nodes, blocks, g, sgs, held, p, ap, alpha);
-        if let Some(f) = factor.as_deref_mut() {
-            [rr, rz_next] = apply_factor(f, cg, partials, g, held);
-        }
+        let [rr, mut rz_next] = advance(cg, partials, nodes, blocks, g, sgs, held, p, ap, alpha);
         residual = rr.sqrt() / b_norm;
         if residual <= settings.tolerance {
             return (iteration, residual);
+        }
+        if let Some(f) = factor.as_deref_mut() {
+            rz_next = apply_factor(f, cg, partials, g, held, stats)[1];
         }
         let beta = (rz_next / rz) as f32;
         rz = rz_next;

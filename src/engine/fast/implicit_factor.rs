@@ -1,7 +1,10 @@
 //! The factored preconditioner ([`Preconditioner::Factored`]): a sparse Cholesky factor
 //! `L L^T` (faer's supernodal factorisation after an approximate-minimum-degree ordering, in
 //! float64) of the implicit step's system `A` as it was at some step, applied as `z = (L
-//! L^T)^-1 r` by two triangular solves.
+//! L^T)^-1 r` by two triangular solves (`implicit_factor_solve.rs`: over a float32 copy of
+//! the factor for [`Preconditioner::Factored`], the float64 factor itself for
+//! [`Preconditioner::FactoredDouble`]). Conjugate gradients judge each residual before they
+//! precondition it, so a solve converged in `k` iterations applies the factor `k` times.
 //!
 //! On stiff tissue at small strains the system changes little from step to step, so a factor
 //! of an earlier step's `A` is close to the inverse of the current one and conjugate gradients
@@ -17,6 +20,7 @@
 //! The refresh policy replaces it when the iterations grow (a cut's changed rows raise them).
 //!
 //! [`Preconditioner::Factored`]: crate::physics::Preconditioner::Factored
+//! [`Preconditioner::FactoredDouble`]: crate::physics::Preconditioner::FactoredDouble
 
 use super::passes::over_blocks;
 use super::rows::{dot64, Rows};
@@ -26,11 +30,15 @@ use crate::physics::SolverStats;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
 };
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Par, Side};
+
+#[path = "implicit_factor_solve.rs"]
+mod triangular;
+use triangular::Triangular;
 
 /// A solve that needs more conjugate-gradient iterations than this marks the factor stale:
 /// the next solve refactors first. A fresh factor takes one or two; each further iteration
@@ -39,9 +47,11 @@ use faer::{Conj, MatMut, Par, Side};
 /// costs more per step than refactoring every few steps would.
 pub(super) const REFRESH_ITERATIONS: u32 = 6;
 
-/// The factor's arithmetic: float64, so that the factor of a stiff system (its diagonal
-/// blocks 1e3 to 1e5 times its mass, the 1 MPa cylinder's at 1 ms) keeps the digits the
-/// float32 product resolves.
+/// The factorisation's arithmetic: float64, so that the factor of a stiff system (its
+/// diagonal blocks 1e3 to 1e5 times its mass, the 1 MPa cylinder's at 1 ms) keeps the digits
+/// the float32 product resolves. The solves may still read the finished factor rounded to
+/// float32: half the bytes, for at most about one more iteration a solve (the float32 and
+/// float64 factors' steps are compared in `tests/engine/fast_implicit.rs`).
 type Real = f64;
 
 /// The factor, the system it was taken of, and the scratch of its solves.
@@ -56,15 +66,34 @@ pub(super) struct Factor {
     /// The symbolic factorisation of that pattern (kept while the pattern stays the same:
     /// only a cut changes it).
     symbolic: SymbolicCholesky<u32>,
-    /// The numeric factor `L`.
+    /// The numeric factor `L`, as faer's factorisation leaves it.
     l: Vec<Real>,
-    /// The right-hand side and solution of the triangular solves.
-    rhs: Vec<Real>,
-    scratch: MemBuffer,
+    /// The factor in the precision the triangular solves stream, with their schedule.
+    solves: Solves,
+    /// Whether the solves stream the factor in float32.
+    single: bool,
+    /// The solves' output in the original order.
+    z: Vec<f32>,
     /// Whether the next solve should refactor first.
     stale: bool,
     /// Factorisations so far.
     pub(super) factorisations: u64,
+}
+
+/// The triangular solves in the precision asked for.
+enum Solves {
+    Single(Triangular<f32>),
+    Double(Triangular<f64>),
+}
+
+impl Solves {
+    fn new(symbolic: &SymbolicCholesky<u32>, single: bool) -> Option<Solves> {
+        Some(if single {
+            Solves::Single(Triangular::new(symbolic)?)
+        } else {
+            Solves::Double(Triangular::new(symbolic)?)
+        })
+    }
 }
 
 /// The lower triangle of the system `A` (the diagonal blocks of `nodes`, the off-diagonal
@@ -137,7 +166,7 @@ impl Factor {
     /// and positive masses) or faer could not take it.
     ///
     /// [`Linearization::Definite`]: crate::physics::Linearization::Definite
-    pub(super) fn new(nodes: &[NodeSystem], rows: Rows, g: &Graph) -> Option<Factor> {
+    pub(super) fn new(nodes: &[NodeSystem], rows: Rows, g: &Graph, single: bool) -> Option<Factor> {
         let (mut col_ptr, mut row_idx, mut values) = (Vec::new(), Vec::new(), Vec::new());
         lower_triangle(nodes, rows, g, &mut col_ptr, &mut row_idx, &mut values);
         let symbolic = analyse(nodes.len(), &col_ptr, &row_idx)?;
@@ -146,8 +175,9 @@ impl Factor {
             col_ptr,
             row_idx,
             values,
-            rhs: vec![0.0; 3 * nodes.len()],
-            scratch: MemBuffer::new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq)),
+            solves: Solves::new(&symbolic, single)?,
+            single,
+            z: Vec::new(),
             l: vec![0.0; symbolic.len_val()],
             symbolic,
             stale: false,
@@ -177,11 +207,13 @@ impl Factor {
             let Some(symbolic) = analyse(nodes.len(), &self.col_ptr, &self.row_idx) else {
                 return false;
             };
-            self.scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
+            let Some(solves) = Solves::new(&symbolic, self.single) else {
+                return false;
+            };
+            self.solves = solves;
             self.l.resize(symbolic.len_val(), 0.0);
             self.symbolic = symbolic;
             self.nodes = nodes.len();
-            self.rhs.resize(3 * self.nodes, 0.0);
         }
         self.stale = false;
         self.numeric()
@@ -200,7 +232,8 @@ impl Factor {
                 .factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
         );
         self.factorisations += 1;
-        self.symbolic
+        let ok = self
+            .symbolic
             .factorize_numeric_llt(
                 &mut self.l,
                 a,
@@ -210,7 +243,12 @@ impl Factor {
                 MemStack::new(&mut stack),
                 Default::default(),
             )
-            .is_ok()
+            .is_ok();
+        match &mut self.solves {
+            Solves::Single(t) => t.set(&self.l),
+            Solves::Double(t) => t.set(&self.l),
+        }
+        ok
     }
 
     /// Whether the factor covers no more than `nodes` nodes (a cut only adds nodes; a
@@ -230,35 +268,40 @@ impl Factor {
     /// nodes zero, left as the caller set it).
     pub(super) fn apply(&mut self, cg: &mut [Iterate], g: &Graph) {
         let n = self.nodes.min(cg.len());
-        for (i, it) in cg[..n].iter().enumerate() {
-            for c in 0..3 {
-                self.rhs[3 * i + c] = it.r[c] as Real;
+        // Rows past the iterates (none: the factor covers at most the system's nodes) and
+        // fixed nodes' rows (identity rows, their residual zero) read zero.
+        let rhs = |k: usize| {
+            let i = k / 3;
+            if i < n {
+                f64::from(cg[i].r[k % 3])
+            } else {
+                0.0
             }
+        };
+        let mut z = std::mem::take(&mut self.z);
+        z.resize(3 * self.nodes, 0.0);
+        let out = |k: usize, v: f64| z[k] = v as f32;
+        match &mut self.solves {
+            Solves::Single(t) => t.solve(rhs, out),
+            Solves::Double(t) => t.solve(rhs, out),
         }
-        let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, 3 * self.nodes, 1);
-        LltRef::new(&self.symbolic, &self.l).solve_in_place_with_conj(
-            Conj::No,
-            rhs,
-            Par::Seq,
-            MemStack::new(&mut self.scratch),
-        );
         for (i, it) in cg[..n].iter_mut().enumerate() {
             if g.fixed[i] {
                 it.z = [0.0; 4];
                 continue;
             }
-            it.z = [
-                self.rhs[3 * i] as f32,
-                self.rhs[3 * i + 1] as f32,
-                self.rhs[3 * i + 2] as f32,
-                0.0,
-            ];
+            it.z = [z[3 * i], z[3 * i + 1], z[3 * i + 2], 0.0];
         }
+        self.z = z;
     }
 
     /// The stored factor's nonzeros (for the memory report).
     pub(super) fn bytes(&self) -> u64 {
-        (self.l.len() * 8 + self.values.len() * 12 + self.col_ptr.len() * 4) as u64
+        let solves = match &self.solves {
+            Solves::Single(t) => t.bytes(),
+            Solves::Double(t) => t.bytes(),
+        };
+        (self.l.len() * 8 + self.values.len() * 12 + self.col_ptr.len() * 4) as u64 + solves
     }
 }
 
@@ -270,7 +313,11 @@ fn analyse(nodes: usize, col_ptr: &[u32], row_idx: &[u32]) -> Option<SymbolicCho
         pattern,
         Side::Lower,
         SymmetricOrdering::Amd,
-        CholeskySymbolicParams::default(),
+        CholeskySymbolicParams {
+            // The solves read faer's supernodal structure (`implicit_factor_solve.rs`).
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        },
     )
     .ok()
 }
@@ -284,16 +331,19 @@ pub(super) fn prepare<'a>(
     nodes: &[NodeSystem],
     blocks: Rows,
     g: &Graph,
+    single: bool,
 ) -> Option<&'a mut Factor> {
     let started = std::time::Instant::now();
     let before = slot.as_ref().map_or(0, |f| f.factorisations);
     let kept = match slot {
-        Some(f) => f.covers_at_most(nodes.len()) && f.refresh(nodes, blocks, g),
+        Some(f) => {
+            f.single == single && f.covers_at_most(nodes.len()) && f.refresh(nodes, blocks, g)
+        }
         None => false,
     };
     let mut taken = slot.as_ref().map_or(0, |f| f.factorisations) - before;
     if !kept {
-        *slot = Factor::new(nodes, blocks, g);
+        *slot = Factor::new(nodes, blocks, g, single);
         taken += 1;
     }
     if taken > 0 {
@@ -304,14 +354,16 @@ pub(super) fn prepare<'a>(
 }
 
 /// `z = (L L^T)^-1 r` on the nodes the factor covers (block Jacobi's `z`, already in place,
-/// on the others), filtered; returns `(r . r, r . z)`.
+/// on the others), filtered; returns `(r . r, r . z)`. Counts the application in `stats`.
 pub(super) fn apply_factor(
     f: &mut Factor,
     cg: &mut [Iterate],
     partials: &mut [[f64; 2]],
     g: &Graph,
     held: &Held,
+    stats: &mut SolverStats,
 ) -> [f64; 2] {
+    stats.factor_solves += 1;
     f.apply(cg, g);
     over_blocks(cg, partials, |start, out| {
         held.filter(start, out, |it| &mut it.z);

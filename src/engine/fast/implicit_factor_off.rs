@@ -30,6 +30,7 @@ pub(super) fn prepare<'a>(
     _nodes: &[NodeSystem],
     _blocks: Rows,
     _g: &Graph,
+    _single: bool,
 ) -> Option<&'a mut Factor> {
     None
 }
@@ -41,6 +42,7 @@ pub(super) fn apply_factor(
     _partials: &mut [[f64; 2]],
     _g: &Graph,
     _held: &Held,
+    _stats: &mut SolverStats,
 ) -> [f64; 2] {
     match *f {}
 }

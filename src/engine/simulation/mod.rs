@@ -71,7 +71,9 @@ fn make_engine(
     use crate::physics::Preconditioner;
     let fast_only = match config.solver.preconditioner {
         Preconditioner::SymmetricGaussSeidel => Some("symmetric Gauss-Seidel"),
-        Preconditioner::Factored => Some("factored (sparse Cholesky)"),
+        Preconditioner::Factored | Preconditioner::FactoredDouble => {
+            Some("factored (sparse Cholesky)")
+        }
         Preconditioner::Auto | Preconditioner::BlockJacobi => None,
     };
     if let Some(name) = fast_only.filter(|_| {
@@ -84,7 +86,7 @@ fn make_engine(
     }
     if cfg!(not(feature = "factor"))
         && config.integrator.is_implicit()
-        && config.solver.preconditioner == Preconditioner::Factored
+        && config.solver.preconditioner.is_factored()
     {
         return Err(Error::Unsupported(
             "the factored (sparse Cholesky) preconditioner needs lancet built with the `factor` \
