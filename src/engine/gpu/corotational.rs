@@ -84,6 +84,9 @@ pub struct CorotationalPasses {
     rank: Vec<u32>,
     /// Bytes the last patch uploaded, and whether it rebuilt the table whole.
     last_patch: (u64, bool),
+    /// What the last patch changed where it patched the table in place (`None` where it
+    /// rebuilt it): the implicit step's pair lists follow it.
+    last_table: Option<TablePatch>,
     buffers: TableBuffers,
     /// Workgroups of the tet pass (x, y).
     groups: (u32, u32),
@@ -142,6 +145,7 @@ impl CorotationalPasses {
             keys,
             rank: layout.order().rank.clone(),
             last_patch: (0, false),
+            last_table: None,
             buffers,
             groups,
             pipelines: [p1, p2],
@@ -283,6 +287,7 @@ impl CorotationalPasses {
         let kept_order = self.rank.len() <= rank.len()
             && self.rank[..] == rank[..self.rank.len()]
             && layout.node_slots() >= self.table.rows.len();
+        self.last_table = None;
         if !kept_order {
             let bytes = self.rebuild(ctx, model, diff, layout)?;
             self.last_patch = (bytes, true);
@@ -321,7 +326,14 @@ impl CorotationalPasses {
         }
         let bytes = self.write_patch(ctx, &patch);
         self.last_patch = (bytes, false);
+        self.last_table = Some(patch);
         Ok(bytes)
+    }
+
+    /// What the last patch changed in the table where it patched it in place; `None` where it
+    /// rebuilt the table whole (every tet may have moved).
+    pub fn last_table_patch(&self) -> Option<&TablePatch> {
+        self.last_table.as_ref()
     }
 
     /// The bytes the last patch uploaded, and whether it rebuilt the table whole (see
