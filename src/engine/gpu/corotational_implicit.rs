@@ -46,6 +46,24 @@ use crate::layout::PackedLayout;
 
 const BLOCKS: &str = include_str!("../../../shaders/corotational_blocks.wgsl");
 
+/// How a patch brought the pair lists up to date ([`CorotationalBlocks::last_patch`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PairsUpload {
+    /// Only the rows and pairs of the slots the cut reached were written.
+    Patched,
+    /// Uploaded whole: the layout was repacked or its passes rebuilt.
+    LayoutRebuilt,
+    /// Uploaded whole: the tet table was rebuilt (its tets may all have moved).
+    TableRebuilt,
+    /// Uploaded whole: the first damped tet (or the last) changed the blocks' stride.
+    StrideChanged,
+    /// Uploaded whole: a buffer had to grow (to the next size class).
+    Outgrown,
+    /// Uploaded whole: the holes rewritten lists left filled half the pairs, or the lists
+    /// outgrew a buffer with their holes and fit it without.
+    Compacted,
+}
+
 /// The block pass's constants; mirrors `BlockParams` in `corotational_blocks.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -69,8 +87,8 @@ pub struct CorotationalBlocks {
     groups: (u32, u32),
     /// The constants as last written.
     constants: BlockUniform,
-    /// Bytes the last patch uploaded, and whether it uploaded the lists whole.
-    last_patch: (u64, bool),
+    /// Bytes the last patch uploaded, and how.
+    last_patch: (u64, PairsUpload),
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
@@ -125,7 +143,7 @@ impl CorotationalBlocks {
             blocks,
             groups,
             constants,
-            last_patch: (0, false),
+            last_patch: (0, PairsUpload::Patched),
             pipeline,
             layout: bind_layout,
             bind_group,
@@ -177,26 +195,42 @@ impl CorotationalBlocks {
         removed: &[[u32; 4]],
     ) -> Result<u64> {
         let stride = if corot.damped() { 6 } else { 3 };
-        let table = corot
-            .last_table_patch()
-            .filter(|_| !whole && stride == self.stride);
-        let patched = table.and_then(|t| {
-            let changed = changed_records(layout, dirty);
-            let p = self.patch_lists(corot.table(), t, layout, &changed, removed);
-            self.fits().then(|| self.write_lists(ctx, &p))
-        });
-        self.last_patch = match patched {
-            Some(bytes) => (bytes, false),
-            None => {
+        let how = match corot.last_table_patch() {
+            _ if whole => PairsUpload::LayoutRebuilt,
+            None => PairsUpload::TableRebuilt,
+            Some(_) if stride != self.stride => PairsUpload::StrideChanged,
+            Some(t) => {
+                let changed = changed_records(layout, dirty);
+                let p = self.patch_lists(corot.table(), t, layout, &changed, removed);
+                if self.outgrown() {
+                    PairsUpload::Outgrown
+                } else if self.pairs.holes() > self.pairs.pairs.len() / 2 {
+                    PairsUpload::Compacted
+                } else {
+                    let bytes = self.write_lists(ctx, &p);
+                    self.last_patch = (bytes, PairsUpload::Patched);
+                    PairsUpload::Patched
+                }
+            }
+        };
+        if how != PairsUpload::Patched {
+            self.last_patch = {
                 self.pairs = TetPairs::new(corot.table(), layout);
                 let held = (&self.pair_rows, &self.pair_list, &self.blocks);
                 let (rows, list, blocks, stride, groups, constants) =
                     upload(ctx, &self.uniform, &self.pairs, corot.damped(), Some(held))?;
-                (self.pair_rows, self.pair_list, self.blocks) = (rows, list, blocks);
                 (self.stride, self.groups, self.constants) = (stride, groups, constants);
-                (self.pairs.bytes() + 16, true)
-            }
-        };
+                // Lists that outgrew a buffer with their holes may fit it compacted.
+                let sizes = |b: &Self| [b.pair_rows.size(), b.pair_list.size(), b.blocks.size()];
+                let before = sizes(self);
+                (self.pair_rows, self.pair_list, self.blocks) = (rows, list, blocks);
+                let how = match how {
+                    PairsUpload::Outgrown if sizes(self) == before => PairsUpload::Compacted,
+                    how => how,
+                };
+                (self.pairs.bytes() + 16, how)
+            };
+        }
         self.bind_group = bind(
             ctx,
             &self.layout,
@@ -207,9 +241,8 @@ impl CorotationalBlocks {
         Ok(self.last_patch.0)
     }
 
-    /// The bytes the last patch uploaded, and whether it uploaded the lists whole (see
-    /// [`CorotationalBlocks::patch`]).
-    pub fn last_patch(&self) -> (u64, bool) {
+    /// The bytes the last patch uploaded, and how (see [`CorotationalBlocks::patch`]).
+    pub fn last_patch(&self) -> (u64, PairsUpload) {
         self.last_patch
     }
 
@@ -244,13 +277,12 @@ impl CorotationalBlocks {
         self.pairs.patch(table, layout, changed, &coupled)
     }
 
-    /// Whether the patched lists fit the buffers held (and their holes are not half of them).
-    fn fits(&self) -> bool {
+    /// Whether the patched lists outgrew a buffer held.
+    fn outgrown(&self) -> bool {
         let (rows, pairs) = (self.pairs.rows.len() as u64, self.pairs.pairs.len() as u64);
-        self.pair_rows.size() >= 8 * rows
-            && self.pair_list.size() >= 4 * pairs
-            && self.blocks.size() >= 16 * self.stride as u64 * rows
-            && self.pairs.holes() as u64 <= pairs / 2
+        self.pair_rows.size() < 8 * rows
+            || self.pair_list.size() < 4 * pairs
+            || self.blocks.size() < 16 * self.stride as u64 * rows
     }
 
     /// Write what `p` changed in the lists to the device (runs of rows and pairs joined across
@@ -416,6 +448,11 @@ fn upload(
 ) -> Result<Uploaded> {
     let stride = if damped { 6u32 } else { 3 };
     let n = pairs.rows.len() as u64;
+    // A buffer a patch outgrew gets the next size class: room for the next cuts.
+    let sizing = match held {
+        Some(_) => Sizing::SizeClass,
+        None => Sizing::Headroom,
+    };
     let put = |label: &str, data: &[u8], old: Option<&wgpu::Buffer>| -> Result<wgpu::Buffer> {
         match old {
             Some(b) if b.size() >= data.len() as u64 => {
@@ -424,7 +461,7 @@ fn upload(
                 }
                 Ok(b.clone())
             }
-            _ => buffers::storage_buffer(ctx, label, data, Sizing::Headroom),
+            _ => buffers::storage_buffer(ctx, label, data, sizing),
         }
     };
     let rows = put(
@@ -442,7 +479,7 @@ fn upload(
         Some(b) if b.size() >= want => b.clone(),
         _ => {
             buffers::check_binding(ctx, "corotational blocks", want)?;
-            buffers::zeroed_storage(ctx, "corotational blocks", want, Sizing::Headroom)?
+            buffers::zeroed_storage(ctx, "corotational blocks", want, sizing)?
         }
     };
     let groups = dispatch_size(ctx, n as u32);
