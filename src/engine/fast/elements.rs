@@ -85,6 +85,9 @@ struct Tets {
     /// Each tet's rotation at the last element pass that kept them (backward Euler's), row
     /// major.
     rotations: Vec<M3>,
+    /// Each tet's corotated blocks `R K_ab R^T` of its six pairs `a < b` at the last
+    /// linearisation (`elements_jacobian.rs`; the pair `b, a` is the transpose).
+    rotated: Vec<[M3; 6]>,
     /// Where each corner pair `(a, b)` of each tet is in the springs' row of corner `a`
     /// ([`pair_index`] orders the twelve pairs; [`NO_SLOT`] where the row has no such entry):
     /// backward Euler's blocks go straight to their entry instead of searching the row.
@@ -187,6 +190,7 @@ impl Tets {
             by_corners: FxHashMap::default(),
             forces: Vec::with_capacity(elements.len()),
             rotations: Vec::with_capacity(elements.len()),
+            rotated: Vec::new(),
             slots: Vec::with_capacity(elements.len()),
         };
         for e in elements {
