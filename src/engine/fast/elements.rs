@@ -85,9 +85,6 @@ struct Tets {
     /// Each tet's rotation at the last element pass that kept them (backward Euler's), row
     /// major.
     rotations: Vec<M3>,
-    /// Each tet's corotated blocks `R K_ab R^T` of its six pairs `a < b` at the last
-    /// linearisation (`elements_jacobian.rs`; the pair `b, a` is the transpose).
-    rotated: Vec<[M3; 6]>,
     /// Where each corner pair `(a, b)` of each tet is in the springs' row of corner `a`
     /// ([`pair_index`] orders the twelve pairs; [`NO_SLOT`] where the row has no such entry):
     /// backward Euler's blocks go straight to their entry instead of searching the row.
@@ -135,6 +132,9 @@ pub(super) struct FastElements {
     layout: Layout,
     /// Whether any tet has Rayleigh damping.
     damped: bool,
+    /// Each corotational tet's blocks `R K_ab R^T` of its six pairs `a < b` at the last
+    /// linearisation (`elements_jacobian.rs`; the pair `b, a` is the transpose).
+    rotated: Vec<[M3; 6]>,
 }
 
 fn to_m3(m: &[[f64; 3]; 3]) -> M3 {
@@ -190,7 +190,6 @@ impl Tets {
             by_corners: FxHashMap::default(),
             forces: Vec::with_capacity(elements.len()),
             rotations: Vec::with_capacity(elements.len()),
-            rotated: Vec::new(),
             slots: Vec::with_capacity(elements.len()),
         };
         for e in elements {
@@ -503,6 +502,7 @@ impl FastElements {
             reference,
             layout,
             damped,
+            rotated: Vec::new(),
         }))
     }
 

@@ -28,7 +28,7 @@ impl FastElements {
     pub(in crate::engine::fast) fn linearize(&mut self, x: &[P], v: &[P]) {
         if let Layout::Tets(t) = &mut self.layout {
             t.element_pass(x, v, 1.0, true);
-            t.corotate_pass();
+            t.corotate_pass(&mut self.rotated);
         }
     }
 
@@ -77,7 +77,10 @@ impl FastElements {
                 }
                 (f, kv)
             }
-            Layout::Tets(t) => (t.node_force(i), t.corotated_row(i, v, h, row)),
+            Layout::Tets(t) => (
+                t.node_force(i),
+                t.corotated_row(&self.rotated, i, v, h, row),
+            ),
         }
     }
 }
@@ -95,11 +98,10 @@ fn upper_pair(a: usize, b: usize) -> usize {
 
 impl Tets {
     /// Every tet's six blocks `R K_ab R^T`, `a < b`, at the rotations of the last element
-    /// pass ([`Tets::rotated`]).
-    fn corotate_pass(&mut self) {
-        let mut rotated = std::mem::take(&mut self.rotated);
+    /// pass, into `rotated` ([`FastElements::rotated`]).
+    fn corotate_pass(&self, rotated: &mut Vec<[M3; 6]>) {
         rotated.resize(self.rotations.len(), [[0.0; 9]; 6]);
-        let this = &*self;
+        let this = self;
         let run = |start: usize, chunk: &mut [[M3; 6]]| {
             for (k, out) in chunk.iter_mut().enumerate() {
                 let t = start + k;
@@ -121,17 +123,24 @@ impl Tets {
         for (b, chunk) in rotated.chunks_mut(super::BLOCK).enumerate() {
             run(b * super::BLOCK, chunk);
         }
-        self.rotated = rotated;
     }
 
-    /// Node `i`'s blocks `-(h beta + h^2) R K_ab R^T` added into `row` (found by the other
-    /// corner), and `K v = -sum R K_ab R^T (v_b - v_a)` over the tets at `i` returned.
-    fn corotated_row(&self, i: usize, v: &[P], h: f32, row: &mut [FullBlock]) -> [f32; 3] {
+    /// Node `i`'s blocks `-(h beta + h^2) R K_ab R^T` (read from `rotated`, the last
+    /// [`Tets::corotate_pass`]) added into `row` (found by the other corner), and
+    /// `K v = -sum R K_ab R^T (v_b - v_a)` over the tets at `i` returned.
+    fn corotated_row(
+        &self,
+        rotated: &[[M3; 6]],
+        i: usize,
+        v: &[P],
+        h: f32,
+        row: &mut [FullBlock],
+    ) -> [f32; 3] {
         let mut kv = [0.0f32; 3];
         let vi = v[i];
         for &corner in &self.incidence[i] {
             let (t, a) = ((corner / 4) as usize, (corner % 4) as usize);
-            let rotated = &self.rotated[t];
+            let rotated = &rotated[t];
             let scale = -(h * self.beta[t] + h * h);
             for b in (0..4).filter(|&b| b != a) {
                 let block = if a < b {
