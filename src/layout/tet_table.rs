@@ -128,10 +128,13 @@ impl TetTable {
     /// model removes them (the last tet into each one's place; `at` finds a tet by its corner
     /// set and `keys` lists them in table order, both kept up to date), then the elements of
     /// `elements` past the tets that stay are appended (the model's added tets), their corners
-    /// numbered by `rank`, over `node_slots` layout nodes. Only the touched nodes' record
-    /// lists are rewritten (in place where they do not grow, else at the end of `incidence`),
-    /// each in ascending order as a rebuild lists it. The layout must have kept every old node
-    /// at its index. `None` if a removed tet is not in the table.
+    /// numbered by `rank`, over `node_slots` layout nodes. Old nodes the layout moved (`moved`:
+    /// `(before, after)` layout indices, as a valence patch moves a node whose valence changed)
+    /// take their record lists to their new index, and the tets holding them get their
+    /// corners renumbered. Only the touched nodes' record lists are rewritten (in place where
+    /// they do not grow, else at the end of `incidence`), each in ascending order as a rebuild
+    /// lists it. `None` if a removed tet is not in the table.
+    #[allow(clippy::too_many_arguments)]
     pub fn patch(
         &mut self,
         removed: &[[u32; 4]],
@@ -139,6 +142,7 @@ impl TetTable {
         keys: &mut Vec<[u32; 4]>,
         at: &mut rustc_hash::FxHashMap<[u32; 4], usize>,
         rank: &[u32],
+        moved_nodes: &[(u32, u32)],
         node_slots: usize,
     ) -> Option<TablePatch> {
         use std::collections::BTreeMap;
@@ -160,6 +164,30 @@ impl TetTable {
         // Where each tet now in a place came from (its index before the patch).
         let mut origin: rustc_hash::FxHashMap<u32, u32> = Default::default();
         let mut written = Vec::new();
+        // Moved nodes first: their lists go to their new index (whose list before, if any,
+        // left with a node moved from there or stays empty), and the corners that name them
+        // follow, so that the removals below find every node where it is now.
+        let carried: Vec<(u32, Vec<u32>)> = moved_nodes
+            .iter()
+            .map(|&(from, to)| {
+                let list = list(&mut lists, &self.rows, &self.incidence, from).clone();
+                (to, list)
+            })
+            .collect();
+        for &(from, _) in moved_nodes {
+            lists.insert(from, Vec::new());
+        }
+        let renumber: rustc_hash::FxHashMap<u32, u32> = moved_nodes.iter().copied().collect();
+        for (to, list) in carried {
+            for &r in &list {
+                let (t, a) = ((r / 4) as usize, (r % 4) as usize);
+                if let Some(&n) = renumber.get(&self.corners[t][a]) {
+                    self.corners[t][a] = n;
+                    written.push(t as u32);
+                }
+            }
+            lists.insert(to, list);
+        }
         for &t in removed {
             let i = at.remove(&corner_set(t))?;
             let last = self.corners.len() - 1;
@@ -203,8 +231,13 @@ impl TetTable {
         }
         self.damped = elements.iter().any(|e| e.beta != 0.0);
         if self.rows.len() < node_slots {
-            let end = self.incidence.len() as u32;
+            // The layout's new node slots (a valence bucket's room among them) get rows too,
+            // written like any other: the device's buffer holds nothing there yet.
+            let (old, end) = (self.rows.len(), self.incidence.len() as u32);
             self.rows.resize(node_slots, [end, end]);
+            for n in old..node_slots {
+                lists.entry(n as u32).or_default();
+            }
         }
         let mut patch = TablePatch {
             first_new: first_new as u32,

@@ -17,6 +17,7 @@ mod read_ahead;
 mod fem_gpu_checks;
 mod gpu_broad_phase;
 mod gpu_corotational;
+mod gpu_corotational_pairs;
 mod gpu_edges;
 mod gpu_embed_surface;
 mod gpu_health;

@@ -132,6 +132,9 @@ pub(super) struct FastElements {
     layout: Layout,
     /// Whether any tet has Rayleigh damping.
     damped: bool,
+    /// Each corotational tet's blocks `R K_ab R^T` of its six pairs `a < b` at the last
+    /// linearisation (`elements_jacobian.rs`; the pair `b, a` is the transpose).
+    rotated: Vec<[M3; 6]>,
 }
 
 fn to_m3(m: &[[f64; 3]; 3]) -> M3 {
@@ -499,6 +502,7 @@ impl FastElements {
             reference,
             layout,
             damped,
+            rotated: Vec::new(),
         }))
     }
 

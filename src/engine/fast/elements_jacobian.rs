@@ -11,11 +11,12 @@
 //! the state the system is linearised at and frozen over the solve (the derivative of `R` is
 //! neglected, as the float64 model and SOFA neglect it: symmetric and negative semi-definite,
 //! so conjugate gradients always apply). Rayleigh's damping is `beta` times the same block.
-//! The rotations come from the element pass that also forms the force; node `i` then forms the
-//! blocks `R K_ab R^T` of its own corners `a` (row `a` of each tet), so every block of a tet is
-//! formed once and rows are written by the task that owns the node. Each block goes to the
-//! entry of the row that the tet's slot table names (`Tets::slots`, written with the layout and
-//! patched at cuts), not searched for.
+//! The rotations come from the element pass that also forms the force; a pass over the tets
+//! then forms each tet's six blocks `R K_ab R^T`, `a < b` (`K_ba = K_ab^T`, so the pair `b, a`
+//! reads the transpose: half the products of forming the twelve, and rows `i, j` and `j, i`
+//! hold exact transposes), and node `i` reads those of its own corners, so rows are written by
+//! the task that owns the node. Each block goes to the entry of the row that the tet's slot
+//! table names (`Tets::slots`, written with the layout and patched at cuts), not searched for.
 
 use super::{FastElements, Layout, Tets, M3};
 use crate::engine::fast::implicit::FullBlock;
@@ -27,6 +28,7 @@ impl FastElements {
     pub(in crate::engine::fast) fn linearize(&mut self, x: &[P], v: &[P]) {
         if let Layout::Tets(t) = &mut self.layout {
             t.element_pass(x, v, 1.0, true);
+            t.corotate_pass(&mut self.rotated);
         }
     }
 
@@ -75,23 +77,78 @@ impl FastElements {
                 }
                 (f, kv)
             }
-            Layout::Tets(t) => (t.node_force(i), t.corotated_row(i, v, h, row)),
+            Layout::Tets(t) => (
+                t.node_force(i),
+                t.corotated_row(&self.rotated, i, v, h, row),
+            ),
         }
     }
 }
 
+/// Index of the pair `a < b` among a tet's six.
+#[inline(always)]
+fn upper_pair(a: usize, b: usize) -> usize {
+    debug_assert!(a < b);
+    match a {
+        0 => b - 1,
+        1 => b + 1,
+        _ => 5,
+    }
+}
+
 impl Tets {
-    /// Node `i`'s blocks `-(h beta + h^2) R K_ab R^T` added into `row` (found by the other
-    /// corner), and `K v = -sum R K_ab R^T (v_b - v_a)` over the tets at `i` returned.
-    fn corotated_row(&self, i: usize, v: &[P], h: f32, row: &mut [FullBlock]) -> [f32; 3] {
+    /// Every tet's six blocks `R K_ab R^T`, `a < b`, at the rotations of the last element
+    /// pass, into `rotated` ([`FastElements::rotated`]).
+    fn corotate_pass(&self, rotated: &mut Vec<[M3; 6]>) {
+        rotated.resize(self.rotations.len(), [[0.0; 9]; 6]);
+        let this = self;
+        let run = |start: usize, chunk: &mut [[M3; 6]]| {
+            for (k, out) in chunk.iter_mut().enumerate() {
+                let t = start + k;
+                let r = &this.rotations[t];
+                for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                    out[upper_pair(a, b)] = corotate(r, &this.stiffness[t][4 * a + b]);
+                }
+            }
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            rotated
+                .par_chunks_mut(super::BLOCK)
+                .enumerate()
+                .for_each(|(b, chunk)| run(b * super::BLOCK, chunk));
+        }
+        #[cfg(not(feature = "parallel"))]
+        for (b, chunk) in rotated.chunks_mut(super::BLOCK).enumerate() {
+            run(b * super::BLOCK, chunk);
+        }
+    }
+
+    /// Node `i`'s blocks `-(h beta + h^2) R K_ab R^T` (read from `rotated`, the last
+    /// [`Tets::corotate_pass`]) added into `row` (found by the other corner), and
+    /// `K v = -sum R K_ab R^T (v_b - v_a)` over the tets at `i` returned.
+    fn corotated_row(
+        &self,
+        rotated: &[[M3; 6]],
+        i: usize,
+        v: &[P],
+        h: f32,
+        row: &mut [FullBlock],
+    ) -> [f32; 3] {
         let mut kv = [0.0f32; 3];
         let vi = v[i];
         for &corner in &self.incidence[i] {
             let (t, a) = ((corner / 4) as usize, (corner % 4) as usize);
-            let r = &self.rotations[t];
+            let rotated = &rotated[t];
             let scale = -(h * self.beta[t] + h * h);
             for b in (0..4).filter(|&b| b != a) {
-                let block = corotate(r, &self.stiffness[t][4 * a + b]);
+                let block = if a < b {
+                    rotated[upper_pair(a, b)]
+                } else {
+                    let m = &rotated[upper_pair(b, a)];
+                    [m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8]]
+                };
                 let j = self.nodes[t][b];
                 let slot = self.slots[t][super::pair_index(a, b)] as usize;
                 let dv = [0, 1, 2].map(|c| v[j as usize][c] - vi[c]);

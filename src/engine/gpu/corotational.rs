@@ -21,9 +21,10 @@
 //! tet into each removed one's place, as the model moves them) and added, and the record lists
 //! of their corners, are written; the rotations of the tets that moved are copied on the
 //! device and new tets start from the identity, so nothing is read back and the bytes a cut
-//! uploads follow the cut, not the mesh. Where the layout renumbered nodes that were there
-//! before (a valence regroup, a repack) or a buffer must grow, the table is rebuilt whole and
-//! the rotations are read back to follow it.
+//! uploads follow the cut, not the mesh. The few nodes a valence patch moves to another
+//! bucket take their record lists along and their tets' corners are renumbered. Where the
+//! layout renumbered many nodes (a valence regroup, a repack) or a buffer must grow, the
+//! table is rebuilt whole and the rotations are read back to follow it.
 
 use super::buffers::{self, Sizing};
 use super::{dispatch_size, GpuContext, Passes, StateBuffers, WORKGROUP};
@@ -84,6 +85,9 @@ pub struct CorotationalPasses {
     rank: Vec<u32>,
     /// Bytes the last patch uploaded, and whether it rebuilt the table whole.
     last_patch: (u64, bool),
+    /// What the last patch changed where it patched the table in place (`None` where it
+    /// rebuilt it): the implicit step's pair lists follow it.
+    last_table: Option<TablePatch>,
     buffers: TableBuffers,
     /// Workgroups of the tet pass (x, y).
     groups: (u32, u32),
@@ -142,6 +146,7 @@ impl CorotationalPasses {
             keys,
             rank: layout.order().rank.clone(),
             last_patch: (0, false),
+            last_table: None,
             buffers,
             groups,
             pipelines: [p1, p2],
@@ -280,9 +285,22 @@ impl CorotationalPasses {
         layout: &PackedLayout,
     ) -> Result<u64> {
         let rank = &layout.order().rank;
+        // Old nodes the layout moved (a valence patch moves a node whose valence changed):
+        // followed in place while they are few; a regroup or repack that moves many rebuilds.
+        let moved: Vec<(u32, u32)> = match self.rank.len() <= rank.len() {
+            true => self
+                .rank
+                .iter()
+                .zip(rank)
+                .filter(|(a, b)| a != b)
+                .map(|(&a, &b)| (a, b))
+                .collect(),
+            false => Vec::new(),
+        };
         let kept_order = self.rank.len() <= rank.len()
-            && self.rank[..] == rank[..self.rank.len()]
+            && moved.len() <= 64.max(self.rank.len() / 16)
             && layout.node_slots() >= self.table.rows.len();
+        self.last_table = None;
         if !kept_order {
             let bytes = self.rebuild(ctx, model, diff, layout)?;
             self.last_patch = (bytes, true);
@@ -297,6 +315,7 @@ impl CorotationalPasses {
             &mut self.keys,
             &mut self.at,
             rank,
+            &moved,
             layout.node_slots(),
         ) else {
             unreachable!("the model's patch checked every removed tet");
@@ -321,7 +340,14 @@ impl CorotationalPasses {
         }
         let bytes = self.write_patch(ctx, &patch);
         self.last_patch = (bytes, false);
+        self.last_table = Some(patch);
         Ok(bytes)
+    }
+
+    /// What the last patch changed in the table where it patched it in place; `None` where it
+    /// rebuilt the table whole (every tet may have moved).
+    pub fn last_table_patch(&self) -> Option<&TablePatch> {
+        self.last_table.as_ref()
     }
 
     /// The bytes the last patch uploaded, and whether it rebuilt the table whole (see

@@ -76,7 +76,14 @@ impl GpuEngine {
             tensor_bytes = c.patch(&self.ctx, model, diff, &self.layout)?;
             self.uniform_data.damped = c.damped() as u32;
             if let Some(b) = self.corot_blocks.as_mut() {
-                tensor_bytes += b.patch(&self.ctx, c, &self.layout)?;
+                tensor_bytes += b.patch(
+                    &self.ctx,
+                    c,
+                    &self.layout,
+                    &patch.dirty,
+                    patch.repacked || rebuild,
+                    &diff.removed_tets,
+                )?;
             }
         }
         let layout_bytes = self.layout.upload_bytes();

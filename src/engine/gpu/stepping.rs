@@ -158,6 +158,9 @@ impl Engine for GpuEngine {
         }
         if let Some(c) = &self.corot {
             out.extend(c.differences(&self.ctx, model, &self.layout)?);
+            if let Some(b) = &self.corot_blocks {
+                out.extend(b.differences(&self.ctx, c, &self.layout)?);
+            }
         }
         Ok(out)
     }
@@ -179,8 +182,18 @@ impl Engine for GpuEngine {
             m.stats.bytes_per_spring *= grown;
         }
         if let Some(c) = &self.corot {
-            // The element path reads no spring: its own traffic replaces the springs' passes'.
-            m.bytes_per_step = c.bytes_per_step(self.layout.node_slots() as u64);
+            // The element path reads no spring: its own traffic (the tet pass, the gather of
+            // its corner forces) replaces the springs' passes'. Under backward Euler the block
+            // pass follows it, and the solve reads the layout's tables and the blocks as the
+            // tensor-mass solve does (counted as tensor-mass counts it: one product a step).
+            let elements = c.bytes_per_step(self.layout.node_slots() as u64);
+            m.bytes_per_step = match &self.corot_blocks {
+                Some(b) => {
+                    let used = crate::layout::tensor_blocks::slot_walk(&self.layout).len() as u64;
+                    elements + b.bytes_per_step() + m.bytes_per_step + used * b.slot_bytes()
+                }
+                None => elements,
+            };
             let before = m.stats.total.max(1) as f64;
             // Under backward Euler the block pass's pair lists and blocks are beside them.
             let blocks = self.corot_blocks.iter().flat_map(|b| b.buffers());
