@@ -57,6 +57,7 @@ fn implicit_fixture_meets_its_expectations_at_one_millisecond(
         "implicit_probe_press.ron",
         "implicit_grasp_lift.ron",
         "implicit_cylinder.ron",
+        "implicit_cylinder_factored.ron",
         "implicit_cut_liver_incision.ron"
     )]
     file: &str,
@@ -95,6 +96,38 @@ fn implicit_fixture_meets_its_expectations_at_one_millisecond(
         let solver = summary.solver.expect("backward Euler reports its solver");
         assert_eq!(solver.capped, 0, "{file} {method:?}: {solver:?}");
     }
+}
+
+/// The factored preconditioner earns its place on the stiff cylinder: the factor of an earlier
+/// step's system leaves a handful of iterations a solve where symmetric Gauss-Seidel needs
+/// about a hundred, each iteration pays exactly one pair of triangular solves (none for a
+/// residual already converged), and the factor is built again only rarely.
+#[test]
+fn the_factored_cylinder_needs_a_few_iterations_and_rare_factorisations() {
+    let path = fixture("implicit_cylinder_factored.ron");
+    let scene = Scene::read(&path).unwrap();
+    if needs_missing_meshes(&scene) {
+        println!("LANCET_MESH_DIR is not set: skipping the factored cylinder");
+        return;
+    }
+    let opts = RunOptions {
+        no_output: true,
+        ..Default::default()
+    };
+    let summary = run_scene(&scene, &path, &opts, |_, _| {}).unwrap();
+    assert!(summary.expectations_passed, "{:#?}", summary.expectations);
+    let solver = summary.solver.expect("backward Euler reports its solver");
+    assert_eq!(solver.capped, 0, "{solver:?}");
+    assert!(solver.mean_iterations <= 4.0, "{solver:?}");
+    assert_eq!(
+        solver.factor_solves,
+        (solver.mean_iterations * solver.solves as f64).round() as u64,
+        "{solver:?}"
+    );
+    assert!(
+        solver.factorisations >= 1 && solver.factorisations * 10 <= solver.solves,
+        "{solver:?}"
+    );
 }
 
 /// Tip sag (the first expectation's measured value) of a beam fixture.
