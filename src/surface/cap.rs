@@ -17,6 +17,10 @@
 //!   opposite the crossed edge);
 //! - where neither does (the corners differ in side beyond the blade's reach), it stays.
 //!
+//! A crossing on the sweep's boundary (the blade's edge at the end of a stroke lying along a
+//! row of render vertices, so that the slit ends on a render edge) is one vertex both sides
+//! share, the slit's end, and the triangle beyond that edge is split at it but not opened.
+//!
 //! A corner **on the sweep** (within [`ON_SWEEP`] of its size: a blade along a row of render
 //! vertices, or along render edges) is split like a crossing, into a copy per side; each of its
 //! triangles takes the copy of the side its other corners lie on, or is split from it to the
@@ -29,8 +33,9 @@
 //! paths from one slit end to the other for a partial cut, closed along the blade's edge
 //! between them. Each side's loops are projected on the sweep's best-fit plane and
 //! triangulated with `spade`'s constrained Delaunay triangulation (the loops as constraints,
-//! the triangles inside them by the even-odd rule, so a cross-section with holes is capped
-//! right), the triangles ordered so that each rim edge is used once by the split surface and
+//! the triangles inside them by the even-odd rule, told by crossing the constraints from the
+//! triangulation's outside, so a cross-section with holes is capped right and rim vertices
+//! collinear in the plane do not leave faces sided by rounding), the triangles ordered so that each rim edge is used once by the split surface and
 //! once, the other way round, by the cap: the drawn surface stays closed and consistently
 //! oriented, and as the source was outward, so is it. A constrained triangulation of the rim
 //! itself, rather than clipping the sweep against the surface, needs no inside test in 3D and
@@ -64,12 +69,7 @@
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
 //! **Limits.** A curved sweep must project one to one on its best-fit plane (a blade turned by
-//! less than a right angle); while a turning blade is still inside (a partial cut) its rims can
-//! fail to triangulate and are left open, and a host draws that stroke's surface open until the
-//! next one closes it (the blade of `tests/surface/surface_turning.rs`, six strokes: after the
-//! third, whose end lies along a row of render vertices, both rims are open, 72 of 2,478 drawn
-//! edges unmatched; after the fourth, capped, 50 of 8,010 edges sided wrongly; closed from the
-//! fifth, every method). The caps of a curved sweep have their vertices on the sweep but their
+//! less than a right angle). The caps of a curved sweep have their vertices on the sweep but their
 //! triangles are flat: they depart from it by its bending over one of them (0.61 mm there).
 //! A rim the triangulation cannot take (two crossing
 //! points at the same place, loops crossing in the plane) is left open and counted in
@@ -414,6 +414,15 @@ impl<'a> SweepIndex<'a> {
             .map(|s| a + (b - a) * s)
     }
 
+    /// Whether `x` lies on the sweep's boundary (within the tolerance).
+    fn on_boundary(&self, x: &Point3<f64>) -> bool {
+        self.edges.iter().any(|[a, b]| {
+            let ab = b - a;
+            let s = (ab.dot(&(x - a)) / ab.norm_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            (a + ab * s - x).norm() <= self.tolerance
+        })
+    }
+
     /// Where the sweep's boundary pierces the triangle `t`.
     fn boundary_through(&self, t: &[Point3<f64>; 3]) -> Option<Point3<f64>> {
         self.edges
@@ -430,6 +439,11 @@ struct Crossing {
 }
 
 impl Crossing {
+    /// Whether both sides share it (a slit's end).
+    fn shared(&self) -> bool {
+        self.plus == self.minus
+    }
+
     fn on(&self, side: bool) -> u32 {
         if side {
             self.plus
@@ -447,6 +461,29 @@ fn pair(e: &mut Embedding, new: &mut Vec<(u32, Option<bool>)>, x: Point3<f64>) -
     new.push((plus, Some(true)));
     new.push((minus, Some(false)));
     Crossing { plus, minus }
+}
+
+/// The crossing of a render edge at `x`: two copies, one per side, or, where `x` lies on the
+/// sweep's boundary (a slit ending on a render edge: the blade's edge at the end of a stroke
+/// along a row of render vertices), one vertex both sides share, the slit's end. Copies there
+/// would be two rim vertices at one place, which no cap can take, and the triangle beyond the
+/// edge is not cut.
+fn crossing_at(
+    e: &mut Embedding,
+    new: &mut Vec<(u32, Option<bool>)>,
+    index: &SweepIndex,
+    x: Point3<f64>,
+) -> Crossing {
+    if index.on_boundary(&x) {
+        let tip = e.push(x);
+        new.push((tip, None));
+        Crossing {
+            plus: tip,
+            minus: tip,
+        }
+    } else {
+        pair(e, new, x)
+    }
 }
 
 /// Split the triangles `tris` of `e` at `plane`'s sweep and cap the openings; returns the
@@ -556,9 +593,11 @@ fn split_and_cap(
                 // crossing of the opposite edge.
                 let key = (t[b].min(t[d]), t[b].max(t[d]));
                 let (pb, pd) = (p[b], p[d]);
-                *crossings
-                    .entry(key)
-                    .or_insert_with(|| index.crossing(&pb, &pd).map(|x| pair(e, &mut new, x)))
+                *crossings.entry(key).or_insert_with(|| {
+                    index
+                        .crossing(&pb, &pd)
+                        .map(|x| crossing_at(e, &mut new, &index, x))
+                })
             } else {
                 None
             };
@@ -617,9 +656,11 @@ fn split_and_cap(
             }
             let key = (a.min(b), a.max(b));
             let (pa, pb) = (p[k], p[(k + 1) % 3]);
-            cross[k] = *crossings
-                .entry(key)
-                .or_insert_with(|| index.crossing(&pa, &pb).map(|x| pair(e, &mut new, x)));
+            cross[k] = *crossings.entry(key).or_insert_with(|| {
+                index
+                    .crossing(&pa, &pb)
+                    .map(|x| crossing_at(e, &mut new, &index, x))
+            });
         }
         let cut: Vec<usize> = (0..3).filter(|&k| cross[k].is_some()).collect();
         match cut.len() {
@@ -648,6 +689,12 @@ fn split_and_cap(
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
                 let (sa, sb) = (s[k], s[(k + 1) % 3]);
                 let p = cross[k].expect("crossed");
+                if p.shared() {
+                    // The slit ends on this edge: the triangle is only split at its end.
+                    drawn.push([a, p.plus, c]);
+                    drawn.push([p.plus, b, c]);
+                    continue;
+                }
                 match index.boundary_through(&[at(e, a), at(e, b), at(e, c)]) {
                     Some(x) => {
                         let tip = e.push(x);

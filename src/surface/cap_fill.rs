@@ -130,23 +130,48 @@ pub(super) fn cap(
         .iter()
         .map(|p| area(p))
         .max_by(|a, b| a.abs().total_cmp(&b.abs()))?;
+    let inside = even_odd(&cdt);
     let mut out = Vec::new();
     for f in cdt.inner_faces() {
-        let pos = f.positions();
-        let c = Point2::new(
-            (pos[0].x + pos[1].x + pos[2].x) / 3.0,
-            (pos[0].y + pos[1].y + pos[2].y) / 3.0,
-        );
-        if !polys
-            .iter()
-            .fold(false, |inside, p| inside ^ contains(p, c))
-        {
+        if !inside[f.index()] {
             continue;
         }
         let v = f.vertices().map(|h| vertex_of[&h.fix()]);
         out.push(if outer > 0.0 { v } else { [v[0], v[2], v[1]] });
     }
     Some((out, inner))
+}
+
+/// Which faces of `cdt` (by index) lie inside its constraint loops by the even-odd rule: the
+/// outer face is outside, and crossing a constraint edge from a face to its neighbour changes
+/// side. Told from the triangulation's connectivity, not by testing a point of each face
+/// against the loops: where rim vertices are collinear in the plane (a cut's crossings along a
+/// straight line of the sweep, up to rounding) the triangulation has faces of no area along
+/// the rim, whose centroids lie on it, and a point test sides them by rounding, which capped
+/// stretches of rim the wrong way round.
+fn even_odd(cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>) -> Vec<bool> {
+    let mut next: Vec<Vec<(usize, bool)>> = vec![Vec::new(); cdt.num_all_faces()];
+    for edge in cdt.undirected_edges() {
+        let d = edge.as_directed();
+        let (a, b) = (d.face().index(), d.rev().face().index());
+        let constraint = edge.is_constraint_edge();
+        next[a].push((b, constraint));
+        next[b].push((a, constraint));
+    }
+    let mut side: Vec<Option<bool>> = vec![None; next.len()];
+    let outer = cdt.outer_face().index();
+    side[outer] = Some(false);
+    let mut queue = std::collections::VecDeque::from([outer]);
+    while let Some(f) = queue.pop_front() {
+        let s = side[f].expect("sided when queued");
+        for &(g, constraint) in &next[f] {
+            if side[g].is_none() {
+                side[g] = Some(s ^ constraint);
+                queue.push_back(g);
+            }
+        }
+    }
+    side.into_iter().map(|s| s.unwrap_or(false)).collect()
 }
 
 /// Points inside the polygons `polys` (by the even-odd rule) on a square grid of half the mean

@@ -53,7 +53,10 @@ fn a_turning_blade_inside_leaves_the_surface_closed_after_every_stroke(
         .iter()
         .filter(|p| (p[2] - end).abs() < 1e-12)
         .count();
-    assert!(on_row >= 20, "{on_row} render vertices at the third stroke's end");
+    assert!(
+        on_row >= 20,
+        "{on_row} render vertices at the third stroke's end"
+    );
     let own = surface.vertex_count();
     let volume = enclosed_volume(&surface.positions, &surface.triangles);
     assert!(volume > 0.0);
