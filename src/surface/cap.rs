@@ -52,8 +52,11 @@
 //!
 //! On a **curved sweep** (a blade turned during its stroke) the loops are still triangulated in
 //! the best-fit plane's coordinates, but with points of the sweep inside them (on a grid of half
-//! the rim's mean edge, each lifted onto the sweep along the plane's normal) so that the caps'
-//! triangles lie on the swept surface up to its bending over one of them.
+//! the rim's mean edge, each lifted onto the sweep along the plane's normal) and its folds (the
+//! edges where its flat triangles meet at an angle) as constraints through points on them, so
+//! that each cap triangle lies in one of the sweep's triangles; a render triangle whose slit
+//! crosses a fold is split there too (a vertex per side at the fold's piercing), so that the
+//! slit, and the rim, follow the sweep across it.
 //!
 //! **Several cuts.** A blade's successive strokes in one plane, or each starting where the last
 //! ended (the blade's edge at the last step, turned or not), extend one cut: their sweeps are
@@ -69,8 +72,11 @@
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
 //! **Limits.** A curved sweep must project one to one on its best-fit plane (a blade turned by
-//! less than a right angle). The caps of a curved sweep have their vertices on the sweep but their
-//! triangles are flat: they depart from it by its bending over one of them (0.61 mm there).
+//! less than a right angle). Each render edge is taken to cross the sweep once at most: where
+//! a turning blade's sweep folds back across a render edge (two crossings, corners on one side)
+//! the slit runs straight past the fold, and the cap triangles on that stretch of rim leave the
+//! sweep by as much as the fold reaches past it (0.61 mm in `tests/surface/surface_turning.rs`,
+//! at the box's back face; the caps off the rim lie on the sweep to rounding).
 //! A rim the triangulation cannot take (two crossing
 //! points at the same place, loops crossing in the plane) is left open and counted in
 //! [`Capped::open`]. Vertices a carving dropped take their triangles out, which opens the
@@ -83,7 +89,9 @@ use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::cap_bind::{rebind_band, SideBinder};
 use super::cap_fill::cap;
-use super::embed::{bounds, closest_on_triangle};
+use super::cap_sweep::SweepIndex;
+pub use super::cap_sweep::ON_SWEEP;
+use super::embed::bounds;
 use super::rebind::side_of;
 use super::Embedding;
 use crate::cut::Sweep;
@@ -92,7 +100,7 @@ use crate::mesh::TetMesh;
 /// One cut: the triangles of the strokes in one plane.
 #[derive(Debug, Clone)]
 pub(super) struct CutPlane {
-    triangles: Vec<[Point3<f64>; 3]>,
+    pub(super) triangles: Vec<[Point3<f64>; 3]>,
     /// The unit normal and a point of the best-fit plane of `triangles`.
     pub(super) normal: Vector3<f64>,
     pub(super) origin: Point3<f64>,
@@ -280,155 +288,6 @@ fn fit(tris: &[[Point3<f64>; 3]]) -> (Vector3<f64>, Point3<f64>, f64) {
     let size = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
     let normal = n.try_normalize(0.0).unwrap_or_else(Vector3::y);
     (normal, Point3::from(c / area.max(f64::MIN_POSITIVE)), size)
-}
-
-/// Where a segment `a b` crosses triangle `t` (its plane between the ends, inside it up to a
-/// rounding tolerance), as the parameter along the segment.
-fn segment_hits(a: &Point3<f64>, b: &Point3<f64>, t: &[Point3<f64>; 3]) -> Option<f64> {
-    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
-    let (da, db) = (n.dot(&(a - t[0])), n.dot(&(b - t[0])));
-    if (da > 0.0 && db > 0.0) || (da < 0.0 && db < 0.0) || da == db {
-        return None;
-    }
-    let s = da / (da - db);
-    let x = a + (b - a) * s;
-    // Inside by the signs of the sub-triangles' areas along the normal, with a tolerance
-    // relative to the triangle's size (a crossing on a shared edge of two sweep triangles).
-    let tol = -1e-9 * n.norm_squared();
-    let inside = (0..3).all(|k| {
-        let (p, q) = (t[k], t[(k + 1) % 3]);
-        (q - p).cross(&(x - p)).dot(&n) >= tol
-    });
-    inside.then_some(s)
-}
-
-/// How close to the sweep, relative to its largest extent, a render vertex counts as on it
-/// (a blade along a row of render vertices, up to rounding): it is then split like a crossing.
-pub const ON_SWEEP: f64 = 1e-8;
-
-/// The sweep's triangles, their bounds, and its boundary edges (used by one triangle).
-pub(super) struct SweepIndex<'a> {
-    pub(super) plane: &'a CutPlane,
-    /// The sweep's bounds, m.
-    pub(super) lo: [f64; 3],
-    pub(super) hi: [f64; 3],
-    edges: Vec<[Point3<f64>; 2]>,
-    /// How close to the sweep a point counts as on it, m.
-    pub(super) tolerance: f64,
-    /// Its largest extent, m.
-    pub(super) size: f64,
-    /// Whether it leaves its plane by more than the tolerance (a blade that turned).
-    pub(super) curved: bool,
-}
-
-impl<'a> SweepIndex<'a> {
-    fn new(plane: &'a CutPlane) -> Self {
-        let key = |p: &Point3<f64>| [p.x, p.y, p.z].map(f64::to_bits);
-        let mut count: FxHashMap<_, (usize, [Point3<f64>; 2])> = FxHashMap::default();
-        for t in &plane.triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let (ka, kb) = (key(&a), key(&b));
-                let k = if ka < kb { (ka, kb) } else { (kb, ka) };
-                count.entry(k).or_insert((0, [a, b])).0 += 1;
-            }
-        }
-        let mut edges: Vec<_> = count
-            .into_iter()
-            .filter(|(_, (n, _))| *n == 1)
-            .map(|(k, (_, e))| (k, e))
-            .collect();
-        // The same order every run.
-        edges.sort_by_key(|a| a.0);
-        let (mut lo, mut hi) = bounds(
-            &plane
-                .triangles
-                .iter()
-                .flatten()
-                .copied()
-                .collect::<Vec<_>>(),
-        );
-        let size = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
-        let tolerance = ON_SWEEP * size;
-        // A triangle with a corner on the sweep is near it.
-        let pad = 2.0 * tolerance;
-        for k in 0..3 {
-            lo[k] -= pad;
-            hi[k] += pad;
-        }
-        SweepIndex {
-            plane,
-            lo,
-            hi,
-            edges: edges.into_iter().map(|(_, e)| e).collect(),
-            tolerance,
-            size,
-            curved: plane
-                .triangles
-                .iter()
-                .flatten()
-                .any(|p| plane.normal.dot(&(p - plane.origin)).abs() > tolerance),
-        }
-    }
-
-    /// The side of the sweep `p` lies on (that of its nearest triangle's plane, as
-    /// [`side_of`] says), `None` when it lies on the sweep (within the tolerance); and whether
-    /// it lies in that triangle's plane (on the sweep or beyond its boundary).
-    fn classify(&self, p: &Point3<f64>) -> (Option<bool>, bool) {
-        let Some((t, d)) = self.nearest(p) else {
-            return (Some(true), false);
-        };
-        let d2 = d * d;
-        let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
-        let height = normal.dot(&(p - t[0]));
-        let in_plane = height.abs() <= self.tolerance * normal.norm();
-        if d2 <= self.tolerance * self.tolerance {
-            return (None, true);
-        }
-        (Some(height >= 0.0), in_plane)
-    }
-
-    /// The sweep's triangle nearest `p`, and the distance to it.
-    pub(super) fn nearest(&self, p: &Point3<f64>) -> Option<(&[Point3<f64>; 3], f64)> {
-        self.plane
-            .triangles
-            .iter()
-            .map(|t| {
-                let d = closest_on_triangle(p, &t[0], &t[1], &t[2]) - p;
-                (t, d.norm())
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-    }
-
-    /// Whether a box meets the sweep's bounds.
-    fn near(&self, (lo, hi): ([f64; 3], [f64; 3])) -> bool {
-        (0..3).all(|k| lo[k] <= self.hi[k] && hi[k] >= self.lo[k])
-    }
-
-    /// Where the segment `a b` crosses the sweep.
-    pub(super) fn crossing(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
-        self.plane
-            .triangles
-            .iter()
-            .find_map(|t| segment_hits(a, b, t))
-            .map(|s| a + (b - a) * s)
-    }
-
-    /// Whether `x` lies on the sweep's boundary (within the tolerance).
-    fn on_boundary(&self, x: &Point3<f64>) -> bool {
-        self.edges.iter().any(|[a, b]| {
-            let ab = b - a;
-            let s = (ab.dot(&(x - a)) / ab.norm_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-            (a + ab * s - x).norm() <= self.tolerance
-        })
-    }
-
-    /// Where the sweep's boundary pierces the triangle `t`.
-    fn boundary_through(&self, t: &[Point3<f64>; 3]) -> Option<Point3<f64>> {
-        self.edges
-            .iter()
-            .find_map(|[a, b]| segment_hits(a, b, t).map(|s| a + (b - a) * s))
-    }
 }
 
 /// A crossing of a render edge: its two vertices, on the `+` and `-` side.
@@ -671,11 +530,33 @@ fn split_and_cap(
                 let (sl, so) = (s[l], !s[l]);
                 let p = cross[l].expect("crossed");
                 let q = cross[(l + 2) % 3].expect("crossed");
-                for (tri, side) in [
-                    ([a, p.on(sl), q.on(sl)], sl),
-                    ([p.on(so), b, c], so),
-                    ([p.on(so), c, q.on(so)], so),
-                ] {
+                // The slit runs from `p` to `q` through the points where the sweep's folds
+                // pierce the triangle, so that it lies on the sweep, and so does the cap on it.
+                let folds: Vec<Crossing> = index
+                    .folds_through(
+                        &[at(e, a), at(e, b), at(e, c)],
+                        &at(e, p.plus),
+                        &at(e, q.plus),
+                    )
+                    .into_iter()
+                    .map(|x| pair(e, &mut new, x))
+                    .collect();
+                // The lone corner's side: fanned from it over the slit, `p` to `q`.
+                let lone: Vec<u32> = std::iter::once(p.on(sl))
+                    .chain(folds.iter().map(|m| m.on(sl)))
+                    .chain([q.on(sl)])
+                    .collect();
+                // The other side: `p b c`, then fanned from `c` over the slit, `q` to `p`.
+                let other: Vec<u32> = std::iter::once(q.on(so))
+                    .chain(folds.iter().rev().map(|m| m.on(so)))
+                    .chain([p.on(so)])
+                    .collect();
+                let fans = lone
+                    .windows(2)
+                    .map(|w| ([a, w[0], w[1]], sl))
+                    .chain([([p.on(so), b, c], so)])
+                    .chain(other.windows(2).map(|w| ([c, w[0], w[1]], so)));
+                for (tri, side) in fans.collect::<Vec<_>>() {
                     drawn.push(tri);
                     sided.push((tri, side));
                 }

@@ -173,6 +173,43 @@ fn a_turning_blade_is_capped_on_its_swept_surface(
         flat > 2e-3,
         "{method}: the sweep is {flat} m from a plane: not curved"
     );
+    // Away from the rim the caps lie on the sweep itself: split along its folds (where its flat
+    // triangles meet), each cap triangle with no corner on the rim has its corners in one of
+    // the sweep's triangles, so its middle lies in it too, up to rounding (the sweep is 0.1 m
+    // across). On the plane, or split only by points of the sweep, they would sag from it by
+    // its bending over one triangle.
+    let rim: std::collections::HashSet<u32> = capped
+        .triangles
+        .iter()
+        .filter(|t| t.iter().any(|&v| (v as usize) < own))
+        .flatten()
+        .copied()
+        .collect();
+    let inner: Vec<_> = caps
+        .iter()
+        .filter(|t| t.iter().all(|v| !rim.contains(v)))
+        .collect();
+    assert!(
+        inner.len() >= caps.len() / 2,
+        "{method}: {} of {} caps off the rim",
+        inner.len(),
+        caps.len()
+    );
+    let inner_worst = inner
+        .iter()
+        .map(|t| {
+            let c = t
+                .iter()
+                .map(|&v| Vector3::from(e.rest[v as usize]))
+                .sum::<Vector3<f64>>()
+                / 3.0;
+            to_sweep(&strokes, &Point3::from(c))
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        inner_worst < 1e-12,
+        "{method}: a cap triangle off the rim {inner_worst} m off the sweep"
+    );
     assert!(
         worst < flat / 4.0,
         "{method}: a cap triangle {worst} m off the sweep, which is {flat} m from a plane"
