@@ -17,6 +17,10 @@
 //!   opposite the crossed edge);
 //! - where neither does (the corners differ in side beyond the blade's reach), it stays.
 //!
+//! A crossing on the sweep's boundary (the blade's edge at the end of a stroke lying along a
+//! row of render vertices, so that the slit ends on a render edge) is one vertex both sides
+//! share, the slit's end, and the triangle beyond that edge is split at it but not opened.
+//!
 //! A corner **on the sweep** (within [`ON_SWEEP`] of its size: a blade along a row of render
 //! vertices, or along render edges) is split like a crossing, into a copy per side; each of its
 //! triangles takes the copy of the side its other corners lie on, or is split from it to the
@@ -29,8 +33,9 @@
 //! paths from one slit end to the other for a partial cut, closed along the blade's edge
 //! between them. Each side's loops are projected on the sweep's best-fit plane and
 //! triangulated with `spade`'s constrained Delaunay triangulation (the loops as constraints,
-//! the triangles inside them by the even-odd rule, so a cross-section with holes is capped
-//! right), the triangles ordered so that each rim edge is used once by the split surface and
+//! the triangles inside them by the even-odd rule, told by crossing the constraints from the
+//! triangulation's outside, so a cross-section with holes is capped right and rim vertices
+//! collinear in the plane do not leave faces sided by rounding), the triangles ordered so that each rim edge is used once by the split surface and
 //! once, the other way round, by the cap: the drawn surface stays closed and consistently
 //! oriented, and as the source was outward, so is it. A constrained triangulation of the rim
 //! itself, rather than clipping the sweep against the surface, needs no inside test in 3D and
@@ -47,8 +52,11 @@
 //!
 //! On a **curved sweep** (a blade turned during its stroke) the loops are still triangulated in
 //! the best-fit plane's coordinates, but with points of the sweep inside them (on a grid of half
-//! the rim's mean edge, each lifted onto the sweep along the plane's normal) so that the caps'
-//! triangles lie on the swept surface up to its bending over one of them.
+//! the rim's mean edge, each lifted onto the sweep along the plane's normal) and its folds (the
+//! edges where its flat triangles meet at an angle) as constraints through points on them, so
+//! that each cap triangle lies in one of the sweep's triangles; a render triangle whose slit
+//! crosses a fold is split there too (a vertex per side at the fold's piercing), so that the
+//! slit, and the rim, follow the sweep across it.
 //!
 //! **Several cuts.** A blade's successive strokes in one plane, or each starting where the last
 //! ended (the blade's edge at the last step, turned or not), extend one cut: their sweeps are
@@ -64,13 +72,11 @@
 //! keep their indices; the new ones are appended after them, made again at each cut.
 //!
 //! **Limits.** A curved sweep must project one to one on its best-fit plane (a blade turned by
-//! less than a right angle); while a turning blade is still inside (a partial cut) its rims can
-//! fail to triangulate and are left open, and a host draws that stroke's surface open until the
-//! next one closes it (the blade of `tests/surface/surface_turning.rs`, six strokes: after the
-//! third, whose end lies along a row of render vertices, both rims are open, 72 of 2,478 drawn
-//! edges unmatched; after the fourth, capped, 50 of 8,010 edges sided wrongly; closed from the
-//! fifth, every method). The caps of a curved sweep have their vertices on the sweep but their
-//! triangles are flat: they depart from it by its bending over one of them (0.61 mm there).
+//! less than a right angle). Each render edge is taken to cross the sweep once at most: where
+//! a turning blade's sweep folds back across a render edge (two crossings, corners on one side)
+//! the slit runs straight past the fold, and the cap triangles on that stretch of rim leave the
+//! sweep by as much as the fold reaches past it (0.61 mm in `tests/surface/surface_turning.rs`,
+//! at the box's back face; the caps off the rim lie on the sweep to rounding).
 //! A rim the triangulation cannot take (two crossing
 //! points at the same place, loops crossing in the plane) is left open and counted in
 //! [`Capped::open`]. Vertices a carving dropped take their triangles out, which opens the
@@ -83,7 +89,9 @@ use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::cap_bind::{rebind_band, SideBinder};
 use super::cap_fill::cap;
-use super::embed::{bounds, closest_on_triangle};
+use super::cap_sweep::SweepIndex;
+pub use super::cap_sweep::ON_SWEEP;
+use super::embed::bounds;
 use super::rebind::side_of;
 use super::Embedding;
 use crate::cut::Sweep;
@@ -92,7 +100,7 @@ use crate::mesh::TetMesh;
 /// One cut: the triangles of the strokes in one plane.
 #[derive(Debug, Clone)]
 pub(super) struct CutPlane {
-    triangles: Vec<[Point3<f64>; 3]>,
+    pub(super) triangles: Vec<[Point3<f64>; 3]>,
     /// The unit normal and a point of the best-fit plane of `triangles`.
     pub(super) normal: Vector3<f64>,
     pub(super) origin: Point3<f64>,
@@ -282,146 +290,6 @@ fn fit(tris: &[[Point3<f64>; 3]]) -> (Vector3<f64>, Point3<f64>, f64) {
     (normal, Point3::from(c / area.max(f64::MIN_POSITIVE)), size)
 }
 
-/// Where a segment `a b` crosses triangle `t` (its plane between the ends, inside it up to a
-/// rounding tolerance), as the parameter along the segment.
-fn segment_hits(a: &Point3<f64>, b: &Point3<f64>, t: &[Point3<f64>; 3]) -> Option<f64> {
-    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
-    let (da, db) = (n.dot(&(a - t[0])), n.dot(&(b - t[0])));
-    if (da > 0.0 && db > 0.0) || (da < 0.0 && db < 0.0) || da == db {
-        return None;
-    }
-    let s = da / (da - db);
-    let x = a + (b - a) * s;
-    // Inside by the signs of the sub-triangles' areas along the normal, with a tolerance
-    // relative to the triangle's size (a crossing on a shared edge of two sweep triangles).
-    let tol = -1e-9 * n.norm_squared();
-    let inside = (0..3).all(|k| {
-        let (p, q) = (t[k], t[(k + 1) % 3]);
-        (q - p).cross(&(x - p)).dot(&n) >= tol
-    });
-    inside.then_some(s)
-}
-
-/// How close to the sweep, relative to its largest extent, a render vertex counts as on it
-/// (a blade along a row of render vertices, up to rounding): it is then split like a crossing.
-pub const ON_SWEEP: f64 = 1e-8;
-
-/// The sweep's triangles, their bounds, and its boundary edges (used by one triangle).
-pub(super) struct SweepIndex<'a> {
-    pub(super) plane: &'a CutPlane,
-    /// The sweep's bounds, m.
-    pub(super) lo: [f64; 3],
-    pub(super) hi: [f64; 3],
-    edges: Vec<[Point3<f64>; 2]>,
-    /// How close to the sweep a point counts as on it, m.
-    pub(super) tolerance: f64,
-    /// Its largest extent, m.
-    pub(super) size: f64,
-    /// Whether it leaves its plane by more than the tolerance (a blade that turned).
-    pub(super) curved: bool,
-}
-
-impl<'a> SweepIndex<'a> {
-    fn new(plane: &'a CutPlane) -> Self {
-        let key = |p: &Point3<f64>| [p.x, p.y, p.z].map(f64::to_bits);
-        let mut count: FxHashMap<_, (usize, [Point3<f64>; 2])> = FxHashMap::default();
-        for t in &plane.triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let (ka, kb) = (key(&a), key(&b));
-                let k = if ka < kb { (ka, kb) } else { (kb, ka) };
-                count.entry(k).or_insert((0, [a, b])).0 += 1;
-            }
-        }
-        let mut edges: Vec<_> = count
-            .into_iter()
-            .filter(|(_, (n, _))| *n == 1)
-            .map(|(k, (_, e))| (k, e))
-            .collect();
-        // The same order every run.
-        edges.sort_by_key(|a| a.0);
-        let (mut lo, mut hi) = bounds(
-            &plane
-                .triangles
-                .iter()
-                .flatten()
-                .copied()
-                .collect::<Vec<_>>(),
-        );
-        let size = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
-        let tolerance = ON_SWEEP * size;
-        // A triangle with a corner on the sweep is near it.
-        let pad = 2.0 * tolerance;
-        for k in 0..3 {
-            lo[k] -= pad;
-            hi[k] += pad;
-        }
-        SweepIndex {
-            plane,
-            lo,
-            hi,
-            edges: edges.into_iter().map(|(_, e)| e).collect(),
-            tolerance,
-            size,
-            curved: plane
-                .triangles
-                .iter()
-                .flatten()
-                .any(|p| plane.normal.dot(&(p - plane.origin)).abs() > tolerance),
-        }
-    }
-
-    /// The side of the sweep `p` lies on (that of its nearest triangle's plane, as
-    /// [`side_of`] says), `None` when it lies on the sweep (within the tolerance); and whether
-    /// it lies in that triangle's plane (on the sweep or beyond its boundary).
-    fn classify(&self, p: &Point3<f64>) -> (Option<bool>, bool) {
-        let Some((t, d)) = self.nearest(p) else {
-            return (Some(true), false);
-        };
-        let d2 = d * d;
-        let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
-        let height = normal.dot(&(p - t[0]));
-        let in_plane = height.abs() <= self.tolerance * normal.norm();
-        if d2 <= self.tolerance * self.tolerance {
-            return (None, true);
-        }
-        (Some(height >= 0.0), in_plane)
-    }
-
-    /// The sweep's triangle nearest `p`, and the distance to it.
-    pub(super) fn nearest(&self, p: &Point3<f64>) -> Option<(&[Point3<f64>; 3], f64)> {
-        self.plane
-            .triangles
-            .iter()
-            .map(|t| {
-                let d = closest_on_triangle(p, &t[0], &t[1], &t[2]) - p;
-                (t, d.norm())
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-    }
-
-    /// Whether a box meets the sweep's bounds.
-    fn near(&self, (lo, hi): ([f64; 3], [f64; 3])) -> bool {
-        (0..3).all(|k| lo[k] <= self.hi[k] && hi[k] >= self.lo[k])
-    }
-
-    /// Where the segment `a b` crosses the sweep.
-    pub(super) fn crossing(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
-        self.plane
-            .triangles
-            .iter()
-            .find_map(|t| segment_hits(a, b, t))
-            .map(|s| a + (b - a) * s)
-    }
-
-    /// Where the sweep's boundary pierces the triangle `t`.
-    fn boundary_through(&self, t: &[Point3<f64>; 3]) -> Option<Point3<f64>> {
-        self.edges
-            .iter()
-            .find_map(|[a, b]| segment_hits(a, b, t).map(|s| a + (b - a) * s))
-    }
-}
-
 /// A crossing of a render edge: its two vertices, on the `+` and `-` side.
 #[derive(Debug, Clone, Copy)]
 struct Crossing {
@@ -430,6 +298,11 @@ struct Crossing {
 }
 
 impl Crossing {
+    /// Whether both sides share it (a slit's end).
+    fn shared(&self) -> bool {
+        self.plus == self.minus
+    }
+
     fn on(&self, side: bool) -> u32 {
         if side {
             self.plus
@@ -447,6 +320,29 @@ fn pair(e: &mut Embedding, new: &mut Vec<(u32, Option<bool>)>, x: Point3<f64>) -
     new.push((plus, Some(true)));
     new.push((minus, Some(false)));
     Crossing { plus, minus }
+}
+
+/// The crossing of a render edge at `x`: two copies, one per side, or, where `x` lies on the
+/// sweep's boundary (a slit ending on a render edge: the blade's edge at the end of a stroke
+/// along a row of render vertices), one vertex both sides share, the slit's end. Copies there
+/// would be two rim vertices at one place, which no cap can take, and the triangle beyond the
+/// edge is not cut.
+fn crossing_at(
+    e: &mut Embedding,
+    new: &mut Vec<(u32, Option<bool>)>,
+    index: &SweepIndex,
+    x: Point3<f64>,
+) -> Crossing {
+    if index.on_boundary(&x) {
+        let tip = e.push(x);
+        new.push((tip, None));
+        Crossing {
+            plus: tip,
+            minus: tip,
+        }
+    } else {
+        pair(e, new, x)
+    }
 }
 
 /// Split the triangles `tris` of `e` at `plane`'s sweep and cap the openings; returns the
@@ -556,9 +452,11 @@ fn split_and_cap(
                 // crossing of the opposite edge.
                 let key = (t[b].min(t[d]), t[b].max(t[d]));
                 let (pb, pd) = (p[b], p[d]);
-                *crossings
-                    .entry(key)
-                    .or_insert_with(|| index.crossing(&pb, &pd).map(|x| pair(e, &mut new, x)))
+                *crossings.entry(key).or_insert_with(|| {
+                    index
+                        .crossing(&pb, &pd)
+                        .map(|x| crossing_at(e, &mut new, &index, x))
+                })
             } else {
                 None
             };
@@ -617,9 +515,11 @@ fn split_and_cap(
             }
             let key = (a.min(b), a.max(b));
             let (pa, pb) = (p[k], p[(k + 1) % 3]);
-            cross[k] = *crossings
-                .entry(key)
-                .or_insert_with(|| index.crossing(&pa, &pb).map(|x| pair(e, &mut new, x)));
+            cross[k] = *crossings.entry(key).or_insert_with(|| {
+                index
+                    .crossing(&pa, &pb)
+                    .map(|x| crossing_at(e, &mut new, &index, x))
+            });
         }
         let cut: Vec<usize> = (0..3).filter(|&k| cross[k].is_some()).collect();
         match cut.len() {
@@ -630,11 +530,33 @@ fn split_and_cap(
                 let (sl, so) = (s[l], !s[l]);
                 let p = cross[l].expect("crossed");
                 let q = cross[(l + 2) % 3].expect("crossed");
-                for (tri, side) in [
-                    ([a, p.on(sl), q.on(sl)], sl),
-                    ([p.on(so), b, c], so),
-                    ([p.on(so), c, q.on(so)], so),
-                ] {
+                // The slit runs from `p` to `q` through the points where the sweep's folds
+                // pierce the triangle, so that it lies on the sweep, and so does the cap on it.
+                let folds: Vec<Crossing> = index
+                    .folds_through(
+                        &[at(e, a), at(e, b), at(e, c)],
+                        &at(e, p.plus),
+                        &at(e, q.plus),
+                    )
+                    .into_iter()
+                    .map(|x| pair(e, &mut new, x))
+                    .collect();
+                // The lone corner's side: fanned from it over the slit, `p` to `q`.
+                let lone: Vec<u32> = std::iter::once(p.on(sl))
+                    .chain(folds.iter().map(|m| m.on(sl)))
+                    .chain([q.on(sl)])
+                    .collect();
+                // The other side: `p b c`, then fanned from `c` over the slit, `q` to `p`.
+                let other: Vec<u32> = std::iter::once(q.on(so))
+                    .chain(folds.iter().rev().map(|m| m.on(so)))
+                    .chain([p.on(so)])
+                    .collect();
+                let fans = lone
+                    .windows(2)
+                    .map(|w| ([a, w[0], w[1]], sl))
+                    .chain([([p.on(so), b, c], so)])
+                    .chain(other.windows(2).map(|w| ([c, w[0], w[1]], so)));
+                for (tri, side) in fans.collect::<Vec<_>>() {
                     drawn.push(tri);
                     sided.push((tri, side));
                 }
@@ -648,6 +570,12 @@ fn split_and_cap(
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
                 let (sa, sb) = (s[k], s[(k + 1) % 3]);
                 let p = cross[k].expect("crossed");
+                if p.shared() {
+                    // The slit ends on this edge: the triangle is only split at its end.
+                    drawn.push([a, p.plus, c]);
+                    drawn.push([p.plus, b, c]);
+                    continue;
+                }
                 match index.boundary_through(&[at(e, a), at(e, b), at(e, c)]) {
                     Some(x) => {
                         let tip = e.push(x);

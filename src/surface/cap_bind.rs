@@ -4,7 +4,7 @@
 
 use nalgebra::Point3;
 
-use super::cap::SweepIndex;
+use super::cap_sweep::SweepIndex;
 use super::embed::{barycentric, bounds, closest_on_triangle, INSIDE_TOLERANCE};
 use super::grid::Grid;
 use super::rebind::side_of;

@@ -1,14 +1,14 @@
 //! Filling the rim of one side of a cut ([`super::cap`]): the rim's edges chained into loops,
 //! open paths closed from end to start, projected on the sweep's best-fit plane and
 //! triangulated with `spade`'s constrained Delaunay triangulation, points of a curved sweep
-//! added inside the rim.
+//! and its folds added inside the rim.
 
 use nalgebra::{Point3, Vector3};
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
-use super::cap::SweepIndex;
+use super::cap_sweep::SweepIndex;
 use super::Embedding;
 
 /// The cap of one side: its rim edges (as the cap runs along them) chained into loops, open
@@ -74,7 +74,13 @@ pub(super) fn cap(
         let d = Point3::from(e.rest[v as usize]) - plane.origin;
         Point2::new(d.dot(&u), d.dot(&w))
     };
+    let flat_point = |p: &Point3<f64>| {
+        let d = p - plane.origin;
+        Point2::new(d.dot(&u), d.dot(&w))
+    };
     let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> = Default::default();
+    // The rim's constraints: the only ones the even-odd rule counts.
+    let mut rim_edges: FxHashSet<(FixedVertexHandle, FixedVertexHandle)> = FxHashSet::default();
     let mut vertex_of: FxHashMap<FixedVertexHandle, u32> = FxHashMap::default();
     let mut polys: Vec<Vec<Point2<f64>>> = Vec::new();
     for l in &loops {
@@ -93,6 +99,8 @@ pub(super) fn cap(
                 return None;
             }
             cdt.add_constraint(a, b);
+            rim_edges.insert((a, b));
+            rim_edges.insert((b, a));
         }
         polys.push(l.iter().map(|&v| flat(v)).collect());
     }
@@ -101,18 +109,67 @@ pub(super) fn cap(
     // triangles lie on the sweep up to its curvature over that distance, not on the plane.
     let mut inner = Vec::new();
     if index.curved {
-        for x in inner_points(&polys) {
+        let edges = poly_edges(&polys);
+        let h = spacing(&edges);
+        // The sweep's folds, chained through the rim's vertices on them (where the slit
+        // crosses a fold) and points on them inside the rim (a third of the grid's margin from
+        // it), so that no cap triangle spans a fold.
+        let rim_vertices: Vec<(u32, FixedVertexHandle)> =
+            vertex_of.iter().map(|(&h, &v)| (v, h)).collect();
+        let mut folds = Vec::with_capacity(index.kinks.len());
+        for [a, b] in &index.kinks {
+            let (fa, fb) = (flat_point(a), flat_point(b));
+            folds.push((fa, fb));
+            let ab = b - a;
+            let mut chain: Vec<(f64, FixedVertexHandle)> = rim_vertices
+                .iter()
+                .filter_map(|&(v, h)| {
+                    let p = Point3::from(e.rest[v as usize]);
+                    let t = (ab.dot(&(p - a)) / ab.norm_squared()).clamp(0.0, 1.0);
+                    ((a + ab * t - p).norm() <= index.tolerance).then_some((t, h))
+                })
+                .collect();
+            let steps = ((fb.x - fa.x).hypot(fb.y - fa.y) / h).ceil().max(1.0) as usize;
+            for i in 0..=steps {
+                let t = i as f64 / steps as f64;
+                let x = Point2::new(fa.x + (fb.x - fa.x) * t, fa.y + (fb.y - fa.y) * t);
+                if !inside(&polys, x) || to_edges(&edges, x) <= h / 9.0 {
+                    continue;
+                }
+                let handle = cdt.insert(x).ok()?;
+                if let std::collections::hash_map::Entry::Vacant(slot) = vertex_of.entry(handle) {
+                    let v = e.push(a + ab * t);
+                    slot.insert(v);
+                    inner.push(v);
+                }
+                chain.push((t, handle));
+            }
+            chain.sort_by(|x, y| x.0.total_cmp(&y.0));
+            for pair in chain.windows(2) {
+                let (p, q) = (pair[0].1, pair[1].1);
+                let (x, y) = (cdt.vertex(p).position(), cdt.vertex(q).position());
+                let mid = Point2::new(0.5 * (x.x + y.x), 0.5 * (x.y + y.y));
+                if p != q && inside(&polys, mid) && cdt.can_add_constraint(p, q) {
+                    cdt.add_constraint(p, q);
+                }
+            }
+        }
+        for x in inner_points(&polys, &edges, h) {
+            // Off the folds, whose own points stand there.
+            if folds.iter().any(|&(a, b)| to_segment(x, a, b) <= h / 3.0) {
+                continue;
+            }
             let q = plane.origin + u * x.x + w * x.y;
             let reach = n * (2.0 * index.size);
             let Some(on) = index.crossing(&(q - reach), &(q + reach)) else {
                 continue;
             };
-            let h = cdt.insert(x).ok()?;
-            if vertex_of.contains_key(&h) {
+            let handle = cdt.insert(x).ok()?;
+            if vertex_of.contains_key(&handle) {
                 continue;
             }
             let v = e.push(on);
-            vertex_of.insert(h, v);
+            vertex_of.insert(handle, v);
             inner.push(v);
         }
     }
@@ -130,17 +187,10 @@ pub(super) fn cap(
         .iter()
         .map(|p| area(p))
         .max_by(|a, b| a.abs().total_cmp(&b.abs()))?;
+    let inside_face = even_odd(&cdt, &rim_edges);
     let mut out = Vec::new();
     for f in cdt.inner_faces() {
-        let pos = f.positions();
-        let c = Point2::new(
-            (pos[0].x + pos[1].x + pos[2].x) / 3.0,
-            (pos[0].y + pos[1].y + pos[2].y) / 3.0,
-        );
-        if !polys
-            .iter()
-            .fold(false, |inside, p| inside ^ contains(p, c))
-        {
+        if !inside_face[f.index()] {
             continue;
         }
         let v = f.vertices().map(|h| vertex_of[&h.fix()]);
@@ -149,17 +199,94 @@ pub(super) fn cap(
     Some((out, inner))
 }
 
-/// Points inside the polygons `polys` (by the even-odd rule) on a square grid of half the mean
-/// polygon edge's spacing, none closer than a third of that to an edge (no sliver triangles,
-/// no point on a constraint).
-fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
-    let edges: Vec<(Point2<f64>, Point2<f64>)> = polys
+/// Which faces of `cdt` (by index) lie inside its constraint loops by the even-odd rule: the
+/// outer face is outside, and crossing a constraint edge from a face to its neighbour changes
+/// side. Told from the triangulation's connectivity, not by testing a point of each face
+/// against the loops: where rim vertices are collinear in the plane (a cut's crossings along a
+/// straight line of the sweep, up to rounding) the triangulation has faces of no area along
+/// the rim, whose centroids lie on it, and a point test sides them by rounding, which capped
+/// stretches of rim the wrong way round.
+fn even_odd(
+    cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>,
+    rim: &FxHashSet<(FixedVertexHandle, FixedVertexHandle)>,
+) -> Vec<bool> {
+    let mut next: Vec<Vec<(usize, bool)>> = vec![Vec::new(); cdt.num_all_faces()];
+    for edge in cdt.undirected_edges() {
+        let d = edge.as_directed();
+        let (a, b) = (d.face().index(), d.rev().face().index());
+        let constraint = rim.contains(&(d.from().fix(), d.to().fix()));
+        next[a].push((b, constraint));
+        next[b].push((a, constraint));
+    }
+    let mut side: Vec<Option<bool>> = vec![None; next.len()];
+    let outer = cdt.outer_face().index();
+    side[outer] = Some(false);
+    let mut queue = std::collections::VecDeque::from([outer]);
+    while let Some(f) = queue.pop_front() {
+        let s = side[f].expect("sided when queued");
+        for &(g, constraint) in &next[f] {
+            if side[g].is_none() {
+                side[g] = Some(s ^ constraint);
+                queue.push_back(g);
+            }
+        }
+    }
+    side.into_iter().map(|s| s.unwrap_or(false)).collect()
+}
+
+/// The edges of the polygons `polys`.
+fn poly_edges(polys: &[Vec<Point2<f64>>]) -> Vec<(Point2<f64>, Point2<f64>)> {
+    polys
         .iter()
         .flat_map(|p| (0..p.len()).map(move |k| (p[k], p[(k + 1) % p.len()])))
-        .collect();
-    let length = |(a, b): &(Point2<f64>, Point2<f64>)| (b.x - a.x).hypot(b.y - a.y);
-    // Half the mean edge: the caps' triangles about as large as the rim's own spacing.
-    let h = 0.5 * edges.iter().map(length).sum::<f64>() / edges.len().max(1) as f64;
+        .collect()
+}
+
+/// The spacing of a cap's inner points: half the mean rim edge, so that its triangles are
+/// about as large as the rim's own spacing.
+fn spacing(edges: &[(Point2<f64>, Point2<f64>)]) -> f64 {
+    0.5 * edges
+        .iter()
+        .map(|(a, b)| (b.x - a.x).hypot(b.y - a.y))
+        .sum::<f64>()
+        / edges.len().max(1) as f64
+}
+
+/// Distance from `c` to the segment `a b`.
+fn to_segment(c: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let l2 = dx * dx + dy * dy;
+    let s = if l2 > 0.0 {
+        (((c.x - a.x) * dx + (c.y - a.y) * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (c.x - a.x - s * dx).hypot(c.y - a.y - s * dy)
+}
+
+/// Distance from `c` to the nearest of `edges`.
+fn to_edges(edges: &[(Point2<f64>, Point2<f64>)], c: Point2<f64>) -> f64 {
+    edges
+        .iter()
+        .map(|&(a, b)| to_segment(c, a, b))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Whether `c` lies inside the polygons `polys` by the even-odd rule.
+fn inside(polys: &[Vec<Point2<f64>>], c: Point2<f64>) -> bool {
+    polys
+        .iter()
+        .fold(false, |inside, p| inside ^ contains(p, c))
+}
+
+/// Points inside the polygons `polys` (edges `edges`, by the even-odd rule) on a square grid
+/// of spacing `h`, none closer than a third of that to an edge (no sliver triangles, no point
+/// on a constraint).
+fn inner_points(
+    polys: &[Vec<Point2<f64>>],
+    edges: &[(Point2<f64>, Point2<f64>)],
+    h: f64,
+) -> Vec<Point2<f64>> {
     if h <= 0.0 {
         return Vec::new();
     }
@@ -168,21 +295,6 @@ fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
         lo = [lo[0].min(p.x), lo[1].min(p.y)];
         hi = [hi[0].max(p.x), hi[1].max(p.y)];
     }
-    let to_edge = |c: Point2<f64>| {
-        edges
-            .iter()
-            .map(|&(a, b)| {
-                let (dx, dy) = (b.x - a.x, b.y - a.y);
-                let l2 = dx * dx + dy * dy;
-                let s = if l2 > 0.0 {
-                    (((c.x - a.x) * dx + (c.y - a.y) * dy) / l2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (c.x - a.x - s * dx).hypot(c.y - a.y - s * dy)
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
     let count = |k: usize| ((hi[k] - lo[k]) / h).floor() as usize;
     let mut out = Vec::new();
     for i in 0..=count(0) {
@@ -192,11 +304,7 @@ fn inner_points(polys: &[Vec<Point2<f64>>]) -> Vec<Point2<f64>> {
                 lo[0] + 0.5 * (hi[0] - lo[0] - count(0) as f64 * h) + i as f64 * h,
                 lo[1] + 0.5 * (hi[1] - lo[1] - count(1) as f64 * h) + j as f64 * h,
             );
-            if polys
-                .iter()
-                .fold(false, |inside, p| inside ^ contains(p, c))
-                && to_edge(c) > h / 3.0
-            {
+            if inside(polys, c) && to_edges(edges, c) > h / 3.0 {
                 out.push(c);
             }
         }

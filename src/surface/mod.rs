@@ -26,6 +26,8 @@ pub mod cap;
 mod cap_bind;
 #[cfg(feature = "cut")]
 mod cap_fill;
+#[cfg(feature = "cut")]
+mod cap_sweep;
 pub mod colour;
 pub mod embed;
 pub mod gap;
