@@ -313,6 +313,12 @@ impl EdgeLayout {
 
     /// The fixed-point constants for this layout of `model` (see [`FixedPoint`]).
     pub fn fixed_point(&self, model: &PackedModel) -> FixedPoint {
+        FixedPoint::new(self.plausible_force(model), self.max_valence())
+    }
+
+    /// The plausible force of one record on one end that [`FixedPoint`] is sized for, N: the
+    /// larger of `max k * rest` over springs and `max m * |g|` over nodes.
+    pub fn plausible_force(&self, model: &PackedModel) -> f64 {
         let spring = self
             .springs
             .iter()
@@ -321,7 +327,7 @@ impl EdgeLayout {
         let g = model.gravity;
         let g = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
         let weight = model.mass.iter().map(|m| m * g).fold(0.0, f64::max);
-        FixedPoint::new(spring.max(weight), self.max_valence())
+        spring.max(weight)
     }
 
     /// Reorder the spring records (`perm[new] = old`) and rebuild the incidence table to match.

@@ -30,6 +30,7 @@ mod gpu_nodes_near;
 mod gpu_patch;
 mod gpu_read_ahead;
 mod gpu_self_contact;
+mod gpu_tensor_atomic;
 mod gpu_tensor_mass;
 mod gpu_valence;
 mod twin_tolerance;

@@ -29,6 +29,7 @@ pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
 pub mod surface_nodes;
+pub mod tensor_atomic;
 pub mod tensor_mass;
 pub mod time_step;
 pub mod timing;
@@ -295,6 +296,15 @@ impl GpuEngine {
         )?;
         let tensor = tensor_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
         let corot = corotational_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
+        // Fixed point sized for the tensors' end forces too, where they are accumulated.
+        let fixed_point = match (&tensor, &passes) {
+            (Some(t), Passes::AtomicEdges(p)) => {
+                let fp = tensor_atomic::fixed_point(&layout, model, t, fixed_point);
+                p.set_fixed_point(&ctx, &fp);
+                fp
+            }
+            _ => fixed_point,
+        };
         let mut uniform_data = uniform_data;
         // The element passes read velocities where the tets are damped, not the springs.
         let element_damping = tensor
