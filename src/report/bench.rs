@@ -423,13 +423,9 @@ pub fn run_bench(
                 continue;
             }
             let gpu_fem = match opts.force_model {
-                ForceModelKind::Springs => None,
-                // The tensor passes gather; the atomic variants would need two accumulations
-                // per record (a tensor's end forces are not opposite).
-                ForceModelKind::TensorMass if atomic => {
-                    Some("gpu atomic edge rows skipped: the tensor-mass passes gather only")
-                }
-                ForceModelKind::TensorMass => None,
+                // Tensor-mass runs in every accumulation (the atomic variants add both end
+                // forces of a record, `engine::gpu::tensor_atomic`).
+                ForceModelKind::Springs | ForceModelKind::TensorMass => None,
                 // One element path whatever the layout: the atomic variants would time the
                 // same passes again under another name.
                 ForceModelKind::Corotational if atomic => Some(

@@ -121,7 +121,10 @@ fn atomic_twins_sum_the_gather_s_forces() {
     let (acc, overflow) = TensorBlocks::accumulate_fixed_cpu(&layout, &fp, &forces);
     assert!(!overflow);
     let fixed = lancet::layout::edges::EdgeLayout::fixed_forces(&fp, &acc);
-    let largest = gathered.iter().flatten().fold(0.0f32, |m, f| m.max(f.abs()));
+    let largest = gathered
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, f| m.max(f.abs()));
     assert!(largest > 0.0, "the state strains the box");
     let resolution = layout.max_valence() as f32 * fp.inv_scale / 2.0;
     for i in 0..gathered.len() {
@@ -194,7 +197,10 @@ fn atomic_tensor_mass_follows_the_gather_and_the_float64_reference(
         ForceModelKind::Springs,
     );
     assert!(err < 1e-3, "{accumulation:?}: relative L2 error {err:e}");
-    assert!(apart > 100.0 * err.max(1e-6), "springs {apart:e}, gpu {err:e}");
+    assert!(
+        apart > 100.0 * err.max(1e-6),
+        "springs {apart:e}, gpu {err:e}"
+    );
     let run = |options: GpuOptions| {
         let mut g = GpuEngine::new(&model, config, options).unwrap();
         g.set_state(&x, &v);
@@ -204,7 +210,10 @@ fn atomic_tensor_mass_follows_the_gather_and_the_float64_reference(
     let gather = run(LayoutKind::Edges.into());
     let atomic = run(edges(accumulation));
     let between = lancet::report::bench::relative_l2(&model.rest, &atomic, &gather);
-    assert!(between < 1e-3, "{accumulation:?} against gather: {between:e}");
+    assert!(
+        between < 1e-3,
+        "{accumulation:?} against gather: {between:e}"
+    );
 }
 
 /// Corotational runs its own element path (per-tet records gathered per node) whatever the
@@ -228,7 +237,10 @@ fn corotational_runs_on_the_atomic_variants_as_on_the_gather(
         e.step(20);
     }
     let (a, g) = (atomic.raw_state().unwrap(), gather.raw_state().unwrap());
-    assert!(a.0 == g.0 && a.1 == g.1, "{accumulation:?} differs from gather");
+    assert!(
+        a.0 == g.0 && a.1 == g.1,
+        "{accumulation:?} differs from gather"
+    );
     assert!(atomic.corotational().is_some());
 }
 
@@ -242,7 +254,13 @@ fn a_cut_atomic_tensor_mass_model_equals_a_rebuilt_one(
     method: lancet::cut::CutMethod,
 ) {
     let model = jittered_box(1, false);
-    if engine(&model, config(&model, Integrator::Verlet, 0.5), accumulation).is_none() {
+    if engine(
+        &model,
+        config(&model, Integrator::Verlet, 0.5),
+        accumulation,
+    )
+    .is_none()
+    {
         return;
     }
     crate::fem_gpu_checks::cut_model_equals_a_rebuilt_one(
@@ -251,4 +269,33 @@ fn a_cut_atomic_tensor_mass_model_equals_a_rebuilt_one(
         method,
         Integrator::Verlet,
     );
+}
+
+/// Memory per layout on the atomic variants counts the blocks (one per record, 96 bytes when
+/// damped) beside the springs' buffers and accumulators, and a step's bytes add each block
+/// read once; no end-force scratch is made (the gather's two forces per record).
+#[rstest]
+fn atomic_memory_reports_the_tensor_blocks(
+    #[values(Accumulation::AtomicFixed, Accumulation::AtomicFloat)] accumulation: Accumulation,
+) {
+    let model = jittered_box(1, true);
+    let tensor_config = config(&model, Integrator::Verlet, 0.5);
+    let springs_config = SimConfig {
+        force_model: ForceModelKind::Springs,
+        ..tensor_config
+    };
+    let (Some(springs), Some(tensor)) = (
+        engine(&model, springs_config, accumulation),
+        engine(&model, tensor_config, accumulation),
+    ) else {
+        return;
+    };
+    let (ms, mt) = (springs.memory(), tensor.memory());
+    let named = |n: &str| mt.stats.buffers.iter().find(|(b, _)| b == n).map(|b| b.1);
+    let blocks = named("tensor-mass blocks").expect("the blocks are reported");
+    assert!(named("tensor-mass end forces").is_none());
+    let records = model.springs().len() as u64;
+    assert!(blocks >= records * 96, "{blocks} bytes");
+    assert!(mt.stats.total >= ms.stats.total + blocks);
+    assert_eq!(mt.bytes_per_step, ms.bytes_per_step + records * 96);
 }

@@ -199,7 +199,9 @@ impl GpuEngine {
             (&self.layout, self.accumulation)
         {
             let fp = match &self.tensor {
-                Some(t) => super::tensor_atomic::fixed_point(&self.layout, model, t, self.fixed_point),
+                Some(t) => {
+                    super::tensor_atomic::fixed_point(&self.layout, model, t, self.fixed_point)
+                }
                 None => e.fixed_point(model),
             };
             if fp.limit < self.fixed_point.limit {
