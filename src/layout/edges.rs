@@ -78,7 +78,9 @@ pub enum Accumulation {
 ///   most `limit`, i.e. at most `2^30`, so an accumulator can never wrap.
 /// - `scale` is the largest power of two with `limit / scale >= bound`, where `bound` is
 ///   [`FixedPoint::HEADROOM`] times the larger of `max k * rest` over springs (the force of a
-///   spring stretched to twice its length) and `max m * |g|` over nodes (a node's weight).
+///   spring stretched to twice its length) and `max m * |g|` over nodes (a node's weight);
+///   with the tensor-mass model, also the blocks' plausible end force
+///   (`TensorBlocks::plausible_end_force`), since each record then adds two end forces.
 ///
 /// Resolution: one unit is `1 / scale` N; a node's force is off by at most
 /// `valence / (2 * scale)` N per component from the exact float32 sum of its springs' forces.
