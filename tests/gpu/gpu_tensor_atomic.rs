@@ -299,3 +299,49 @@ fn atomic_memory_reports_the_tensor_blocks(
     assert!(mt.stats.total >= ms.stats.total + blocks);
     assert_eq!(mt.bytes_per_step, ms.bytes_per_step + records * 96);
 }
+
+/// `lancet bench --force-model tensor-mass --layout edges --accumulation ...` times the atomic
+/// rows beside the gather's (none skipped), each within float32 rounding of the float64
+/// reference, the atomic rows moving fewer bytes a step than the gather (no end-force scratch
+/// written and read back).
+#[test]
+fn the_bench_times_tensor_mass_on_the_atomic_variants() {
+    use lancet::report::bench::{run_bench, BenchMesh, BenchOptions};
+    let Some(ctx) = common::gpu() else { return };
+    let float = ctx
+        .device
+        .features()
+        .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+    let opts = BenchOptions {
+        engines: vec![lancet::engine::EngineKind::Gpu],
+        layouts: vec![LayoutKind::Edges],
+        accumulations: vec![
+            Accumulation::Gather,
+            Accumulation::AtomicFixed,
+            Accumulation::AtomicFloat,
+        ],
+        steps: 4,
+        chunk: 2,
+        force_model: ForceModelKind::TensorMass,
+        ..BenchOptions::default()
+    };
+    let bw = lancet::report::bandwidth::stream_triad(1 << 16, 1);
+    let report = run_bench(&[BenchMesh::Cube(3)], &opts, &bw, || None).unwrap();
+    let names: Vec<_> = report
+        .rows
+        .iter()
+        .map(|r| r.accumulation.clone().unwrap_or_default())
+        .collect();
+    let want: &[&str] = if float {
+        &["gather", "atomic-fixed", "atomic-float"]
+    } else {
+        &["gather", "atomic-fixed"]
+    };
+    assert_eq!(names, want, "{:?}", report.skipped);
+    for r in &report.rows {
+        assert_eq!(r.force_model, "tensor-mass");
+        assert!(r.error_vs_reference < 1e-3, "{r:?}");
+    }
+    let gather = report.rows[0].bytes_per_step;
+    assert!(report.rows[1..].iter().all(|r| r.bytes_per_step < gather));
+}
