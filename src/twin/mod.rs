@@ -56,6 +56,7 @@ pub mod edge_spring;
 pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
+pub mod implicit_atomic;
 pub mod implicit_solve;
 pub mod implicit_tensor;
 pub mod integrate_fixed;

@@ -225,7 +225,9 @@ fn each_solve_pass_equals_its_twin_on_random_inputs(
                 want.ap = input.ap.clone();
             }
             SolvePass::Start => twin::start_cpu(&p, &mut want),
-            SolvePass::SpringMultiply => unreachable!("run with Multiply"),
+            SolvePass::SpringMultiply | SolvePass::SetupRecords => {
+                unreachable!("not run alone here")
+            }
             SolvePass::Multiply => match edges(&gpu) {
                 // The spring pass and the gather, run one after the other on the device too.
                 Some(e) => {

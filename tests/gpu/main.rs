@@ -22,6 +22,7 @@ mod gpu_embed_surface;
 mod gpu_health;
 mod gpu_host_device;
 mod gpu_implicit;
+mod gpu_implicit_atomic;
 mod gpu_implicit_corotational;
 mod gpu_implicit_tensor;
 mod gpu_layouts;

@@ -245,7 +245,12 @@ impl GpuEngine {
         mut layout: PackedLayout,
         accumulation: Accumulation,
     ) -> Result<Self> {
-        implicit::check_layout(config.integrator, layout.kind(), accumulation)?;
+        implicit::check_layout(
+            config.integrator,
+            layout.kind(),
+            accumulation,
+            config.force_model,
+        )?;
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
         let params = step_params(model, config);
@@ -336,6 +341,7 @@ impl GpuEngine {
                 &state,
                 layout.kind(),
                 solve_model,
+                accumulation != Accumulation::Gather,
             )?),
             false => None,
         };
