@@ -371,8 +371,8 @@ fn the_implicit_step_follows_the_float64_reference(
     assert_eq!(g.capped, 0);
 }
 
-/// The edge layout's atomic variants (no incidence table to gather over), and more Newton
-/// iterations than one, are refused with an error that says what to use instead.
+/// The edge layout's fixed-point variant (`gpu_implicit_atomic.rs` runs the float one), and
+/// more Newton iterations than one, are refused with an error that says what to use instead.
 #[test]
 fn what_the_device_cannot_solve_yet_is_refused_clearly() {
     if common::gpu().is_none() {

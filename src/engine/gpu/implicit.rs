@@ -8,8 +8,13 @@
 //! The product gathers over the connectivity table or the valence buckets (the layout's
 //! `row_of` joined to the shader), or, on the edge layout, runs as the edge layout's gather
 //! variant: a pass over the springs stores each spring's block product, a pass over the nodes
-//! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's atomic
-//! variants have no incidence table: the implicit step refuses them.
+//! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's
+//! float-atomic variant, which has no incidence table, runs the springs' solve with a record
+//! pass that adds each spring's setup terms to its ends before `setup`, and a product that
+//! adds each record's block product to its ends (`shaders/implicit_atomic.wgsl`, twin
+//! [`crate::twin::implicit_atomic`]; the sums' rounding follows the order of the adds). The
+//! fixed-point variant is refused (the products shrink by orders of magnitude within a solve,
+//! below any one scale), and so are the finite elements on either atomic variant.
 //!
 //! With the tensor-mass force model the system's stiffness and damping are the constant 3x3
 //! blocks of [`super::tensor_mass::TensorMassPasses`] (bound as group 1), read where the
