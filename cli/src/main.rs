@@ -176,10 +176,10 @@ enum Command {
         /// How the preset's box cells are split into tets (with --preset).
         #[arg(long, value_enum, default_value = "five")]
         split: SplitArg,
-        /// Force model every engine steps. Tensor-mass runs on every GPU layout too (the edge
-        /// layout with the gather; atomic edge rows are skipped with the reason); corotational
-        /// runs one element path on the GPU whatever the layout (a per-tet pass and a node
-        /// gather; atomic edge rows, which would time the same passes, are skipped).
+        /// Force model every engine steps. Tensor-mass runs on every GPU layout and edge
+        /// accumulation too; corotational runs one element path on the GPU whatever the layout
+        /// (a per-tet pass and a node gather; atomic edge rows, which would time the same
+        /// passes, are skipped).
         #[arg(long, value_enum, default_value = "springs", conflicts_with = "preset")]
         force_model: ForceModelArg,
         /// Print JSON on stdout.

@@ -78,7 +78,9 @@ pub enum Accumulation {
 ///   most `limit`, i.e. at most `2^30`, so an accumulator can never wrap.
 /// - `scale` is the largest power of two with `limit / scale >= bound`, where `bound` is
 ///   [`FixedPoint::HEADROOM`] times the larger of `max k * rest` over springs (the force of a
-///   spring stretched to twice its length) and `max m * |g|` over nodes (a node's weight).
+///   spring stretched to twice its length) and `max m * |g|` over nodes (a node's weight);
+///   with the tensor-mass model, also the blocks' plausible end force
+///   (`TensorBlocks::plausible_end_force`), since each record then adds two end forces.
 ///
 /// Resolution: one unit is `1 / scale` N; a node's force is off by at most
 /// `valence / (2 * scale)` N per component from the exact float32 sum of its springs' forces.
@@ -313,6 +315,12 @@ impl EdgeLayout {
 
     /// The fixed-point constants for this layout of `model` (see [`FixedPoint`]).
     pub fn fixed_point(&self, model: &PackedModel) -> FixedPoint {
+        FixedPoint::new(self.plausible_force(model), self.max_valence())
+    }
+
+    /// The plausible force of one record on one end that [`FixedPoint`] is sized for, N: the
+    /// larger of `max k * rest` over springs and `max m * |g|` over nodes.
+    pub fn plausible_force(&self, model: &PackedModel) -> f64 {
         let spring = self
             .springs
             .iter()
@@ -321,7 +329,7 @@ impl EdgeLayout {
         let g = model.gravity;
         let g = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
         let weight = model.mass.iter().map(|m| m * g).fold(0.0, f64::max);
-        FixedPoint::new(spring.max(weight), self.max_valence())
+        spring.max(weight)
     }
 
     /// Reorder the spring records (`perm[new] = old`) and rebuild the incidence table to match.

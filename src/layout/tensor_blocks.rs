@@ -15,6 +15,7 @@
 //! damped: [`TensorBlocks::stride`] vec4s per slot. The blocks are rounded once from the
 //! float64 assembly of per-tet shares ([`TensorMass`]).
 
+use super::edges::EdgeLayout;
 use super::patch::LayoutArray;
 use super::{PackedLayout, Slot};
 use crate::physics::{Mat3, TensorMass};
@@ -55,6 +56,30 @@ impl TensorBlocks {
             PackedLayout::Edges(_) => LayoutArray::EdgeSprings,
             _ => LayoutArray::Slots,
         }
+    }
+
+    /// The plausible end force of the edge records `edges` (which these blocks run beside),
+    /// N: the largest `|K_ab|_F * rest` over records, what a record's stiffness block gives
+    /// for a difference of displacements as long as the record's rest length (a tet edge
+    /// stretched to twice its length). It bounds both ends' forces (`|K du|` and `|K^T du|`
+    /// are at most `|K|_F |du|`); the fixed-point accumulation is sized from it
+    /// ([`crate::layout::edges::FixedPoint`]).
+    pub fn plausible_end_force(&self, edges: &EdgeLayout) -> f64 {
+        let stride = self.stride();
+        edges
+            .springs
+            .iter()
+            .enumerate()
+            .map(|(r, s)| {
+                let k = self.rows.get(r * stride..r * stride + 3).unwrap_or(&[]);
+                let norm2: f64 = k
+                    .iter()
+                    .flat_map(|row| &row[..3])
+                    .map(|&x| (x as f64) * (x as f64))
+                    .sum();
+                norm2.sqrt() * s.rest.abs() as f64
+            })
+            .fold(0.0, f64::max)
     }
 
     /// Bytes of one slot's blocks.

@@ -74,20 +74,30 @@ impl BenchMesh {
     }
 }
 
-/// Why a row of `engine` (on an atomic edge variant where `atomic`) cannot run the implicit
-/// integrator with the options' force model; `None` where it runs (or the integrator is
-/// explicit).
-fn implicit_skip(opts: &BenchOptions, engine: EngineKind, atomic: bool) -> Option<String> {
-    if !opts.integrator.is_implicit() {
+/// Why a row of `engine` (on the edge variant `accumulation`, `None` off the edge layout)
+/// cannot run the implicit integrator with the options' force model; `None` where it runs (or
+/// the integrator is explicit).
+fn implicit_skip(
+    opts: &BenchOptions,
+    engine: EngineKind,
+    accumulation: Option<Accumulation>,
+) -> Option<String> {
+    if !opts.integrator.is_implicit() || engine != EngineKind::Gpu {
         return None;
     }
-    match engine {
-        EngineKind::Gpu if atomic => Some(
-            "gpu atomic edge rows skipped: the GPU implicit solve gathers over the incidence \
-             table (the edge layout's gather variant)"
+    match (accumulation, opts.force_model) {
+        (None | Some(Accumulation::Gather), _) => None,
+        (Some(Accumulation::AtomicFloat), ForceModelKind::Springs) => None,
+        (Some(Accumulation::AtomicFixed), ForceModelKind::Springs) => Some(
+            "gpu atomic-fixed edge rows skipped: the GPU implicit solve runs on the gather and \
+             the float atomics only"
                 .into(),
         ),
-        _ => None,
+        _ => Some(
+            "gpu atomic edge rows skipped: the GPU implicit solve gathers the finite elements \
+             over the incidence table (the edge layout's gather variant)"
+                .into(),
+        ),
     }
 }
 
@@ -416,20 +426,16 @@ pub fn run_bench(
                 v.accumulation,
                 Some(Accumulation::AtomicFixed | Accumulation::AtomicFloat)
             );
-            if let Some(msg) = implicit_skip(opts, v.engine, atomic) {
+            if let Some(msg) = implicit_skip(opts, v.engine, v.accumulation) {
                 if !report.skipped.contains(&msg) {
                     report.skipped.push(msg);
                 }
                 continue;
             }
             let gpu_fem = match opts.force_model {
-                ForceModelKind::Springs => None,
-                // The tensor passes gather; the atomic variants would need two accumulations
-                // per record (a tensor's end forces are not opposite).
-                ForceModelKind::TensorMass if atomic => {
-                    Some("gpu atomic edge rows skipped: the tensor-mass passes gather only")
-                }
-                ForceModelKind::TensorMass => None,
+                // Tensor-mass runs in every accumulation (the atomic variants add both end
+                // forces of a record, `engine::gpu::tensor_atomic`).
+                ForceModelKind::Springs | ForceModelKind::TensorMass => None,
                 // One element path whatever the layout: the atomic variants would time the
                 // same passes again under another name.
                 ForceModelKind::Corotational if atomic => Some(

@@ -187,7 +187,7 @@ pub(crate) fn scale(s: f32, a: [f32; 3]) -> [f32; 3] {
 
 /// A slot's spring at displacements `cur`: direction, length and transverse term, as the
 /// shader's `geometry`; `None` at zero length.
-fn geometry(
+pub(crate) fn geometry(
     p: &SolveParams,
     s: &Slot,
     cur: &[[f32; 4]],
@@ -207,7 +207,13 @@ fn geometry(
 }
 
 /// `h D_s w + h^2 K_s w`, as the shader's `block_product`.
-fn block_product(p: &SolveParams, s: &Slot, u: [f32; 3], t: f32, w: [f32; 3]) -> [f32; 3] {
+pub(crate) fn block_product(
+    p: &SolveParams,
+    s: &Slot,
+    u: [f32; 3],
+    t: f32,
+    w: [f32; 3],
+) -> [f32; 3] {
     let uw = dot3(u, w);
     let kw = scale(s.k, add(scale(t, w), scale((1.0 - t) * uw, u)));
     let mut out = scale(p.h * p.h, kw);

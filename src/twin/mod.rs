@@ -23,9 +23,11 @@
 //! | `atomic_edges` (float) | `integrate_float.wgsl` | [`integrate_float`]: `EdgeLayout::step_float_cpu` | `tests/gpu/gpu_edges.rs` |
 //! | `tensor_mass` (connectivity, valence) | `tensor_gather.wgsl` + `tensor_connectivity.wgsl` or `tensor_valence.wgsl` (over `node_gather.wgsl`'s bindings) | [`tensor_mass`]: `TensorBlocks::node_forces_cpu`, `step_cpu` | `tests/gpu/gpu_tensor_mass.rs` |
 //! | `tensor_mass` (edges, gather) | `tensor_edges.wgsl` then `tensor_gather_edges.wgsl` | [`tensor_mass`]: `TensorBlocks::record_forces_cpu`, `gather_edges_cpu`, `step_cpu` | `tests/gpu/gpu_tensor_mass.rs` |
+//! | `tensor_atomic` (edges, atomics) | `tensor_accumulate_fixed.wgsl` or `tensor_accumulate_float.wgsl` (over `tensor_block.wgsl`), then `integrate_fixed.wgsl` or `integrate_float.wgsl` | [`tensor_atomic`]: `TensorBlocks::accumulate_fixed_cpu`, `accumulate_float_cpu`, `step_atomic_cpu` | `tests/gpu/gpu_tensor_atomic.rs` (fixed point bit for bit; float atomics within a tolerance: the order of the adds varies) |
 //! | `corotational` (every layout) | `corotational_tets.wgsl` then `corotational_gather.wgsl` (over `common.wgsl`'s `integrate`) | [`corotational`]: `TetTable::tet_pass_cpu`, `gather_cpu`, `step_cpu` | `tests/gpu/gpu_corotational.rs` (within 1e-5 of the motion: the rotation's last iterations round differently on lavapipe) |
 //! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
 //! | `implicit` (every layout) | `implicit_solve.wgsl` (entry points `setup`, `start`, `multiply`, `step_length`, `update`, `residual`, `direction`, `finish`) with `implicit_slots.wgsl` or, on the edge layout, `implicit_edges.wgsl` (`spring_multiply`, and its gather in `multiply`) | [`implicit_solve`]: one function per entry point, [`implicit_solve::implicit_step_cpu`] and [`implicit_solve::implicit_step_edges_cpu`] the whole step | `tests/gpu/gpu_implicit.rs` |
+//! | `implicit` (edges, float atomics; springs) | `implicit_solve.wgsl` with `implicit_spring_block.wgsl` and `implicit_atomic.wgsl` (`setup_records`, `node_terms`, `spring_multiply`, `product`) | [`implicit_atomic`]: [`implicit_atomic::implicit_step_atomic_cpu`] the whole step, the adds in record order | `tests/gpu/gpu_implicit_atomic.rs` (within the solver's tolerance: the order of the adds varies) |
 //! | `implicit`, tensor-mass (every layout) | `implicit_solve.wgsl` with `implicit_tensor.wgsl` and `implicit_slots.wgsl` + `implicit_slots_tensor.wgsl` or, on the edge layout, `implicit_tensor_edges.wgsl` (`node_terms`, `product`, `spring_multiply`) | [`implicit_tensor`]: `setup_cpu`, `multiply_cpu`, `record_multiply_cpu`, `gather_multiply_cpu`; [`implicit_tensor::implicit_step_cpu`] the whole step | `tests/gpu/gpu_implicit_tensor.rs` |
 //! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
 //! | `broad_self` | `self_count`, `scan_blocks`, `scan_top`, `scan_apply`, `self_scatter`, `self_pairs.wgsl` over `self_grid.wgsl` | [`broad_self`]: [`broad_self::self_pairs_cpu`] (the whole chain; the CPU engines' self-contact broad phase) | `tests/gpu/gpu_self_contact.rs` |
@@ -55,6 +57,7 @@ pub mod edge_spring;
 pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
+pub mod implicit_atomic;
 pub mod implicit_solve;
 pub mod implicit_tensor;
 pub mod integrate_fixed;
@@ -65,6 +68,7 @@ pub mod nodes_near;
 pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
+pub mod tensor_atomic;
 pub mod tensor_mass;
 pub mod time_step;
 

@@ -4,8 +4,7 @@
 //! then the cut engine stepped beside one built afresh from the cut model.
 
 use crate::common;
-use lancet::engine::{EngineKind, ForceModelKind, Integrator, SimConfig, Simulation};
-use lancet::layout::LayoutKind;
+use lancet::engine::{EngineKind, ForceModelKind, GpuOptions, Integrator, SimConfig, Simulation};
 use lancet::model::{PackedModel, SpringModel};
 use lancet::report::bench::relative_l2;
 
@@ -18,12 +17,13 @@ pub fn against_the_reference(
     model: &PackedModel,
     config: SimConfig,
     (x, v): (&[[f64; 3]], &[[f64; 3]]),
-    layout: LayoutKind,
+    layout: impl Into<GpuOptions>,
     steps: u64,
     other: ForceModelKind,
 ) -> (f64, f64) {
+    let layout: GpuOptions = layout.into();
     let run = |kind: EngineKind, config: SimConfig| {
-        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout.into()).unwrap();
+        let mut sim = Simulation::with_gpu(model.clone(), kind, config, layout).unwrap();
         sim.set_state(x, v).unwrap();
         sim.run(steps).unwrap();
         sim.positions()
@@ -50,10 +50,11 @@ pub fn against_the_reference(
 /// rounding (and the solver's tolerance).
 pub fn cut_model_equals_a_rebuilt_one(
     kind: ForceModelKind,
-    layout: LayoutKind,
+    layout: impl Into<GpuOptions>,
     method: lancet::cut::CutMethod,
     integrator: Integrator,
 ) {
+    let layout: GpuOptions = layout.into();
     use lancet::scene::driver::SceneDriver;
     use lancet::scene::runner::{build_mesh, model_config};
     use lancet::scene::{RunOptions, Scene};
@@ -78,7 +79,7 @@ pub fn cut_model_equals_a_rebuilt_one(
     let mut world = WorldBuilder::new(mesh, &mconfig, config)
         .unwrap()
         .engine(EngineKind::Gpu)
-        .gpu(layout.into())
+        .gpu(layout)
         .build()
         .unwrap();
     let opts = RunOptions {
@@ -105,7 +106,7 @@ pub fn cut_model_equals_a_rebuilt_one(
     let model = sim.model().clone();
     let (x, v) = (sim.positions(), sim.velocities());
     let mut fresh =
-        Simulation::with_gpu(model.clone(), EngineKind::Gpu, *sim.config(), layout.into()).unwrap();
+        Simulation::with_gpu(model.clone(), EngineKind::Gpu, *sim.config(), layout).unwrap();
     fresh.set_state(&x, &v).unwrap();
     sim.set_state(&x, &v).unwrap();
     sim.run(30).unwrap();

@@ -225,7 +225,9 @@ fn each_solve_pass_equals_its_twin_on_random_inputs(
                 want.ap = input.ap.clone();
             }
             SolvePass::Start => twin::start_cpu(&p, &mut want),
-            SolvePass::SpringMultiply => unreachable!("run with Multiply"),
+            SolvePass::SpringMultiply | SolvePass::SetupRecords => {
+                unreachable!("not run alone here")
+            }
             SolvePass::Multiply => match edges(&gpu) {
                 // The spring pass and the gather, run one after the other on the device too.
                 Some(e) => {
@@ -369,8 +371,8 @@ fn the_implicit_step_follows_the_float64_reference(
     assert_eq!(g.capped, 0);
 }
 
-/// The edge layout's atomic variants (no incidence table to gather over), and more Newton
-/// iterations than one, are refused with an error that says what to use instead.
+/// The edge layout's fixed-point variant (`gpu_implicit_atomic.rs` runs the float one), and
+/// more Newton iterations than one, are refused with an error that says what to use instead.
 #[test]
 fn what_the_device_cannot_solve_yet_is_refused_clearly() {
     if common::gpu().is_none() {

@@ -250,6 +250,36 @@ impl AtomicEdgePasses {
         self.passes.record(pass, phase, spring_groups, node_groups);
     }
 
+    /// Record only the node pass in phase `phase` (read, clear and integrate the
+    /// accumulators): the step's second half after another model's accumulating record pass
+    /// (`super::tensor_atomic`).
+    pub(super) fn record_nodes(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        phase: usize,
+        node_groups: (u32, u32),
+    ) {
+        let (_, node_bg) = &self.passes.bind_groups[phase];
+        pass.set_pipeline(&self.passes.nodes);
+        pass.set_bind_group(0, node_bg, &[]);
+        pass.dispatch_workgroups(node_groups.0, node_groups.1, 1);
+    }
+
+    /// Whether these are the fixed-point passes (else float atomics).
+    pub fn is_fixed(&self) -> bool {
+        self.fixed
+    }
+
+    /// The accumulators, and for the fixed-point variant its constants and overflow flag:
+    /// what another model's accumulating pass binds (`super::tensor_atomic`).
+    pub(super) fn accumulation_buffers(&self) -> (&wgpu::Buffer, Option<[&wgpu::Buffer; 2]>) {
+        let b = &self.buffers;
+        (
+            &b.accumulators,
+            self.fixed.then_some([&b.fixed_point, &b.overflow]),
+        )
+    }
+
     /// Whether a spring force has saturated the fixed-point range since setup (always false
     /// for float atomics).
     pub fn overflowed(&self, ctx: &GpuContext) -> Result<bool> {

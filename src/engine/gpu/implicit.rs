@@ -8,8 +8,13 @@
 //! The product gathers over the connectivity table or the valence buckets (the layout's
 //! `row_of` joined to the shader), or, on the edge layout, runs as the edge layout's gather
 //! variant: a pass over the springs stores each spring's block product, a pass over the nodes
-//! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's atomic
-//! variants have no incidence table: the implicit step refuses them.
+//! gathers them in incidence order (`shaders/implicit_edges.wgsl`). The edge layout's
+//! float-atomic variant, which has no incidence table, runs the springs' solve with a record
+//! pass that adds each spring's setup terms to its ends before `setup`, and a product that
+//! adds each record's block product to its ends (`shaders/implicit_atomic.wgsl`, twin
+//! [`crate::twin::implicit_atomic`]; the sums' rounding follows the order of the adds). The
+//! fixed-point variant is refused (the products shrink by orders of magnitude within a solve,
+//! below any one scale), and so are the finite elements on either atomic variant.
 //!
 //! With the tensor-mass force model the system's stiffness and damping are the constant 3x3
 //! blocks of [`super::tensor_mass::TensorMassPasses`] (bound as group 1), read where the
@@ -43,6 +48,7 @@ pub const ITERATIONS_PER_SUBMISSION: u32 = 16;
 const CONNECTIVITY: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_spring_block.wgsl"),
     include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/implicit_slots_springs.wgsl"),
@@ -53,6 +59,7 @@ const CONNECTIVITY: &str = concat!(
 const VALENCE: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_spring_block.wgsl"),
     include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_slots.wgsl"),
     include_str!("../../../shaders/implicit_slots_springs.wgsl"),
@@ -64,8 +71,17 @@ const VALENCE: &str = concat!(
 const EDGES: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_spring_block.wgsl"),
     include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_edges.wgsl")
+);
+
+/// The springs' solve on the edge layout's float-atomic variant (no incidence table).
+const ATOMIC: &str = concat!(
+    include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/implicit_solve.wgsl"),
+    include_str!("../../../shaders/implicit_spring_block.wgsl"),
+    include_str!("../../../shaders/implicit_atomic.wgsl")
 );
 
 /// The tensor-mass solve over the connectivity table.
@@ -156,6 +172,9 @@ impl SolveModel {
     }
 }
 
+/// Float accumulators per node slot of the atomic variant (`shaders/implicit_atomic.wgsl`).
+const ATOMIC_TERMS: u64 = 16;
+
 /// The solver vectors held in one buffer, in this order (see the shader).
 const VECTORS: u64 = 7;
 
@@ -188,6 +207,8 @@ const _: () = assert!(std::mem::size_of::<Scalars>() == 32);
 /// One pass of the solve, to run alone (`GpuEngine::run_solve_pass`) in the device tests.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolvePass {
+    /// The edge layout's atomic variant: each spring's setup terms added to its ends.
+    SetupRecords,
     /// Right-hand side, preconditioner, first residual and direction.
     Setup,
     /// `|b|`, the first `r . z`, the status.
@@ -209,7 +230,8 @@ pub enum SolvePass {
 }
 
 impl SolvePass {
-    const ALL: [SolvePass; 9] = [
+    const ALL: [SolvePass; 10] = [
+        SolvePass::SetupRecords,
         SolvePass::Setup,
         SolvePass::Start,
         SolvePass::SpringMultiply,
@@ -223,6 +245,7 @@ impl SolvePass {
 
     fn entry(self) -> &'static str {
         match self {
+            SolvePass::SetupRecords => "setup_records",
             SolvePass::Setup => "setup",
             SolvePass::Start => "start",
             SolvePass::SpringMultiply => "spring_multiply",
@@ -243,6 +266,7 @@ impl SolvePass {
                 | SolvePass::StepLength
                 | SolvePass::Residual
                 | SolvePass::SpringMultiply
+                | SolvePass::SetupRecords
         )
     }
 }
@@ -258,6 +282,9 @@ pub struct ImplicitSolver {
     pipelines: Vec<Option<wgpu::ComputePipeline>>,
     /// Whether the product runs as the edge layout's spring and node passes.
     edges: bool,
+    /// Whether these are the float-atomic variant's passes (`spring_values` then holds
+    /// [`ATOMIC_TERMS`] accumulators per node slot).
+    atomic: bool,
     /// The edge layout's per-spring block products (a placeholder on the other layouts).
     spring_values: wgpu::Buffer,
     /// The workgroups of a dispatch over the spring records (edge layout).
@@ -289,6 +316,7 @@ impl ImplicitSolver {
         state: &StateBuffers,
         kind: LayoutKind,
         model: SolveModel,
+        atomic: bool,
     ) -> Result<Self> {
         if settings.newton_iterations > 1 {
             return Err(Error::Unsupported(format!(
@@ -337,6 +365,14 @@ impl ImplicitSolver {
                 bindings.push(true);
                 valence
             }
+            LayoutKind::Edges if atomic => {
+                if model != SolveModel::Springs {
+                    return Err(atomic_refusal());
+                }
+                // The accumulators (written).
+                bindings.push(false);
+                ATOMIC
+            }
             LayoutKind::Edges => {
                 // Incidence rows and entries (read), the spring values (written).
                 bindings.extend([true, true, false]);
@@ -370,7 +406,9 @@ impl ImplicitSolver {
         let pipelines = SolvePass::ALL
             .iter()
             .map(|pass| {
-                if *pass == SolvePass::SpringMultiply && !edges {
+                if (*pass == SolvePass::SpringMultiply && !edges)
+                    || (*pass == SolvePass::SetupRecords && !atomic)
+                {
                     return Ok(None);
                 }
                 buffers::compute_pipeline_at(ctx, pass.entry(), source, pass.entry(), &groups)
@@ -393,6 +431,7 @@ impl ImplicitSolver {
             layout,
             pipelines,
             edges,
+            atomic,
             spring_values,
             spring_groups: (0, 0),
             blocks_layout,
@@ -455,7 +494,10 @@ impl ImplicitSolver {
         // Room for every spring record the layout's buffer holds, so that most patches keep it:
         // one value per record, two for the tensor-mass blocks (a tensor's ends differ).
         let per_record = if self.blocks_layout.is_some() { 32 } else { 16 };
-        let want = (slots.size() / 32).max(1) * per_record;
+        let want = match self.atomic {
+            true => capacity.max(1) as u64 * ATOMIC_TERMS * 4,
+            false => (slots.size() / 32).max(1) * per_record,
+        };
         if self.edges && self.spring_values.size() < want {
             self.spring_values =
                 buffers::zeroed_storage(ctx, "solver spring values", want, buffers::Sizing::Exact)?;
@@ -562,7 +604,7 @@ impl ImplicitSolver {
             pass.set_bind_group(1, blocks, &[]);
         }
         let g = match which {
-            SolvePass::SpringMultiply => self.spring_groups,
+            SolvePass::SpringMultiply | SolvePass::SetupRecords => self.spring_groups,
             w if w.over_nodes() => groups,
             _ => (1, 1),
         };
@@ -622,6 +664,7 @@ impl ImplicitSolver {
                 });
                 if batch == 0 {
                     prelude(&mut pass);
+                    self.record(&mut pass, SolvePass::SetupRecords, phase, groups);
                     self.record(&mut pass, SolvePass::Setup, phase, groups);
                     self.record(&mut pass, SolvePass::Start, phase, groups);
                 }
@@ -711,28 +754,34 @@ impl ImplicitSolver {
     }
 }
 
-/// Refuse an implicit integrator on the edge layout's atomic variants.
+/// Refuse an implicit integrator on the edge layout's fixed-point variant, and the finite
+/// elements' implicit step on either atomic variant.
 pub(super) fn check_layout(
     integrator: Integrator,
     kind: LayoutKind,
     accumulation: crate::layout::edges::Accumulation,
+    force_model: crate::physics::ForceModelKind,
 ) -> Result<()> {
-    if integrator.is_implicit()
-        && kind == LayoutKind::Edges
-        && accumulation != crate::layout::edges::Accumulation::Gather
-    {
-        return Err(atomic_refusal());
+    use crate::layout::edges::Accumulation;
+    if !integrator.is_implicit() || kind != LayoutKind::Edges {
+        return Ok(());
     }
-    Ok(())
+    match (accumulation, force_model) {
+        (Accumulation::Gather, _) => Ok(()),
+        (Accumulation::AtomicFloat, crate::physics::ForceModelKind::Springs) => Ok(()),
+        (Accumulation::AtomicFixed, _) => Err(Error::Unsupported(
+            "the GPU engine's implicit step (integrator BackwardEuler) does not run on the edge              layout's fixed-point accumulation (the conjugate gradients' products shrink by              orders of magnitude within a solve, below any one fixed-point scale): use              --accumulation gather or atomic-float, or --layout connectivity"
+                .into(),
+        )),
+        _ => Err(atomic_refusal()),
+    }
 }
 
-/// The implicit step's refusal of the edge layout's atomic variants, which have no incidence
-/// table to gather the spring products over.
+/// The implicit step's refusal of the finite elements on the edge layout's atomic variants,
+/// which have no incidence table to gather the elements' setup terms and products over.
 pub(super) fn atomic_refusal() -> Error {
     Error::Unsupported(
-        "the GPU engine's implicit step (integrator BackwardEuler) runs on the edge layout's \
-         gather variant only, not its atomic accumulations: leave --accumulation out (gather) \
-         or use --layout connectivity"
+        "the GPU engine's implicit step (integrator BackwardEuler) runs the finite elements on          the edge layout's gather variant only, not its atomic accumulations (springs run on          atomic-float too): leave --accumulation out (gather) or use --layout connectivity"
             .into(),
     )
 }

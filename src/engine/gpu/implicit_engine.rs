@@ -3,7 +3,7 @@
 //! vectors for the tests that hold them against their twins.
 
 use super::buffers;
-use super::implicit::{atomic_refusal, ImplicitSolver, SolvePass};
+use super::implicit::{ImplicitSolver, SolvePass};
 use super::{GpuEngine, Passes};
 use crate::error::{Error, Result};
 use crate::layout::patch::LayoutArray;
@@ -36,7 +36,10 @@ impl GpuEngine {
                     buffer(LayoutArray::Incidence)?,
                 ],
             ),
-            (PackedLayout::Edges(_), _) => return Err(atomic_refusal()),
+            // The float-atomic variant sums into its own accumulators: no tables.
+            (PackedLayout::Edges(_), Passes::AtomicEdges(_)) => {
+                (0, LayoutArray::EdgeSprings, vec![])
+            }
             (other, _) => {
                 return Err(Error::Gpu(format!(
                     "the {:?} layout's passes do not match it",

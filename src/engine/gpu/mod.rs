@@ -29,6 +29,7 @@ pub mod springs_connectivity;
 pub mod springs_edges;
 pub mod springs_valence;
 pub mod surface_nodes;
+pub mod tensor_atomic;
 pub mod tensor_mass;
 pub mod time_step;
 pub mod timing;
@@ -244,7 +245,12 @@ impl GpuEngine {
         mut layout: PackedLayout,
         accumulation: Accumulation,
     ) -> Result<Self> {
-        implicit::check_layout(config.integrator, layout.kind(), accumulation)?;
+        implicit::check_layout(
+            config.integrator,
+            layout.kind(),
+            accumulation,
+            config.force_model,
+        )?;
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
         let params = step_params(model, config);
@@ -295,6 +301,15 @@ impl GpuEngine {
         )?;
         let tensor = tensor_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
         let corot = corotational_passes(&ctx, model, config, &layout, &passes, &uniform, &state)?;
+        // Fixed point sized for the tensors' end forces too, where they are accumulated.
+        let fixed_point = match (&tensor, &passes) {
+            (Some(t), Passes::AtomicEdges(p)) => {
+                let fp = tensor_atomic::fixed_point(&layout, model, t, fixed_point);
+                p.set_fixed_point(&ctx, &fp);
+                fp
+            }
+            _ => fixed_point,
+        };
         let mut uniform_data = uniform_data;
         // The element passes read velocities where the tets are damped, not the springs.
         let element_damping = tensor
@@ -326,6 +341,7 @@ impl GpuEngine {
                 &state,
                 layout.kind(),
                 solve_model,
+                accumulation != Accumulation::Gather,
             )?),
             false => None,
         };

@@ -205,7 +205,12 @@ impl GpuEngine {
         if let (PackedLayout::Edges(e), Accumulation::AtomicFixed) =
             (&self.layout, self.accumulation)
         {
-            let fp = e.fixed_point(model);
+            let fp = match &self.tensor {
+                Some(t) => {
+                    super::tensor_atomic::fixed_point(&self.layout, model, t, self.fixed_point)
+                }
+                None => e.fixed_point(model),
+            };
             if fp.limit < self.fixed_point.limit {
                 self.fixed_point = fp;
                 if let Passes::AtomicEdges(p) = &self.passes {

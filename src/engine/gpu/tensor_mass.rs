@@ -8,7 +8,10 @@
 //!   `tensor_valence.wgsl`, one invocation per node;
 //! - edges (gather): `shaders/tensor_edges.wgsl`, both end forces of each record (a tensor's
 //!   are not opposite, so two per record), then `tensor_gather_edges.wgsl`, each node summing
-//!   its ends' forces in incidence order.
+//!   its ends' forces in incidence order;
+//! - edges (atomics): `shaders/tensor_accumulate_fixed.wgsl` or `tensor_accumulate_float.wgsl`,
+//!   both end forces of each record added to their own ends' accumulators, then the springs'
+//!   node pass ([`super::tensor_atomic`]).
 //!
 //! The twins are in `twin::tensor_mass`. A cut patches the float64 model by per-tet shares and
 //! rewrites only the blocks of the slots the layout's patch moved or whose nodes the diff
@@ -41,6 +44,7 @@ const VALENCE: &str = concat!(
 const EDGES: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/tensor_block.wgsl"),
     include_str!("../../../shaders/tensor_edges.wgsl")
 );
 const GATHER: &str = concat!(
@@ -65,11 +69,6 @@ pub struct TensorMassPasses {
     layouts: Vec<wgpu::BindGroupLayout>,
     /// Per phase, one group 0 per pipeline.
     bind_groups: Vec<Vec<wgpu::BindGroup>>,
-}
-
-/// The error of a tensor-mass engine that cannot be built as asked.
-fn unsupported(what: String) -> Error {
-    Error::Unsupported(what)
 }
 
 /// Whether any tet of `tm` has Rayleigh damping.
@@ -147,14 +146,9 @@ impl TensorMassPasses {
                 let p2 = buffers::compute_pipeline(ctx, "tensor_gather_edges", GATHER, &[&gather])?;
                 (vec![records, gather], vec![p1, p2])
             }
-            Passes::AtomicEdges(_) => {
-                return Err(unsupported(
-                    "the tensor-mass force model runs on the edge layout with the gather only \
-                     (a tensor's two end forces are not opposite, so the atomic variants would \
-                     need two accumulations per record): choose accumulation Gather, or the \
-                     connectivity or valence layout"
-                        .into(),
-                ))
+            Passes::AtomicEdges(a) => {
+                let (l, p) = super::tensor_atomic::record_pass(ctx, a)?;
+                (vec![l], vec![p])
             }
         };
         let beside = passes
@@ -246,7 +240,19 @@ impl TensorMassPasses {
                         &self.buffer,
                     ],
                 )],
-                _ => {
+                Passes::AtomicEdges(a) => vec![group(
+                    &self.layouts[0],
+                    "tensor-mass accumulate",
+                    &super::tensor_atomic::bindings(
+                        a,
+                        uniform,
+                        get(LayoutArray::EdgeSprings)?,
+                        b.second_in,
+                        b.cur,
+                        &self.buffer,
+                    ),
+                )],
+                Passes::Edges(_) => {
                     let forces = self
                         .forces
                         .as_ref()
@@ -299,6 +305,10 @@ impl TensorMassPasses {
         nodes: (u32, u32),
     ) {
         let g = &self.bind_groups[phase];
+        if let Passes::AtomicEdges(a) = passes {
+            let p = &self.pipelines[0];
+            return super::tensor_atomic::record(pass, a, p, &g[0], phase, records, nodes);
+        }
         if self.pipelines.len() == 2 {
             pass.set_pipeline(&self.pipelines[0]);
             pass.set_bind_group(0, &g[0], &[]);
@@ -427,11 +437,13 @@ impl TensorMassPasses {
     }
 
     /// Bytes a step moves beyond the springs' layout traffic: the blocks of every slot in use
-    /// read once, and on the edge layout the second end force written and read.
+    /// read once, and on the edge layout's gather the second end force written and read.
     pub fn extra_bytes_per_step(&self, layout: &PackedLayout) -> u64 {
         let used = slot_walk(layout).len() as u64;
+        // The atomic variants add both end forces to the accumulators instead, which the
+        // layout's own traffic counts (two ends per record, as for a spring).
         let forces = match layout {
-            PackedLayout::Edges(e) => 2 * e.springs.len() as u64 * 16,
+            PackedLayout::Edges(e) if self.forces.is_some() => 2 * e.springs.len() as u64 * 16,
             _ => 0,
         };
         used * self.blocks.slot_bytes() + forces
