@@ -147,7 +147,9 @@ pub struct FastEngine {
     /// The finite-element model that replaces the springs' force, if any
     /// ([`FastEngine::with_force_model`]).
     elements: Option<elements::FastElements>,
-    /// Whether explicit steps are made two in one sweep where they can be (`fused.rs`).
+    /// Whether explicit steps are made two in one sweep where they can be (`fused.rs`): off
+    /// by default: on a shared two-core machine they ran slower than single steps on two
+    /// threads, for all the memory traffic they save (see `examples/fused_steps.rs`).
     fuse: bool,
     /// Pairs of steps made in one sweep.
     fused_pairs: u64,
@@ -213,7 +215,7 @@ impl FastEngine {
             near_reads: Default::default(),
             implicit: None,
             elements: None,
-            fuse: true,
+            fuse: false,
             fused_pairs: 0,
         };
         if config.integrator.is_implicit() {
@@ -265,9 +267,8 @@ impl FastEngine {
         self.wide
     }
 
-    /// Make explicit steps two in one sweep where the threads' ranges allow (the default), or
-    /// always one at a time (for comparing the two, which give the same bits). Returns the
-    /// setting.
+    /// Make explicit steps two in one sweep where the threads' ranges allow, or always one at
+    /// a time (the default); the two give the same bits. Returns the setting.
     pub fn set_fused_steps(&mut self, on: bool) -> bool {
         self.fuse = on;
         on
