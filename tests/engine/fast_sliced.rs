@@ -238,7 +238,8 @@ fn one_material_layout_steps_as_the_reference_and_a_cut_off_its_material_rebuild
 /// Each spring end is stored once, in the sliced layout, and the valence sort keeps the slices'
 /// padding small: on the peer benchmark's five-tet grid (a small one) and on a six-tet box,
 /// damped and undamped, the engine's memory is its node arrays (four 16-byte state buffers,
-/// order and rank, inverse mass, fixed flag, row length, slice bounds) plus 16 bytes a spring
+/// order and rank, inverse mass, fixed flag, row length; per slice its groups' place and the
+/// first and last node its step reads, 16 bytes) plus 16 bytes a spring
 /// end (neighbour and rest edge vector: the benchmark's springs are of one material, whose
 /// stiffness and damping are kept once) and the padding, which is under a tenth of the spring
 /// bytes; with the stiffness varied per spring (the random box's), 24 bytes an end, 28 damped.
@@ -247,7 +248,7 @@ fn one_material_layout_steps_as_the_reference_and_a_cut_off_its_material_rebuild
 fn each_spring_end_is_stored_once_with_little_padding() {
     use lancet::mesh::generate::{BoxGrid, TetSplit};
     use lancet::report::bench::Preset;
-    let node_bytes = |n: u64| n * (4 * 16 + 8 + 4 + 1 + 4) + n.div_ceil(8) * 8;
+    let node_bytes = |n: u64| n * (4 * 16 + 8 + 4 + 1 + 4) + n.div_ceil(8) * 16;
     for split in [TetSplit::Five, TetSplit::Six] {
         let mut grid = BoxGrid::cube_cells([12, 8, 8], Preset::CELL);
         grid.split = split;

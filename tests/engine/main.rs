@@ -16,6 +16,7 @@ mod engine_api;
 mod engine_correction;
 mod engine_patch;
 mod fast_fem;
+mod fast_fused;
 mod fast_implicit;
 mod fast_probe;
 mod fast_read_ahead;

@@ -26,6 +26,7 @@
 //! from float64, so the rest shape keeps float32 precision of each edge).
 
 mod elements;
+mod fused;
 #[cfg(target_arch = "x86_64")]
 mod gather;
 mod health;
@@ -146,6 +147,12 @@ pub struct FastEngine {
     /// The finite-element model that replaces the springs' force, if any
     /// ([`FastEngine::with_force_model`]).
     elements: Option<elements::FastElements>,
+    /// Whether explicit steps are made two in one sweep where they can be (`fused.rs`): off
+    /// by default: on a shared two-core machine they ran slower than single steps on two
+    /// threads, for all the memory traffic they save (see `examples/fused_steps.rs`).
+    fuse: bool,
+    /// Pairs of steps made in one sweep.
+    fused_pairs: u64,
 }
 
 /// Nodes found in a box after a step, in node order, with their positions.
@@ -208,6 +215,8 @@ impl FastEngine {
             near_reads: Default::default(),
             implicit: None,
             elements: None,
+            fuse: false,
+            fused_pairs: 0,
         };
         if config.integrator.is_implicit() {
             engine.implicit = Some(implicit::Implicit::new(
@@ -256,6 +265,18 @@ impl FastEngine {
     pub fn set_wide_simd(&mut self, on: bool) -> bool {
         self.wide = on && wide_simd();
         self.wide
+    }
+
+    /// Make explicit steps two in one sweep where the threads' ranges allow, or always one at
+    /// a time (the default); the two give the same bits. Returns the setting.
+    pub fn set_fused_steps(&mut self, on: bool) -> bool {
+        self.fuse = on;
+        on
+    }
+
+    /// Pairs of explicit steps made in one sweep so far (`fused.rs`).
+    pub fn fused_step_pairs(&self) -> u64 {
+        self.fused_pairs
     }
 
     /// One step of position Verlet on (displacement, last step); then swap old and new.
@@ -559,9 +580,24 @@ impl Engine for FastEngine {
 
     fn step(&mut self, steps: u32) {
         self.read_ahead = None;
-        for _ in 0..steps {
+        let mut left = steps;
+        while left > 0 {
+            left -= 1;
             if self.elements.is_some() && !self.integrator.is_implicit() {
                 self.step_elements();
+                continue;
+            }
+            // Nothing happens between the steps of one call: two can share a sweep.
+            let paired = left > 0
+                && self.fuse
+                && self.elements.is_none()
+                && match self.integrator {
+                    Integrator::Verlet => self.step_pair::<true>(),
+                    Integrator::SymplecticEuler => self.step_pair::<false>(),
+                    Integrator::BackwardEuler => false,
+                };
+            if paired {
+                left -= 1;
                 continue;
             }
             match self.integrator {

@@ -128,6 +128,13 @@ pub(super) struct Sliced {
     lens: Vec<u32>,
     /// Spring ends in all rows: twice the springs.
     pub live: usize,
+    /// At least the largest `|i - j|` of a spring between nodes `i` and `j` (the bandwidth):
+    /// exact when built, raised by a patch's new rows and never lowered by one, so that it
+    /// bounds which nodes a node's step reads (`fused.rs` relies on that).
+    pub reach: usize,
+    /// Each slice's smallest and largest node its step reads (its own nodes and their
+    /// neighbours): exact, rewritten with the slice by a patch.
+    pub bounds: Vec<[u32; 2]>,
     /// Groups no slice uses.
     pub holes: usize,
     /// Compactions run since the layout was built.
@@ -161,6 +168,8 @@ impl Sliced {
             uniform,
             lens: Vec::with_capacity(n + spare(n)),
             live: 0,
+            reach: 0,
+            bounds: Vec::with_capacity(count + spare(count)),
             holes: 0,
             compactions: 0,
             damped,
@@ -172,9 +181,16 @@ impl Sliced {
             s.append(w);
             s.write(b, at, w, lanes, [true; LANES]);
             s.slices.push([at as u32, (at + w) as u32]);
+            s.bounds.push(slice_bounds(b, lanes));
         }
         s.lens = rows.iter().map(|r| row_len(r.len())).collect();
         s.live = rows.iter().map(Vec::len).sum();
+        s.reach = rows
+            .iter()
+            .enumerate()
+            .map(|(i, r)| row_reach(i, r))
+            .max()
+            .unwrap_or(0);
         s
     }
 
@@ -247,6 +263,9 @@ impl Sliced {
         let count = n.div_ceil(LANES);
         let old_n = self.lens.len();
         let mut dirty: Vec<usize> = rows.keys().map(|i| i / LANES).collect();
+        for (&i, r) in &rows {
+            self.reach = self.reach.max(row_reach(i, r));
+        }
         // Slices new nodes made or filled.
         dirty.extend(self.lens.len() / LANES..count);
         dirty.sort_unstable();
@@ -298,8 +317,10 @@ impl Sliced {
             let range = [at as u32, (at + w) as u32];
             if b < self.slices.len() {
                 self.slices[b] = range;
+                self.bounds[b] = slice_bounds(b, &lanes);
             } else {
                 self.slices.push(range);
+                self.bounds.push(slice_bounds(b, &lanes));
             }
             // A widened slice's unchanged lanes are copied to its new place, as compaction
             // copies whole slices: moved, not new data.
@@ -400,13 +421,14 @@ impl Sliced {
             + kept(self.damping_kept(), std::mem::size_of::<[f32; LANES]>())
     }
 
-    /// Bytes of everything but the groups: the slice bounds and the row lengths.
+    /// Bytes of everything but the groups: the slices' places and the nodes they read, and
+    /// the row lengths.
     pub fn index_bytes(&self) -> u64 {
-        self.slices.len() as u64 * 8 + self.lens.len() as u64 * 4
+        self.slices.len() as u64 * 16 + self.lens.len() as u64 * 4
     }
 
     /// (capacity, length, bytes per item) of each array, for a patch's growth report.
-    pub fn capacities(&self) -> [(usize, usize, usize); 5] {
+    pub fn capacities(&self) -> [(usize, usize, usize); 6] {
         fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
             (v.capacity(), v.len(), std::mem::size_of::<T>())
         }
@@ -416,6 +438,7 @@ impl Sliced {
             of(&self.material),
             of(&self.damping),
             of(&self.lens),
+            of(&self.bounds),
         ]
     }
 
@@ -441,12 +464,11 @@ impl Sliced {
                 if !mask[l] {
                     continue;
                 }
-                // A node past the end points at node 0; its lane's result is never stored.
-                let own = if l < lanes.len() {
-                    (b * LANES + l) as u32
-                } else {
-                    0
-                };
+                // A lane past the last node points at the slice's first node (its result is
+                // never stored): the step then reads nothing outside the slice's own nodes for
+                // it, which two steps in one sweep rely on (`fused.rs`), and the lane stays
+                // as it is when new nodes fill the slice.
+                let own = (b * LANES + if l < lanes.len() { l } else { 0 }) as u32;
                 match lanes.get(l).and_then(|r| r.get(k)) {
                     Some((e, d)) => {
                         grp.other[l] = e.other;
@@ -476,6 +498,24 @@ impl Sliced {
             }
         }
     }
+}
+
+/// The largest `|i - j|` of node `i`'s row `row`.
+fn row_reach(i: usize, row: &Row) -> usize {
+    row.iter()
+        .map(|(e, _)| i.abs_diff(e.other as usize))
+        .max()
+        .unwrap_or(0)
+}
+
+/// The smallest and largest node the step of slice `b`, whose rows are `lanes`, reads.
+fn slice_bounds(b: usize, lanes: &[Row]) -> [u32; 2] {
+    let own = b * LANES;
+    let mut out = [own as u32, (own + lanes.len().max(1) - 1) as u32];
+    for (e, _) in lanes.iter().flatten() {
+        out = [out[0].min(e.other), out[1].max(e.other)];
+    }
+    out
 }
 
 /// A row length as stored (adjacency indices are u32 throughout the engine).
