@@ -23,8 +23,19 @@ impl Rng {
 /// fixed base: every term of the force law is exercised, and corner, edge, face and inner nodes
 /// differ in valence.
 pub fn random_box(seed: u64, damped: bool) -> PackedModel {
+    random_box_of([5, 4, 3], [0.0, 0.0, 1.0], seed, damped)
+}
+
+/// [`random_box`] on a box of `cells` of 1 cm, its nodes on the plane through the origin with
+/// normal `fixed_normal` fixed.
+pub fn random_box_of(
+    cells: [usize; 3],
+    fixed_normal: [f64; 3],
+    seed: u64,
+    damped: bool,
+) -> PackedModel {
     let mut rng = Rng(seed);
-    let mesh = BoxGrid::cube_cells([5, 4, 3], 0.01).build().unwrap();
+    let mesh = BoxGrid::cube_cells(cells, 0.01).build().unwrap();
     let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(
         if damped {
             SpringDamping::StiffnessProportional(2e-4)
@@ -36,7 +47,7 @@ pub fn random_box(seed: u64, damped: bool) -> PackedModel {
     config.mass_damping = 3.0;
     config.fixed.push(FixedSelector::Plane {
         point: [0.0; 3],
-        normal: [0.0, 0.0, 1.0],
+        normal: fixed_normal,
         tolerance: 1e-9,
     });
     let mut model = SpringModel::build(&mesh, &config)

@@ -8,48 +8,17 @@
 //! read it, changes the bits at once; that the pairs were made in one sweep at all is asserted
 //! too (a layout whose reach rules the pairing out steps singly, which proves nothing).
 
-use crate::models::{one_material, random_diff, random_state, Rng};
+use crate::models::{one_material, random_box_of, random_diff, random_state};
 use lancet::engine::fast::{on_threads, FastEngine};
 use lancet::engine::{Engine, Integrator, SimConfig};
-use lancet::mesh::generate::BoxGrid;
-use lancet::model::{
-    stable_time_step, FixedSelector, Material, ModelConfig, ModelDiff, PackedModel, SpringDamping,
-    SpringModel,
-};
+use lancet::model::{stable_time_step, ModelDiff, PackedModel};
 use rstest::rstest;
 
 /// A long box (about 1,500 nodes) whose locality order keeps every spring within a short
 /// reach of its ends, with random per-spring constants and masses, gravity, mass damping and a
 /// fixed end: long enough that two or three threads' ranges each span several reaches.
 fn long_box(seed: u64, damped: bool) -> PackedModel {
-    let mut rng = Rng(seed);
-    let mesh = BoxGrid::cube_cells([40, 5, 5], 0.01).build().unwrap();
-    let damping = if damped {
-        SpringDamping::StiffnessProportional(2e-4)
-    } else {
-        SpringDamping::None
-    };
-    let mut config = ModelConfig::new(Material::elastic(5e3, 0.25, 1000.0).with_damping(damping));
-    config.gravity = [0.3, -0.2, -9.81];
-    config.mass_damping = 3.0;
-    config.fixed.push(FixedSelector::Plane {
-        point: [0.0; 3],
-        normal: [1.0, 0.0, 0.0],
-        tolerance: 1e-9,
-    });
-    let mut model = SpringModel::build(&mesh, &config)
-        .unwrap()
-        .pack(&mesh)
-        .unwrap();
-    for s in model.springs_mut().iter_mut() {
-        let f = 0.5 + rng.next();
-        s.stiffness *= f;
-        s.damping *= f;
-    }
-    for m in &mut model.mass {
-        *m *= 0.5 + rng.next();
-    }
-    model
+    random_box_of([40, 5, 5], [1.0, 0.0, 0.0], seed, damped)
 }
 
 /// A patch that adds no node: every ninth spring removed and, where the constants are kept
