@@ -58,6 +58,7 @@ pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
 pub mod implicit_atomic;
+pub mod implicit_atomic_tensor;
 pub mod implicit_solve;
 pub mod implicit_tensor;
 pub mod integrate_fixed;

@@ -117,7 +117,7 @@ fn a_cut_gpu_tensor_mass_implicit_engine_equals_a_rebuilt_one() {
 /// `lancet bench --force-model tensor-mass --integrator backward-euler` times the fast engine
 /// and the GPU layouts (with their conjugate-gradient iterations per step, within the solver's
 /// tolerance of the float64 reference) and skips, with its reason, the rows that cannot run it:
-/// the atomic edge variants'.
+/// the fixed-point edge variant's.
 #[test]
 fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
     use lancet::engine::EngineKind;
@@ -156,7 +156,7 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
         report
             .skipped
             .iter()
-            .any(|s| s.starts_with("gpu atomic edge rows skipped")),
+            .any(|s| s.starts_with("gpu atomic-fixed edge rows skipped")),
         "{:?}",
         report.skipped
     );
