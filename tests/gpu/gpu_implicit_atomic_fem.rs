@@ -85,6 +85,7 @@ fn assert_follows(
     let got = gpu.raw_state().unwrap();
     for (g, w, s) in [(&got.0, &want.0, &start.0), (&got.1, &want.1, &start.1)] {
         let d = common::relative_difference(g, w, s);
+        eprintln!("{what}: twin {d:e} of the motion");
         assert!(
             d <= 1e-4,
             "{what}: device and twin differ by {d:e} of the motion"
@@ -230,6 +231,7 @@ fn the_atomic_fem_implicit_step_follows_the_gather_and_the_float64_reference(
         error / motion
     );
     let (between, _) = apart(&got, &gather, &x);
+    eprintln!("{kind}: gather {:e} of the motion", between / motion);
     assert!(
         between <= 2e-4 * motion,
         "{kind}: gather {:e}",
