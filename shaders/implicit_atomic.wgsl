@@ -9,23 +9,8 @@
 //   added at `a` and subtracted at `b`; `product` reads and clears a node's sum.
 // Fixed nodes get no adds (their rows are projected out), so their accumulators stay zero.
 // Float atomics: the order of the adds, hence the rounding of the sums, varies between runs;
-// needs SHADER_FLOAT32_ATOMIC. The twin is `twin::implicit_atomic` (one of the orders).
-
-// Sixteen accumulators per node slot: f (0..3), K v (3..6), iso (6), da (7..11), db (11..13);
-// the product reuses 0..3 once the setup has read them.
-@group(0) @binding(9) var<storage, read_write> terms_acc: array<atomic<f32>>;
-
-const TERMS: u32 = 16u;
-
-fn acc_add(i: u32, k: u32, x: f32) {
-    atomicAdd(&terms_acc[TERMS * i + k], x);
-}
-
-fn acc_take(i: u32, k: u32) -> f32 {
-    let x = atomicLoad(&terms_acc[TERMS * i + k]);
-    atomicStore(&terms_acc[TERMS * i + k], 0.0);
-    return x;
-}
+// needs SHADER_FLOAT32_ATOMIC. The twin is `twin::implicit_atomic` (one of the orders). The
+// accumulators are implicit_atomic_acc.wgsl's.
 
 // Add `t` to node i's setup accumulators (f and K v times `sign`).
 fn add_terms(i: u32, t: Terms, sign: f32) {

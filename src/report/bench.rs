@@ -85,19 +85,13 @@ fn implicit_skip(
     if !opts.integrator.is_implicit() || engine != EngineKind::Gpu {
         return None;
     }
-    match (accumulation, opts.force_model) {
-        (None | Some(Accumulation::Gather), _) => None,
-        (Some(Accumulation::AtomicFloat), ForceModelKind::Springs) => None,
-        (Some(Accumulation::AtomicFixed), ForceModelKind::Springs) => Some(
+    match accumulation {
+        Some(Accumulation::AtomicFixed) => Some(
             "gpu atomic-fixed edge rows skipped: the GPU implicit solve runs on the gather and \
              the float atomics only"
                 .into(),
         ),
-        _ => Some(
-            "gpu atomic edge rows skipped: the GPU implicit solve gathers the finite elements \
-             over the incidence table (the edge layout's gather variant)"
-                .into(),
-        ),
+        None | Some(Accumulation::Gather | Accumulation::AtomicFloat) => None,
     }
 }
 

@@ -71,7 +71,7 @@ fn sym(blocks: &TensorBlocks, b: usize) -> ([f32; 4], [f32; 2]) {
 }
 
 /// `tensor_terms`: one neighbour's share of the setup terms.
-fn tensor_terms(
+pub(crate) fn tensor_terms(
     p: &SolveParams,
     blocks: &TensorBlocks,
     terms: &mut Terms,
@@ -96,7 +96,7 @@ fn tensor_terms(
 }
 
 /// `tensor_product_term`: `(h^2 K + h C) d` of the block at row `b`.
-fn product_term(
+pub(crate) fn product_term(
     p: &SolveParams,
     blocks: &TensorBlocks,
     b: usize,

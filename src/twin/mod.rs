@@ -28,6 +28,7 @@
 //! | `health` | `health.wgsl` | [`health`]: [`health::health_cpu`] | `tests/gpu/gpu_health.rs` (`device_probe_equals_its_twin`) |
 //! | `implicit` (every layout) | `implicit_solve.wgsl` (entry points `setup`, `start`, `multiply`, `step_length`, `update`, `residual`, `direction`, `finish`) with `implicit_slots.wgsl` or, on the edge layout, `implicit_edges.wgsl` (`spring_multiply`, and its gather in `multiply`) | [`implicit_solve`]: one function per entry point, [`implicit_solve::implicit_step_cpu`] and [`implicit_solve::implicit_step_edges_cpu`] the whole step | `tests/gpu/gpu_implicit.rs` |
 //! | `implicit` (edges, float atomics; springs) | `implicit_solve.wgsl` with `implicit_spring_block.wgsl` and `implicit_atomic.wgsl` (`setup_records`, `node_terms`, `spring_multiply`, `product`) | [`implicit_atomic`]: [`implicit_atomic::implicit_step_atomic_cpu`] the whole step, the adds in record order | `tests/gpu/gpu_implicit_atomic.rs` (within the solver's tolerance: the order of the adds varies) |
+//! | `implicit_atomic` (edges, float atomics; tensor-mass, corotational) | `implicit_solve.wgsl` with `implicit_tensor.wgsl`, the force model's `element_force`, `implicit_atomic_acc.wgsl` and `implicit_atomic_tensor.wgsl` (`setup_records`, `node_terms`, `spring_multiply`, `product`) | [`implicit_atomic_tensor`]: [`implicit_atomic_tensor::implicit_step_cpu`] and [`implicit_atomic_tensor::corotational_step_cpu`] the whole step, the adds in record order | `tests/gpu/gpu_implicit_atomic_fem.rs` (within the solver's tolerance: the order of the adds varies) |
 //! | `implicit`, tensor-mass (every layout) | `implicit_solve.wgsl` with `implicit_tensor.wgsl` and `implicit_slots.wgsl` + `implicit_slots_tensor.wgsl` or, on the edge layout, `implicit_tensor_edges.wgsl` (`node_terms`, `product`, `spring_multiply`) | [`implicit_tensor`]: `setup_cpu`, `multiply_cpu`, `record_multiply_cpu`, `gather_multiply_cpu`; [`implicit_tensor::implicit_step_cpu`] the whole step | `tests/gpu/gpu_implicit_tensor.rs` |
 //! | `broad_tool` | `broad_tool.wgsl` | [`broad_tool`]: [`broad_tool::cull_cpu`] | `tests/gpu/gpu_broad_phase.rs` |
 //! | `broad_self` | `self_count`, `scan_blocks`, `scan_top`, `scan_apply`, `self_scatter`, `self_pairs.wgsl` over `self_grid.wgsl` | [`broad_self`]: [`broad_self::self_pairs_cpu`] (the whole chain; the CPU engines' self-contact broad phase) | `tests/gpu/gpu_self_contact.rs` |
@@ -58,6 +59,7 @@ pub mod embed_surface;
 pub mod gather_edges;
 pub mod health;
 pub mod implicit_atomic;
+pub mod implicit_atomic_tensor;
 pub mod implicit_solve;
 pub mod implicit_tensor;
 pub mod integrate_fixed;

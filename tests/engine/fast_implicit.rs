@@ -161,8 +161,9 @@ fn same_bits_on_one_thread_and_two(preconditioner: lancet::physics::Precondition
 fn the_gpu_edge_layout_s_atomic_variants_refuse_backward_euler_and_auto_runs_it_where_it_can() {
     let model = random_model(4, true);
     let config = implicit_config(1e-3);
-    // The atomic variants have no incidence table to gather the product over: refused (or no
-    // adapter at all: refused either way, never stepped explicitly in its place).
+    // The fixed-point variant cannot hold the conjugate gradients' shrinking products (the
+    // float-atomic one runs backward Euler): refused (or no adapter at all: refused either
+    // way, never stepped explicitly in its place).
     let atomic = lancet::GpuOptions {
         accumulation: lancet::layout::edges::Accumulation::AtomicFixed,
         ..lancet::GpuOptions::from(lancet::layout::LayoutKind::Edges)

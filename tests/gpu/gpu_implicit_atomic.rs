@@ -3,7 +3,7 @@
 //! The device step follows its CPU twin (`twin::implicit_atomic`, one order of the adds)
 //! within the solver's tolerance (float atomics add in any order, so the rounding and at
 //! times the iteration count differ), the gather variant and the float64 reference; a cut
-//! engine steps as a rebuilt one; what it does not run is refused with the reason.
+//! engine steps as a rebuilt one; the fixed-point variant is refused with the reason.
 
 use crate::{common, models};
 use lancet::engine::gpu::GpuEngine;
@@ -142,33 +142,30 @@ fn a_cut_atomic_implicit_model_equals_a_rebuilt_one(
     );
 }
 
-/// Backward Euler on the fixed-point accumulation, and the finite elements' on either atomic
-/// variant, are refused with the reason and what to use.
-#[test]
-fn what_the_atomic_implicit_step_does_not_run_is_refused_clearly() {
+/// Backward Euler on the fixed-point accumulation is refused with the reason and what to use,
+/// for springs and the finite elements alike; the finite elements run on the float atomics
+/// (`gpu_implicit_atomic_fem.rs`).
+#[rstest]
+fn what_the_atomic_implicit_step_does_not_run_is_refused_clearly(
+    #[values(ForceModelKind::Springs, ForceModelKind::TensorMass)] kind: ForceModelKind,
+) {
     let Some(ctx) = common::gpu() else { return };
     let model = random_model(13, false);
-    let err = GpuEngine::with_context(
-        ctx.clone(),
-        &model,
-        implicit(1e-3),
-        options(Accumulation::AtomicFixed),
-    )
-    .err()
-    .expect("refused");
+    let config = SimConfig {
+        force_model: kind,
+        ..implicit(1e-3)
+    };
+    let err = GpuEngine::with_context(ctx, &model, config, options(Accumulation::AtomicFixed))
+        .err()
+        .expect("refused");
     assert!(
         matches!(&err, Error::Unsupported(m) if m.contains("fixed-point") && m.contains("atomic-float")),
         "{err}"
     );
-    let tensor = SimConfig {
-        force_model: ForceModelKind::TensorMass,
-        ..implicit(1e-3)
-    };
-    let err = GpuEngine::with_context(ctx, &model, tensor, options(Accumulation::AtomicFloat))
-        .err()
-        .expect("refused");
-    assert!(
-        matches!(&err, Error::Unsupported(m) if m.contains("gather")),
-        "{err}"
-    );
+    if let Some(gpu) = engine(&model, config) {
+        assert!(
+            gpu.describe().starts_with("gpu-edges-atomicfloat"),
+            "{kind}"
+        );
+    }
 }

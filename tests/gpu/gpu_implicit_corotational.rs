@@ -310,8 +310,9 @@ fn a_cut_gpu_corotational_implicit_engine_equals_a_rebuilt_one() {
     );
 }
 
-/// The corotational implicit step runs on the edge layout's gather variant only, as every
-/// implicit step does: the atomic variants are refused with the reason and what to use.
+/// The corotational implicit step does not run on the edge layout's fixed-point variant, as no
+/// implicit step does (the float-atomic one runs it, `gpu_implicit_atomic_fem.rs`): refused
+/// with the reason and what to use.
 #[test]
 fn corotational_backward_euler_on_atomic_edges_is_refused_with_a_reason() {
     let Some(ctx) = common::gpu() else { return };

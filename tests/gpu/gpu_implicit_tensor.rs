@@ -115,15 +115,20 @@ fn a_cut_gpu_tensor_mass_implicit_engine_equals_a_rebuilt_one() {
 }
 
 /// `lancet bench --force-model tensor-mass --integrator backward-euler` times the fast engine
-/// and the GPU layouts (with their conjugate-gradient iterations per step, within the solver's
-/// tolerance of the float64 reference) and skips, with its reason, the rows that cannot run it:
-/// the atomic edge variants'.
+/// and the GPU layouts, the edge layout's float-atomic variant too where the device has float
+/// atomics (with their conjugate-gradient iterations per step, within the solver's tolerance
+/// of the float64 reference), and skips, with its reason, the rows that cannot run it: the
+/// fixed-point edge variant's.
 #[test]
 fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
     use lancet::engine::EngineKind;
     use lancet::layout::edges::Accumulation;
     use lancet::report::bench::{run_bench, BenchMesh, BenchOptions};
-    let Some(_) = common::gpu() else { return };
+    let Some(ctx) = common::gpu() else { return };
+    let float = ctx
+        .device
+        .features()
+        .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
     let opts = BenchOptions {
         engines: vec![EngineKind::Fast, EngineKind::Gpu],
         layouts: vec![
@@ -131,7 +136,11 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
             LayoutKind::Valence,
             LayoutKind::Edges,
         ],
-        accumulations: vec![Accumulation::Gather, Accumulation::AtomicFixed],
+        accumulations: vec![
+            Accumulation::Gather,
+            Accumulation::AtomicFloat,
+            Accumulation::AtomicFixed,
+        ],
         steps: 4,
         chunk: 2,
         integrator: Integrator::BackwardEuler,
@@ -140,12 +149,21 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
     };
     let bw = lancet::report::bandwidth::stream_triad(1 << 16, 1);
     let report = run_bench(&[BenchMesh::Cube(3)], &opts, &bw, || None).unwrap();
-    let layouts: Vec<_> = report.rows.iter().map(|r| r.layout.clone()).collect();
-    let want: Vec<_> = [None, Some("connectivity"), Some("valence"), Some("edges")]
+    let rows: Vec<_> = report
+        .rows
         .iter()
-        .map(|l| l.map(str::to_string))
+        .map(|r| (r.layout.clone(), r.accumulation.clone()))
         .collect();
-    assert_eq!(layouts, want, "{:?}", report.skipped);
+    let mut want = vec![
+        (None, None),
+        (Some("connectivity".to_string()), None),
+        (Some("valence".to_string()), None),
+        (Some("edges".to_string()), Some("gather".to_string())),
+    ];
+    if float {
+        want.push((Some("edges".to_string()), Some("atomic-float".to_string())));
+    }
+    assert_eq!(rows, want, "{:?}", report.skipped);
     for r in &report.rows {
         assert_eq!(r.force_model, "tensor-mass");
         let its = r.cg_iterations_per_step.expect("an implicit row");
@@ -156,7 +174,7 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
         report
             .skipped
             .iter()
-            .any(|s| s.starts_with("gpu atomic edge rows skipped")),
+            .any(|s| s.starts_with("gpu atomic-fixed edge rows skipped")),
         "{:?}",
         report.skipped
     );

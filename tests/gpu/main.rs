@@ -24,6 +24,7 @@ mod gpu_health;
 mod gpu_host_device;
 mod gpu_implicit;
 mod gpu_implicit_atomic;
+mod gpu_implicit_atomic_fem;
 mod gpu_implicit_corotational;
 mod gpu_implicit_tensor;
 mod gpu_layouts;

@@ -12,9 +12,10 @@
 //! float-atomic variant, which has no incidence table, runs the springs' solve with a record
 //! pass that adds each spring's setup terms to its ends before `setup`, and a product that
 //! adds each record's block product to its ends (`shaders/implicit_atomic.wgsl`, twin
-//! [`crate::twin::implicit_atomic`]; the sums' rounding follows the order of the adds). The
-//! fixed-point variant is refused (the products shrink by orders of magnitude within a solve,
-//! below any one scale), and so are the finite elements on either atomic variant.
+//! [`crate::twin::implicit_atomic`]; the sums' rounding follows the order of the adds); the
+//! finite elements' solve there adds each record's tensor terms per end
+//! ([`super::implicit_atomic`]). The fixed-point variant is refused (the products shrink by
+//! orders of magnitude within a solve, below any one scale).
 //!
 //! With the tensor-mass force model the system's stiffness and damping are the constant 3x3
 //! blocks of [`super::tensor_mass::TensorMassPasses`] (bound as group 1), read where the
@@ -34,7 +35,6 @@ use bytemuck::{Pod, Zeroable};
 
 use super::buffers;
 use super::{GpuContext, StateBuffers};
-use crate::engine::Integrator;
 use crate::error::{Error, Result};
 use crate::layout::LayoutKind;
 use crate::physics::{Linearization, SolverSettings, SolverStats, StepParams};
@@ -74,14 +74,6 @@ const EDGES: &str = concat!(
     include_str!("../../../shaders/implicit_spring_block.wgsl"),
     include_str!("../../../shaders/implicit_springs.wgsl"),
     include_str!("../../../shaders/implicit_edges.wgsl")
-);
-
-/// The springs' solve on the edge layout's float-atomic variant (no incidence table).
-const ATOMIC: &str = concat!(
-    include_str!("../../../shaders/common.wgsl"),
-    include_str!("../../../shaders/implicit_solve.wgsl"),
-    include_str!("../../../shaders/implicit_spring_block.wgsl"),
-    include_str!("../../../shaders/implicit_atomic.wgsl")
 );
 
 /// The tensor-mass solve over the connectivity table.
@@ -366,12 +358,9 @@ impl ImplicitSolver {
                 valence
             }
             LayoutKind::Edges if atomic => {
-                if model != SolveModel::Springs {
-                    return Err(atomic_refusal());
-                }
                 // The accumulators (written).
                 bindings.push(false);
-                ATOMIC
+                super::implicit_atomic::source(model)
             }
             LayoutKind::Edges => {
                 // Incidence rows and entries (read), the spring values (written).
@@ -752,36 +741,4 @@ impl ImplicitSolver {
         red.extend_from_slice(bytemuck::cast_slice(&partials));
         ctx.queue.write_buffer(&self.reduce, 0, &red);
     }
-}
-
-/// Refuse an implicit integrator on the edge layout's fixed-point variant, and the finite
-/// elements' implicit step on either atomic variant.
-pub(super) fn check_layout(
-    integrator: Integrator,
-    kind: LayoutKind,
-    accumulation: crate::layout::edges::Accumulation,
-    force_model: crate::physics::ForceModelKind,
-) -> Result<()> {
-    use crate::layout::edges::Accumulation;
-    if !integrator.is_implicit() || kind != LayoutKind::Edges {
-        return Ok(());
-    }
-    match (accumulation, force_model) {
-        (Accumulation::Gather, _) => Ok(()),
-        (Accumulation::AtomicFloat, crate::physics::ForceModelKind::Springs) => Ok(()),
-        (Accumulation::AtomicFixed, _) => Err(Error::Unsupported(
-            "the GPU engine's implicit step (integrator BackwardEuler) does not run on the edge              layout's fixed-point accumulation (the conjugate gradients' products shrink by              orders of magnitude within a solve, below any one fixed-point scale): use              --accumulation gather or atomic-float, or --layout connectivity"
-                .into(),
-        )),
-        _ => Err(atomic_refusal()),
-    }
-}
-
-/// The implicit step's refusal of the finite elements on the edge layout's atomic variants,
-/// which have no incidence table to gather the elements' setup terms and products over.
-pub(super) fn atomic_refusal() -> Error {
-    Error::Unsupported(
-        "the GPU engine's implicit step (integrator BackwardEuler) runs the finite elements on          the edge layout's gather variant only, not its atomic accumulations (springs run on          atomic-float too): leave --accumulation out (gather) or use --layout connectivity"
-            .into(),
-    )
 }

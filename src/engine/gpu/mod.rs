@@ -20,6 +20,7 @@ pub mod embed_surface;
 pub mod health;
 pub mod host_buffers;
 pub mod implicit;
+mod implicit_atomic;
 mod implicit_engine;
 pub mod layout_buffers;
 pub mod move_state;
@@ -245,12 +246,7 @@ impl GpuEngine {
         mut layout: PackedLayout,
         accumulation: Accumulation,
     ) -> Result<Self> {
-        implicit::check_layout(
-            config.integrator,
-            layout.kind(),
-            accumulation,
-            config.force_model,
-        )?;
+        implicit_atomic::check_layout(config.integrator, layout.kind(), accumulation)?;
         // Patches append to the host's arrays: room now, not a reallocation at the first cut.
         layout.reserve_room();
         let params = step_params(model, config);
