@@ -430,11 +430,12 @@ pub fn run_bench(
                 // Tensor-mass runs in every accumulation (the atomic variants add both end
                 // forces of a record, `engine::gpu::tensor_atomic`).
                 ForceModelKind::Springs | ForceModelKind::TensorMass => None,
-                // One element path whatever the layout: the atomic variants would time the
-                // same passes again under another name.
-                ForceModelKind::Corotational if atomic => Some(
-                    "gpu atomic edge rows skipped: the corotational passes are the same in every \
-                     layout and accumulation (a per-tet pass and a node gather)",
+                // One explicit element path whatever the layout: the atomic variants would
+                // time the same passes again under another name. Under backward Euler the
+                // float-atomic solve is a path of its own (`engine::gpu::implicit_atomic`).
+                ForceModelKind::Corotational if atomic && !opts.integrator.is_implicit() => Some(
+                    "gpu atomic edge rows skipped: the explicit corotational passes are the same \
+                     in every layout and accumulation (a per-tet pass and a node gather)",
                 ),
                 ForceModelKind::Corotational => None,
             };

@@ -114,13 +114,15 @@ fn a_cut_gpu_tensor_mass_implicit_engine_equals_a_rebuilt_one() {
     );
 }
 
-/// `lancet bench --force-model tensor-mass --integrator backward-euler` times the fast engine
+/// `lancet bench --force-model tensor-mass|corotational --integrator backward-euler` times the fast engine
 /// and the GPU layouts, the edge layout's float-atomic variant too where the device has float
 /// atomics (with their conjugate-gradient iterations per step, within the solver's tolerance
 /// of the float64 reference), and skips, with its reason, the rows that cannot run it: the
 /// fixed-point edge variant's.
-#[test]
-fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
+#[rstest]
+fn the_bench_times_finite_elements_under_backward_euler_on_the_gpu_layouts(
+    #[values(ForceModelKind::TensorMass, ForceModelKind::Corotational)] model: ForceModelKind,
+) {
     use lancet::engine::EngineKind;
     use lancet::layout::edges::Accumulation;
     use lancet::report::bench::{run_bench, BenchMesh, BenchOptions};
@@ -144,7 +146,7 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
         steps: 4,
         chunk: 2,
         integrator: Integrator::BackwardEuler,
-        force_model: ForceModelKind::TensorMass,
+        force_model: model,
         ..BenchOptions::default()
     };
     let bw = lancet::report::bandwidth::stream_triad(1 << 16, 1);
@@ -165,7 +167,7 @@ fn the_bench_times_tensor_mass_backward_euler_on_the_gpu_layouts() {
     }
     assert_eq!(rows, want, "{:?}", report.skipped);
     for r in &report.rows {
-        assert_eq!(r.force_model, "tensor-mass");
+        assert_eq!(r.force_model, model.to_string());
         let its = r.cg_iterations_per_step.expect("an implicit row");
         assert!(its >= 1.0, "{r:?}");
         assert!(r.error_vs_reference < 1e-3, "{r:?}");
