@@ -4,7 +4,7 @@
 // K_aa u_a needs no term of its own: K_aa = -sum K_ab, so each record's force acts on the
 // difference u_b - u_a. The node pass is the springs' (`integrate_fixed.wgsl`). Integer
 // addition is associative: the sums do not depend on the order of the adds. Prepended with
-// common.wgsl, edge_spring.wgsl and tensor_block.wgsl; the twin is `twin::tensor_atomic`
+// common.wgsl, edge_spring.wgsl, tensor_products.wgsl and tensor_block.wgsl; the twin is `twin::tensor_atomic`
 // (`TensorBlocks::accumulate_fixed_cpu`).
 
 // Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).

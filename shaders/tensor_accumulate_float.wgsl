@@ -2,7 +2,7 @@
 // computes both end forces (`end_forces`, tensor_block.wgsl) and adds each to its own end's
 // float accumulators. Needs SHADER_FLOAT32_ATOMIC; the order of the adds, hence the rounding
 // of the sums, varies between runs. The node pass is the springs' (`integrate_float.wgsl`).
-// Prepended with common.wgsl, edge_spring.wgsl and tensor_block.wgsl; the twin is
+// Prepended with common.wgsl, edge_spring.wgsl, tensor_products.wgsl and tensor_block.wgsl; the twin is
 // `twin::tensor_atomic` (`TensorBlocks::accumulate_float_cpu`, one of the possible orders).
 
 @group(0) @binding(0) var<uniform> p: Params;

@@ -1,5 +1,5 @@
 // Tensor-mass on the connectivity layout: one invocation per node gathers its row's blocks.
-// Prepended with common.wgsl, node_gather.wgsl and tensor_gather.wgsl; the twin is
+// Prepended with common.wgsl, node_gather.wgsl, tensor_gather.wgsl and tensor_products.wgsl; the twin is
 // `twin::tensor_mass`.
 
 @compute @workgroup_size(64)

@@ -2,7 +2,7 @@
 // forces from its blocks (`lancet::layout::tensor_blocks`, the record's own index): on a,
 // -(K_ab du + C_ab dv), stored at 2 r; on b, K_ab^T du + C_ab^T dv (K_ba = K_ab^T), at 2 r + 1;
 // du = u_b - u_a. Unlike a spring's, the two are not opposite. Prepended with common.wgsl and
-// edge_spring.wgsl (for the record) and tensor_block.wgsl; the twin is `twin::tensor_mass`
+// edge_spring.wgsl (for the record), tensor_products.wgsl and tensor_block.wgsl; the twin is `twin::tensor_mass`
 // (`TensorBlocks::record_forces_cpu`).
 
 @group(0) @binding(0) var<uniform> p: Params;

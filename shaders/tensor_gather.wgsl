@@ -1,29 +1,12 @@
 // The tensor-mass update of the node-centric passes (connectivity, valence): the layout's slot
 // table walked as `node_gather.wgsl` walks it, each slot's 3x3 blocks read from `blocks` at the
 // slot's own index (`lancet::layout::tensor_blocks`). Prepended after common.wgsl and
-// node_gather.wgsl (whose bindings it reads); each pass file adds only its entry point. The
-// twin is `twin::tensor_mass` (`TensorBlocks::node_forces_cpu`, `step_cpu`).
+// node_gather.wgsl (whose bindings it reads), with tensor_products.wgsl (the block products);
+// each pass file adds only its entry point. The twin is `twin::tensor_mass`
+// (`TensorBlocks::node_forces_cpu`, `step_cpu`).
 
 // Per slot: the rows of K_ij (xyz), then of C_ij where p.damped is set.
 @group(0) @binding(7) var<storage, read> blocks: array<vec4<f32>>;
-
-// Rows of blocks per slot.
-fn block_stride() -> u32 {
-    if (p.damped != 0u) {
-        return 6u;
-    }
-    return 3u;
-}
-
-// K du + C dv of the blocks at row b (C only when damped); twin `TensorBlocks::force_cpu`.
-fn tensor_force(b: u32, du: vec3<f32>, dv: vec3<f32>) -> vec3<f32> {
-    var f = vec3<f32>(dot(blocks[b].xyz, du), dot(blocks[b + 1u].xyz, du), dot(blocks[b + 2u].xyz, du));
-    if (p.damped != 0u) {
-        let g = vec3<f32>(dot(blocks[b + 3u].xyz, dv), dot(blocks[b + 4u].xyz, dv), dot(blocks[b + 5u].xyz, dv));
-        f = f + g;
-    }
-    return f;
-}
 
 // Sum -K_ij (u_j - u_i) - C_ij (v_j - v_i) over slots[first .. first + width) of node i
 // (stopping at an empty slot, going on in row `pad` at a CONTINUE slot) and integrate it.

@@ -1,6 +1,6 @@
 // Tensor-mass on the valence layout: each node finds its bucket (valence_buckets.wgsl) and
 // gathers its row's blocks. Prepended with common.wgsl, node_gather.wgsl, valence_buckets.wgsl
-// and tensor_gather.wgsl; the twin is `twin::tensor_mass`.
+// tensor_gather.wgsl and tensor_products.wgsl; the twin is `twin::tensor_mass`.
 
 @group(1) @binding(0) var<storage, read> table: BucketTable;
 

@@ -6,9 +6,8 @@
 //! [`super::implicit_solve`]'s.
 
 use super::implicit_solve::{
-    add, block_product, direction_cpu, dot3, finish_cpu, finish_setup, geometry, product_pass,
-    residual_cpu, scale, setup_with, start_cpu, status, step_length_cpu, sub, update_cpu, v3,
-    Scalars, SolveParams, SolveVectors, Terms,
+    add, block_product, dot3, finish_cpu, finish_setup, geometry, iterate_cpu, product_pass, scale,
+    setup_with, start_cpu, status, sub, v3, Scalars, SolveParams, SolveVectors, Terms,
 };
 use crate::layout::edges::EdgeLayout;
 use crate::layout::Slot;
@@ -151,13 +150,9 @@ pub fn implicit_step_atomic_cpu(
     let terms = setup_records_cpu(p, layout, inv_mass, cur, vel);
     let mut v = setup_atomic_cpu(p, &terms, inv_mass, vel);
     start_cpu(p, &mut v);
-    while v.scalars.status == status::RUNNING {
-        multiply_atomic_cpu(p, layout, inv_mass, cur, &mut v);
-        step_length_cpu(&mut v);
-        update_cpu(&mut v);
-        residual_cpu(p, &mut v);
-        direction_cpu(&mut v);
-    }
+    iterate_cpu(p, &mut v, |v| {
+        multiply_atomic_cpu(p, layout, inv_mass, cur, v)
+    });
     let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
     (next, vel_out, v.scalars)
 }

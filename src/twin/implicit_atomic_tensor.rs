@@ -8,9 +8,8 @@
 //! [`super::implicit_solve`]'s; the blocks' arithmetic is [`super::implicit_tensor`]'s.
 
 use super::implicit_solve::{
-    add, direction_cpu, finish_cpu, finish_setup, product_pass, residual_cpu, scale, setup_with,
-    start_cpu, status, step_length_cpu, sub, update_cpu, v3, Scalars, SolveParams, SolveVectors,
-    Terms,
+    add, finish_cpu, finish_setup, iterate_cpu, product_pass, scale, setup_with, start_cpu, status,
+    sub, v3, Scalars, SolveParams, SolveVectors, Terms,
 };
 use super::implicit_tensor::{product_term, tensor_terms};
 use crate::layout::edges::EdgeLayout;
@@ -128,13 +127,7 @@ pub fn implicit_step_cpu(
     let terms = setup_records_cpu(p, blocks, layout, inv_mass, (cur, vel));
     let mut v = setup_cpu(p, &terms, inv_mass, vel, forces);
     start_cpu(p, &mut v);
-    while v.scalars.status == status::RUNNING {
-        multiply_cpu(p, blocks, layout, inv_mass, &mut v);
-        step_length_cpu(&mut v);
-        update_cpu(&mut v);
-        residual_cpu(p, &mut v);
-        direction_cpu(&mut v);
-    }
+    iterate_cpu(p, &mut v, |v| multiply_cpu(p, blocks, layout, inv_mass, v));
     let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
     (next, vel_out, v.scalars)
 }

@@ -638,10 +638,29 @@ pub fn iteration_cpu(
     v: &mut SolveVectors,
 ) {
     multiply_cpu(p, rows, inv_mass, cur, v);
+    after_product_cpu(p, v);
+}
+
+/// The passes of an iteration after its product: `step_length`, `update`, `residual`,
+/// `direction`.
+fn after_product_cpu(p: &SolveParams, v: &mut SolveVectors) {
     step_length_cpu(v);
     update_cpu(v);
     residual_cpu(p, v);
     direction_cpu(v);
+}
+
+/// Iterations until the solve ends, each `multiply` (a variant's product passes) and then
+/// the passes every variant shares.
+pub(crate) fn iterate_cpu(
+    p: &SolveParams,
+    v: &mut SolveVectors,
+    mut multiply: impl FnMut(&mut SolveVectors),
+) {
+    while v.scalars.status == status::RUNNING {
+        multiply(v);
+        after_product_cpu(p, v);
+    }
 }
 
 /// [`implicit_step_cpu`] on the edge layout: the setup over its incidence rows
@@ -656,14 +675,10 @@ pub fn implicit_step_edges_cpu(
     let mut v = setup_cpu(p, &edge_rows(layout), inv_mass, cur, vel);
     start_cpu(p, &mut v);
     let mut values = vec![[0.0f32; 4]; layout.springs.len()];
-    while v.scalars.status == status::RUNNING {
-        values = spring_multiply_cpu(p, layout, cur, &v, &values);
-        gather_multiply_cpu(p, layout, inv_mass, &values, &mut v);
-        step_length_cpu(&mut v);
-        update_cpu(&mut v);
-        residual_cpu(p, &mut v);
-        direction_cpu(&mut v);
-    }
+    iterate_cpu(p, &mut v, |v| {
+        values = spring_multiply_cpu(p, layout, cur, v, &values);
+        gather_multiply_cpu(p, layout, inv_mass, &values, v);
+    });
     let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
     (next, vel_out, v.scalars)
 }
@@ -679,9 +694,7 @@ pub fn implicit_step_cpu(
 ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Scalars) {
     let mut v = setup_cpu(p, rows, inv_mass, cur, vel);
     start_cpu(p, &mut v);
-    while v.scalars.status == status::RUNNING {
-        iteration_cpu(p, rows, inv_mass, cur, &mut v);
-    }
+    iterate_cpu(p, &mut v, |v| multiply_cpu(p, rows, inv_mass, cur, v));
     let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
     (next, vel_out, v.scalars)
 }

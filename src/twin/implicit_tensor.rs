@@ -7,9 +7,8 @@
 //! [`crate::physics::TensorMass`].
 
 use super::implicit_solve::{
-    add, direction_cpu, dot3, finish_cpu, finish_setup, product_pass, residual_cpu, scale,
-    setup_with, start_cpu, status, step_length_cpu, sub, update_cpu, v3, v4, Scalars, SolveParams,
-    SolveVectors, Terms,
+    add, dot3, finish_cpu, finish_setup, iterate_cpu, product_pass, scale, setup_with, start_cpu,
+    status, sub, v3, v4, Scalars, SolveParams, SolveVectors, Terms,
 };
 use crate::layout::edges::{EdgeLayout, B_END};
 use crate::layout::tensor_blocks::{slot_walk, TensorBlocks};
@@ -254,19 +253,13 @@ pub fn implicit_step_forced(
     if let PackedLayout::Edges(e) = layout {
         values = vec![[0.0f32; 4]; 2 * e.springs.len()];
     }
-    while v.scalars.status == status::RUNNING {
-        match layout {
-            PackedLayout::Edges(e) => {
-                values = record_multiply_cpu(p, blocks, e, &v, &values);
-                gather_multiply_cpu(p, e, inv_mass, &values, &mut v);
-            }
-            _ => multiply_cpu(p, blocks, &rows, inv_mass, &mut v),
+    iterate_cpu(p, &mut v, |v| match layout {
+        PackedLayout::Edges(e) => {
+            values = record_multiply_cpu(p, blocks, e, v, &values);
+            gather_multiply_cpu(p, e, inv_mass, &values, v);
         }
-        step_length_cpu(&mut v);
-        update_cpu(&mut v);
-        residual_cpu(p, &mut v);
-        direction_cpu(&mut v);
-    }
+        _ => multiply_cpu(p, blocks, &rows, inv_mass, v),
+    });
     let (next, vel_out) = finish_cpu(p, inv_mass, cur, vel, &v).expect("the solve ended");
     (next, vel_out, v.scalars)
 }

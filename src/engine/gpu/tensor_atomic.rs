@@ -18,12 +18,14 @@ use crate::layout::edges::FixedPoint;
 const FIXED: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_block.wgsl"),
     include_str!("../../../shaders/tensor_accumulate_fixed.wgsl")
 );
 const FLOAT: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_block.wgsl"),
     include_str!("../../../shaders/tensor_accumulate_float.wgsl")
 );

@@ -32,6 +32,7 @@ const CONNECTIVITY: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/node_gather.wgsl"),
     include_str!("../../../shaders/tensor_gather.wgsl"),
+    include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_connectivity.wgsl")
 );
 const VALENCE: &str = concat!(
@@ -39,11 +40,13 @@ const VALENCE: &str = concat!(
     include_str!("../../../shaders/node_gather.wgsl"),
     include_str!("../../../shaders/valence_buckets.wgsl"),
     include_str!("../../../shaders/tensor_gather.wgsl"),
+    include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_valence.wgsl")
 );
 const EDGES: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
+    include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_block.wgsl"),
     include_str!("../../../shaders/tensor_edges.wgsl")
 );
