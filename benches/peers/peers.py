@@ -203,6 +203,32 @@ def run_lancet(binary, preset, steps, split):
     return json.loads(out)["rows"]
 
 
+def one_round(args, grids, sizes, peers, damping):
+    """Every engine once, peers first then lancet: {(size, nodes, springs, name): s/step}."""
+    out = {}
+    for size in sizes:
+        pos, row, col, rest, n, m = grids[size]
+        if "taichi" in peers:
+            s, _ = run_taichi(pos, row, col, rest, damping, args.threads, args.steps,
+                              args.repeats)
+            out[(size, n, m, f"taichi node gather, {args.threads} threads")] = s
+        if "warp" in peers:
+            s, _ = run_warp(pos, row, col, rest, damping, args.steps, args.repeats)
+            out[(size, n, m, "warp cpu node gather (one thread)")] = s
+    for row_ in run_lancet(args.lancet, args.preset, args.steps, "five"):
+        cells = row_["mesh"].split("-")[0]
+        size = next((k for k, g in GRIDS.items() if "x".join(map(str, g)) == cells), cells)
+        if size in sizes:
+            out[(size, row_["nodes"], row_["springs"], "lancet " + row_["engine"])] = \
+                row_["ms_per_step"] / 1e3
+    return out
+
+
+def median(xs):
+    xs = sorted(xs)
+    return xs[len(xs) // 2] if len(xs) % 2 else 0.5 * (xs[len(xs) // 2 - 1] + xs[len(xs) // 2])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lancet", default="target/release/lancet", help="the lancet binary")
@@ -212,33 +238,49 @@ def main():
                     help="Taichi's CPU threads (lancet's fast engine uses every core)")
     ap.add_argument("--steps", type=int, default=200, help="steps per timed run")
     ap.add_argument("--repeats", type=int, default=5, help="timed runs (the median is shown)")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="rounds of every engine in turn (a shared machine's speed drifts by "
+                         "a quarter from one minute to the next: with several rounds each "
+                         "row shows the median round and the range, and lancet's fast engine "
+                         "is compared with each peer round by round)")
     ap.add_argument("--peers", default="taichi,warp")
     args = ap.parse_args()
     damping = DAMPING if args.preset == "damped" else 0.0
     sizes = [s for s in args.sizes.split(",") if s]
     peers = [p for p in args.peers.split(",") if p]
-    results = []
+    grids = {}
     for size in sizes:
         pos, tets = soft_grid(*GRIDS[size])
         edges, row, col, rest = springs_and_csr(pos, tets)
-        n, m = len(pos), len(edges)
-        print(f"# {size}: {GRIDS[size]} cells, {n} nodes, {m} springs", file=sys.stderr)
-        if "taichi" in peers:
-            s, _ = run_taichi(pos, row, col, rest, damping, args.threads, args.steps,
-                              args.repeats)
-            results.append((size, n, m, f"taichi node gather, {args.threads} threads", s))
-        if "warp" in peers:
-            s, _ = run_warp(pos, row, col, rest, damping, args.steps, args.repeats)
-            results.append((size, n, m, "warp cpu node gather (one thread)", s))
-    for row_ in run_lancet(args.lancet, args.preset, args.steps, "five"):
-        cells = row_["mesh"].split("-")[0]
-        size = next((k for k, g in GRIDS.items() if "x".join(map(str, g)) == cells), cells)
-        if size in sizes:
-            results.append((size, row_["nodes"], row_["springs"], "lancet " + row_["engine"],
-                            row_["ms_per_step"] / 1e3))
-    print(f"{'size':<6} {'nodes':>7} {'springs':>8}  {'engine':<40} {'steps/s':>9} {'ms/step':>8}")
-    for size, n, m, name, s in sorted(results, key=lambda r: (r[0] != "small", r[4])):
-        print(f"{size:<6} {n:>7} {m:>8}  {name:<40} {1.0 / s:>9.0f} {s * 1e3:>8.3f}")
+        grids[size] = (pos, row, col, rest, len(pos), len(edges))
+        print(f"# {size}: {GRIDS[size]} cells, {len(pos)} nodes, {len(edges)} springs",
+              file=sys.stderr)
+    rounds = [one_round(args, grids, sizes, peers, damping) for _ in range(args.rounds)]
+    keys = sorted(rounds[0], key=lambda k: (k[0] != "small", median([r[k] for r in rounds])))
+    several = args.rounds > 1
+    span = "  steps/s per round (min-max)" if several else ""
+    print(f"{'size':<6} {'nodes':>7} {'springs':>8}  {'engine':<40} {'steps/s':>9} "
+          f"{'ms/step':>8}{span}")
+    for k in keys:
+        size, n, m, name = k
+        s = median([r[k] for r in rounds])
+        rng = ""
+        if several:
+            rates = [1.0 / r[k] for r in rounds]
+            rng = f"  {min(rates):.0f}-{max(rates):.0f}"
+        print(f"{size:<6} {n:>7} {m:>8}  {name:<40} {1.0 / s:>9.0f} {s * 1e3:>8.3f}{rng}")
+    # lancet's fast engine against every other engine, the ratio taken within each round.
+    for size in sizes:
+        fast = [k for k in keys if k[0] == size and "fast" in k[3]]
+        if not fast:
+            continue
+        for k in keys:
+            if k[0] != size or k == fast[0]:
+                continue
+            ratios = [r[k] / r[fast[0]] for r in rounds]
+            each = ", ".join(f"{x:.2f}" for x in ratios)
+            print(f"# {size}: lancet fast against {k[3]}: {median(ratios):.2f}x "
+                  f"(round by round: {each})")
 
 
 if __name__ == "__main__":
