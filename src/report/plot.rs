@@ -99,15 +99,16 @@ pub fn write_plots(report: &AccuracyReport, dir: &Path, font: Option<&Path>) -> 
         None => Err("no TrueType font found (set LANCET_FONT to a .ttf file)".into()),
     };
     let plot_err = |path: &Path, e: String| Error::Unsupported(format!("{}: {e}", path.display()));
+    let size = canvas(report);
     {
-        let root = SVGBackend::new(&svg, (1000, 640)).into_drawing_area();
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
         // The SVG backend writes text without measuring it; the chart's own labels need the
         // font's metrics.
         draw(&root, report, registered.is_ok(), true).map_err(|e| plot_err(&svg, e))?;
         root.present().map_err(|e| plot_err(&svg, e.to_string()))?;
     }
     {
-        let root = BitMapBackend::new(&png, (1000, 640)).into_drawing_area();
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
         let ok = registered.is_ok();
         draw(&root, report, ok, ok).map_err(|e| plot_err(&png, e))?;
         root.present().map_err(|e| plot_err(&png, e.to_string()))?;
@@ -119,6 +120,77 @@ pub fn write_plots(report: &AccuracyReport, dir: &Path, font: Option<&Path>) -> 
             .err()
             .map(|why| format!("PNG written without text: {why}")),
     })
+}
+
+/// Width of the chart's area, px; the legend takes what its text needs to the right of it.
+const CHART_WIDTH: u32 = 760;
+
+/// Left edge of the legend's text, px from the legend's left.
+const LEGEND_TEXT: u32 = 48;
+
+/// The legend's first line, and the distance between its series lines and between its notes,
+/// px.
+const LEGEND_TOP: i32 = 40;
+const SERIES_LINE: i32 = 24;
+const NOTE_LINE: i32 = 18;
+
+/// Widths of a character of the legend's 14 px series names and 12 px notes, px: a little
+/// above the common fonts' average advance (DejaVu Sans: 7.7 and 6.6), so that the longest
+/// name is never cut off by the image's edge.
+const SERIES_CHAR: u32 = 8;
+const NOTE_CHAR: u32 = 7;
+
+/// The legend's notes under the series: the reference's self-check, what the labels and errors
+/// are, and what was asked for but not run (the reasons are printed with the table).
+fn legend_notes(report: &AccuracyReport) -> Vec<String> {
+    let mut notes = vec![
+        "reference self-check".to_string(),
+        format!(
+            "(dt {:.2e} s vs {:.2e} s)",
+            report.reference.check_dt, report.reference.dt
+        ),
+        String::new(),
+        "point labels: dt / stable bound".to_string(),
+        format!("bound {:.3e} s", report.dt_bound),
+        "error: worst of the sample times".to_string(),
+        format!(
+            "t = {} s",
+            report
+                .sample_times
+                .iter()
+                .map(|t| format!("{t:.2e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    ];
+    if !report.skipped.is_empty() {
+        notes.push(String::new());
+        notes.push("not run (reasons with the table):".to_string());
+        // Each entry reads "<what> skipped: <why>"; the plot names what.
+        notes.extend(report.skipped.iter().map(|s| {
+            let what = s.split(": ").next().unwrap_or(s);
+            format!("  {}", what.trim_end_matches(" skipped"))
+        }));
+    }
+    notes
+}
+
+/// The image's size, px: the chart, and to its right a legend as wide as its longest line
+/// needs; tall enough for every series and note.
+fn canvas(report: &AccuracyReport) -> (u32, u32) {
+    let series = report.series();
+    let longest = |lines: &[String], per_char: u32| {
+        lines
+            .iter()
+            .map(|l| l.chars().count() as u32 * per_char)
+            .max()
+            .unwrap_or(0)
+    };
+    let notes = legend_notes(report);
+    let text = longest(&series, SERIES_CHAR).max(longest(&notes, NOTE_CHAR));
+    let legend = (LEGEND_TEXT + text + 12).max(240);
+    let bottom = LEGEND_TOP + SERIES_LINE * series.len() as i32 + NOTE_LINE * notes.len() as i32;
+    (CHART_WIDTH + legend, (bottom + 30).max(640) as u32)
 }
 
 /// The fraction as a short label: `1`, `1/2`, `1/16`, or a decimal.
@@ -145,7 +217,7 @@ fn draw<DB: DrawingBackend>(
 ) -> std::result::Result<(), String> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(err)?;
-    let (area, legend) = root.split_horizontally(760);
+    let (area, legend) = root.split_horizontally(CHART_WIDTH);
 
     // Points: (x, y, fraction) per series, errors clamped to a floor so that a zero (the
     // reference against itself) still shows on the log axis.
@@ -283,7 +355,8 @@ fn draw<DB: DrawingBackend>(
     }
 
     // The legend, drawn by hand so that the SVG has it even when no font is registered.
-    let line = |i: usize| 40 + 24 * i as i32;
+    let line = |i: usize| LEGEND_TOP + SERIES_LINE * i as i32;
+    let text_x = LEGEND_TEXT as i32;
     for (i, s) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         legend
@@ -299,7 +372,7 @@ fn draw<DB: DrawingBackend>(
             legend
                 .draw(&Text::new(
                     s.clone(),
-                    (48, line(i) - 7),
+                    (text_x, line(i) - 7),
                     (FAMILY, 14).into_font(),
                 ))
                 .map_err(err)?;
@@ -313,40 +386,11 @@ fn draw<DB: DrawingBackend>(
         ))
         .map_err(err)?;
     if text {
-        let notes = [
-            "reference self-check".to_string(),
-            format!(
-                "(dt {:.2e} s vs {:.2e} s)",
-                report.reference.check_dt, report.reference.dt
-            ),
-            String::new(),
-            "point labels: dt / stable bound".to_string(),
-            format!("bound {:.3e} s", report.dt_bound),
-            "error: worst of the sample times".to_string(),
-            format!(
-                "t = {} s",
-                report
-                    .sample_times
-                    .iter()
-                    .map(|t| format!("{t:.2e}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        ];
-        for (k, note) in notes.iter().enumerate() {
+        for (k, note) in legend_notes(report).into_iter().enumerate() {
             legend
                 .draw(&Text::new(
-                    note.clone(),
-                    (48, line(n) - 7 + 18 * k as i32),
-                    (FAMILY, 12).into_font(),
-                ))
-                .map_err(err)?;
-        }
-        if !report.skipped.is_empty() {
-            legend
-                .draw(&Text::new(
-                    "gpu rows skipped (no adapter)".to_string(),
-                    (10, line(n) + 18 * notes.len() as i32 + 10),
+                    note,
+                    (text_x, line(n) - 7 + NOTE_LINE * k as i32),
                     (FAMILY, 12).into_font(),
                 ))
                 .map_err(err)?;

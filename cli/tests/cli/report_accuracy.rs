@@ -374,6 +374,45 @@ mod plots {
         }
     }
 
+    /// The image widens to its legend's longest line (a backward Euler series of the edge
+    /// layout's float atomics is 37 characters: a fixed 240 px legend cut it off), and the
+    /// legend names what was asked for but not run, with no reason it was not given.
+    #[test]
+    fn the_legend_is_as_wide_as_its_longest_series_and_names_what_was_not_run() {
+        let mut report = report();
+        let long = "gpu-edges-atomic-float-backward-euler".to_string();
+        let first = report.rows[0].series.clone();
+        for r in report.rows.iter_mut().filter(|r| r.series == first) {
+            r.series = long.clone();
+        }
+        report.skipped.push(
+            "gpu-edges-atomic-fixed-backward-euler skipped: the fixed-point accumulation is \
+             refused under backward Euler"
+                .into(),
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let files = write_plots(&report, dir.path(), None).unwrap();
+        let svg = std::fs::read_to_string(&files.svg).unwrap();
+        let attribute = |name: &str| -> f64 {
+            let at = svg.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+            let end = at + svg[at..].find('"').unwrap();
+            svg[at..end].parse().unwrap()
+        };
+        // The chart is 760 px wide and the legend's text starts 48 px into the rest; DejaVu
+        // Sans at 14 px advances about 7.7 px a character.
+        let width = attribute("width");
+        assert!(
+            width >= 760.0 + 48.0 + 7.7 * long.len() as f64,
+            "{width} px is too narrow for {long}"
+        );
+        assert!(svg.contains(&long));
+        assert!(
+            svg.contains("gpu-edges-atomic-fixed-backward-euler"),
+            "{svg}"
+        );
+        assert!(!svg.contains("no adapter"));
+    }
+
     #[test]
     fn without_a_font_the_png_is_still_written_and_says_so() {
         let report = report();
