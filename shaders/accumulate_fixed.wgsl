@@ -1,16 +1,8 @@
 // Edge layout with fixed-point atomics, pass 1: one invocation per spring computes its force
 // and adds it, quantized, to its ends' integer accumulators (+ at `a`, - at `b`). Integer
 // addition is associative, so the sums do not depend on the order of the adds. Prepended with
-// common.wgsl and edge_spring.wgsl; the twin is
+// common.wgsl, fixed_point.wgsl and edge_spring.wgsl; the twin is
 // `twin::accumulate_fixed` (`EdgeLayout::accumulate_fixed_cpu`).
-
-// Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).
-struct FixedPoint {
-    scale: f32,       // units per newton, a power of two
-    inv_scale: f32,
-    limit: f32,       // largest |quantized component| of one spring, a power of two
-    pad: u32,
-}
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> springs: array<EdgeSpring>;
@@ -29,12 +21,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let sp = springs[s];
-    let q = round(edge_force(sp) * fx.scale);
-    let c = clamp(q, vec3<f32>(-fx.limit), vec3<f32>(fx.limit));
-    if (any(c != q)) {
+    let f = quantize(edge_force(sp), fx);
+    if (f.saturated) {
         atomicOr(&overflow[0], 1u);
     }
-    let qi = vec3<i32>(c);
+    let qi = f.q;
     atomicAdd(&acc[3u * sp.a], qi.x);
     atomicAdd(&acc[3u * sp.a + 1u], qi.y);
     atomicAdd(&acc[3u * sp.a + 2u], qi.z);

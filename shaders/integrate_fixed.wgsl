@@ -1,14 +1,6 @@
 // Edge layout with fixed-point atomics, pass 2: one invocation per node reads its accumulators
 // (force = f32(sum) * inv_scale), clears them for the next step and integrates. Prepended with
-// common.wgsl; the twin is `twin::integrate_fixed`.
-
-// Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).
-struct FixedPoint {
-    scale: f32,
-    inv_scale: f32,
-    limit: f32,
-    pad: u32,
-}
+// common.wgsl and fixed_point.wgsl; the twin is `twin::integrate_fixed`.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<uniform> fx: FixedPoint;

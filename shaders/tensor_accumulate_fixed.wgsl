@@ -4,16 +4,8 @@
 // K_aa u_a needs no term of its own: K_aa = -sum K_ab, so each record's force acts on the
 // difference u_b - u_a. The node pass is the springs' (`integrate_fixed.wgsl`). Integer
 // addition is associative: the sums do not depend on the order of the adds. Prepended with
-// common.wgsl, edge_spring.wgsl, tensor_products.wgsl and tensor_block.wgsl; the twin is `twin::tensor_atomic`
-// (`TensorBlocks::accumulate_fixed_cpu`).
-
-// Mirrors `lancet::layout::edges::FixedPoint` (16 bytes).
-struct FixedPoint {
-    scale: f32,
-    inv_scale: f32,
-    limit: f32,
-    pad: u32,
-}
+// common.wgsl, fixed_point.wgsl, edge_spring.wgsl, tensor_products.wgsl and tensor_block.wgsl;
+// the twin is `twin::tensor_atomic` (`TensorBlocks::accumulate_fixed_cpu`).
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> springs: array<EdgeSpring>;
@@ -28,12 +20,11 @@ struct FixedPoint {
 
 // Add `f`, quantized as the springs' pass quantizes, to node `i`'s accumulators.
 fn add_fixed(i: u32, f: vec3<f32>) {
-    let q = round(f * fx.scale);
-    let c = clamp(q, vec3<f32>(-fx.limit), vec3<f32>(fx.limit));
-    if (any(c != q)) {
+    let c = quantize(f, fx);
+    if (c.saturated) {
         atomicOr(&overflow[0], 1u);
     }
-    let qi = vec3<i32>(c);
+    let qi = c.q;
     atomicAdd(&acc[3u * i], qi.x);
     atomicAdd(&acc[3u * i + 1u], qi.y);
     atomicAdd(&acc[3u * i + 2u], qi.z);

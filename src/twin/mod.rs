@@ -17,8 +17,8 @@
 //! | `springs_valence` | `springs_valence.wgsl` + `node_gather.wgsl` | [`springs_valence`]: `ValenceLayout::step_cpu`, over [`node_gather::node_update`] | `tests/gpu/gpu_valence.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
 //! | `springs_edges` (gather) | `springs_edges.wgsl` + `edge_spring.wgsl` | [`springs_edges`]: `EdgeLayout::spring_forces_cpu`, over [`edge_spring::edge_force`] | `tests/gpu/gpu_edges.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
 //! | `springs_edges` (gather) | `gather_edges.wgsl` | [`gather_edges`]: `EdgeLayout::gather_cpu`, `integrate_cpu`, `step_cpu` | `tests/gpu/gpu_edges.rs`, `gpu_layouts.rs`, `gpu_patch.rs` |
-//! | `atomic_edges` (fixed point) | `accumulate_fixed.wgsl` + `edge_spring.wgsl` | [`accumulate_fixed`]: `EdgeLayout::accumulate_fixed_cpu` | `tests/gpu/gpu_edges.rs` (`edge_variant_step_equals_its_cpu_twin_on_random_inputs`, `fixed_point_overflow_sets_the_flag_the_host_reads`) |
-//! | `atomic_edges` (fixed point) | `integrate_fixed.wgsl` | [`integrate_fixed`]: `EdgeLayout::fixed_forces`, `step_fixed_cpu` | `tests/gpu/gpu_edges.rs` |
+//! | `atomic_edges` (fixed point) | `accumulate_fixed.wgsl` + `fixed_point.wgsl` + `edge_spring.wgsl` | [`accumulate_fixed`]: `EdgeLayout::accumulate_fixed_cpu` | `tests/gpu/gpu_edges.rs` (`edge_variant_step_equals_its_cpu_twin_on_random_inputs`, `fixed_point_overflow_sets_the_flag_the_host_reads`) |
+//! | `atomic_edges` (fixed point) | `integrate_fixed.wgsl` + `fixed_point.wgsl` | [`integrate_fixed`]: `EdgeLayout::fixed_forces`, `step_fixed_cpu` | `tests/gpu/gpu_edges.rs` |
 //! | `atomic_edges` (float) | `accumulate_float.wgsl` + `edge_spring.wgsl` | [`accumulate_float`]: `EdgeLayout::accumulate_float_cpu` | `tests/gpu/gpu_edges.rs` (within a tolerance: the order of the adds varies) |
 //! | `atomic_edges` (float) | `integrate_float.wgsl` | [`integrate_float`]: `EdgeLayout::step_float_cpu` | `tests/gpu/gpu_edges.rs` |
 //! | `tensor_mass` (connectivity, valence) | `tensor_gather.wgsl` + `tensor_connectivity.wgsl` or `tensor_valence.wgsl` (over `node_gather.wgsl`'s bindings) | [`tensor_mass`]: `TensorBlocks::node_forces_cpu`, `step_cpu` | `tests/gpu/gpu_tensor_mass.rs` |

@@ -16,11 +16,13 @@ use crate::layout::patch::LayoutArray;
 
 const ACCUMULATE_FIXED: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/fixed_point.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
     include_str!("../../../shaders/accumulate_fixed.wgsl")
 );
 const INTEGRATE_FIXED: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/fixed_point.wgsl"),
     include_str!("../../../shaders/integrate_fixed.wgsl")
 );
 const ACCUMULATE_FLOAT: &str = concat!(

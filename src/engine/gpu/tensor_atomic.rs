@@ -17,6 +17,7 @@ use crate::layout::edges::FixedPoint;
 
 const FIXED: &str = concat!(
     include_str!("../../../shaders/common.wgsl"),
+    include_str!("../../../shaders/fixed_point.wgsl"),
     include_str!("../../../shaders/edge_spring.wgsl"),
     include_str!("../../../shaders/tensor_products.wgsl"),
     include_str!("../../../shaders/tensor_block.wgsl"),
