@@ -74,15 +74,8 @@ const TOP: u8 = 2;
 pub(super) struct Triangular<T: Real> {
     /// `fwd[i]`: the original row of permuted row `i`.
     fwd: Vec<u32>,
-    /// Supernode `s` holds columns `begin[s]..begin[s + 1]`.
-    begin: Vec<u32>,
-    /// Supernode `s`'s rows below its diagonal block: `rows[pat[s]..pat[s + 1]]`, ascending.
-    pat: Vec<u32>,
-    rows: Vec<u32>,
-    /// Supernode `s`'s values, column major (its columns' rows, the diagonal block's first):
-    /// `l[val[s]..val[s + 1]]`.
-    val: Vec<usize>,
-    l: Vec<T>,
+    /// The factor: its supernodes' structure and values.
+    factor: Factor<T>,
     /// The supernodes of each group, ascending, and those of the top.
     groups: [Vec<u32>; 2],
     top: Vec<u32>,
@@ -91,9 +84,6 @@ pub(super) struct Triangular<T: Real> {
     acc: [Vec<T>; 2],
     /// Each thread's gathered rows below a supernode (the longest list of them).
     tmp: [Vec<T>; 2],
-    /// Whether the CPU has AVX2: the solves are compiled a second time for it (the same
-    /// operations in the same order, on wider vectors: the same bits).
-    wide: bool,
 }
 
 /// The supernodal structure of `symbolic` (`None` for a simplicial one).
@@ -145,34 +135,36 @@ impl<T: Real> Triangular<T> {
         let longest = longest.unwrap_or(0);
         Some(Triangular {
             fwd,
-            begin,
-            pat,
-            rows,
-            l: vec![T::default(); *val.last().unwrap_or(&0)],
-            val,
+            factor: Factor {
+                begin,
+                pat,
+                rows,
+                l: vec![T::default(); *val.last().unwrap_or(&0)],
+                val,
+                #[cfg(target_arch = "x86_64")]
+                wide: std::is_x86_feature_detected!("avx2"),
+                #[cfg(not(target_arch = "x86_64"))]
+                wide: false,
+            },
             groups,
             top,
             x: vec![T::default(); n],
             acc: [vec![T::default(); n], vec![T::default(); n]],
             tmp: [vec![T::default(); longest], vec![T::default(); longest]],
-            #[cfg(target_arch = "x86_64")]
-            wide: std::is_x86_feature_detected!("avx2"),
-            #[cfg(not(target_arch = "x86_64"))]
-            wide: false,
         })
     }
 
     /// Take the numeric factor's values (faer's, in float64) in this precision.
     pub(super) fn set(&mut self, values: &[f64]) {
-        for (l, v) in self.l.iter_mut().zip(values) {
+        for (l, v) in self.factor.l.iter_mut().zip(values) {
             *l = T::of(*v);
         }
     }
 
     /// The bytes the factor and its structure take.
     pub(super) fn bytes(&self) -> u64 {
-        (self.l.len() * std::mem::size_of::<T>() + (self.rows.len() + 3 * self.fwd.len()) * 4)
-            as u64
+        let f = &self.factor;
+        (f.l.len() * std::mem::size_of::<T>() + (f.rows.len() + 3 * self.fwd.len()) * 4) as u64
     }
 
     /// `out = (L L^T)^-1 b` (`b`, `out` in the original order, `b` read through `rhs(i)`).
@@ -190,27 +182,15 @@ impl<T: Real> Triangular<T> {
     /// `L y = x` in place.
     fn forward(&mut self) {
         let Triangular {
-            begin,
-            pat,
-            rows,
-            val,
-            l,
+            factor: f,
             groups,
             top,
             x,
             acc,
             tmp,
-            wide,
             ..
         } = self;
-        let f = Factor {
-            begin,
-            pat,
-            rows,
-            val,
-            l,
-            wide: *wide,
-        };
+        let f = &*f;
         let shared = Shared(x.as_mut_ptr());
         let [acc0, acc1] = acc;
         let [tmp0, tmp1] = tmp;
@@ -226,7 +206,10 @@ impl<T: Real> Triangular<T> {
         );
         let shared = Shared(x.as_mut_ptr());
         for &sn in top.iter() {
-            let (c0, c1) = (begin[sn as usize] as usize, begin[sn as usize + 1] as usize);
+            let (c0, c1) = (
+                f.begin[sn as usize] as usize,
+                f.begin[sn as usize + 1] as usize,
+            );
             for i in c0..c1 {
                 // SAFETY: one thread, and `shared` is `x`'s only pointer in use.
                 unsafe {
@@ -243,26 +226,14 @@ impl<T: Real> Triangular<T> {
     /// `L^T z = y` in place.
     fn backward(&mut self) {
         let Triangular {
-            begin,
-            pat,
-            rows,
-            val,
-            l,
+            factor: f,
             groups,
             top,
             x,
             tmp,
-            wide,
             ..
         } = self;
-        let f = Factor {
-            begin,
-            pat,
-            rows,
-            val,
-            l,
-            wide: *wide,
-        };
+        let f = &*f;
         let shared = Shared(x.as_mut_ptr());
         let [tmp0, tmp1] = tmp;
         // SAFETY: one thread.
@@ -276,13 +247,20 @@ impl<T: Real> Triangular<T> {
     }
 }
 
-/// The factor's arrays, borrowed for the solves.
-struct Factor<'a, T> {
-    begin: &'a [u32],
-    pat: &'a [u32],
-    rows: &'a [u32],
-    val: &'a [usize],
-    l: &'a [T],
+/// The factor's supernodes: their structure and values, which the solves read (the
+/// solution and scratch vectors, which they write, are [`Triangular`]'s own fields).
+struct Factor<T> {
+    /// Supernode `s` holds columns `begin[s]..begin[s + 1]`.
+    begin: Vec<u32>,
+    /// Supernode `s`'s rows below its diagonal block: `rows[pat[s]..pat[s + 1]]`, ascending.
+    pat: Vec<u32>,
+    rows: Vec<u32>,
+    /// Supernode `s`'s values, column major (its columns' rows, the diagonal block's first):
+    /// `l[val[s]..val[s + 1]]`.
+    val: Vec<usize>,
+    l: Vec<T>,
+    /// Whether the CPU has AVX2: the solves are compiled a second time for it (the same
+    /// operations in the same order, on wider vectors: the same bits).
     wide: bool,
 }
 
@@ -294,7 +272,7 @@ unsafe impl<T: Send> Send for Shared<T> {}
 // SAFETY: as above.
 unsafe impl<T: Send> Sync for Shared<T> {}
 
-impl<T: Real> Factor<'_, T> {
+impl<T: Real> Factor<T> {
     /// [`Factor::forward_one`] over `list` in order, compiled for AVX2 where the CPU has it.
     ///
     /// # Safety
