@@ -144,17 +144,16 @@ fn a_turning_blade_is_capped_on_its_swept_surface(
         "{method}: {} caps",
         caps.len()
     );
-    let worst = caps
-        .iter()
-        .map(|t| {
-            let c = t
-                .iter()
-                .map(|&v| Vector3::from(e.rest[v as usize]))
-                .sum::<Vector3<f64>>()
-                / 3.0;
-            to_sweep(&strokes, &Point3::from(c))
-        })
-        .fold(0.0, f64::max);
+    // How far a triangle's middle lies from the sweep.
+    let middle_off = |t: &[u32; 3]| {
+        let c = t
+            .iter()
+            .map(|&v| Vector3::from(e.rest[v as usize]))
+            .sum::<Vector3<f64>>()
+            / 3.0;
+        to_sweep(&strokes, &Point3::from(c))
+    };
+    let worst = caps.iter().map(|t| middle_off(t)).fold(0.0, f64::max);
     // How far the sweep leaves a plane over the cap: its added vertices from their best fit.
     let pts: Vec<Vector3<f64>> = (own..e.len()).map(|v| Vector3::from(e.rest[v])).collect();
     let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
@@ -195,17 +194,7 @@ fn a_turning_blade_is_capped_on_its_swept_surface(
         inner.len(),
         caps.len()
     );
-    let inner_worst = inner
-        .iter()
-        .map(|t| {
-            let c = t
-                .iter()
-                .map(|&v| Vector3::from(e.rest[v as usize]))
-                .sum::<Vector3<f64>>()
-                / 3.0;
-            to_sweep(&strokes, &Point3::from(c))
-        })
-        .fold(0.0, f64::max);
+    let inner_worst = inner.iter().map(|t| middle_off(t)).fold(0.0, f64::max);
     assert!(
         inner_worst < 1e-12,
         "{method}: a cap triangle off the rim {inner_worst} m off the sweep"
