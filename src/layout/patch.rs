@@ -232,3 +232,22 @@ pub fn row_size_class(needed: u32) -> u32 {
 pub fn incidence_room(needed: u32) -> u32 {
     (needed + 4).div_ceil(4) * 4
 }
+
+/// Write `list` as the row `row` (`[start, end)` into `data`) of a table of rows: in its old
+/// place when it fits there, else appended (its old place left as a hole for the next
+/// compaction). Returns the range written (empty for an empty list), for the patch's upload.
+pub(crate) fn rewrite_row(row: &mut [u32; 2], data: &mut Vec<u32>, list: &[u32]) -> Range<u32> {
+    let [start, end] = *row;
+    let at = if list.len() <= (end - start) as usize {
+        start
+    } else {
+        data.len() as u32
+    };
+    let stop = at + list.len() as u32;
+    if stop as usize > data.len() {
+        data.resize(stop as usize, 0);
+    }
+    data[at as usize..stop as usize].copy_from_slice(list);
+    *row = [at, stop];
+    at..stop
+}

@@ -19,6 +19,7 @@ use std::ops::Range;
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
+use super::patch::rewrite_row;
 use super::tensor_blocks::slot_walk;
 use super::tet_table::TetTable;
 use super::PackedLayout;
@@ -136,21 +137,10 @@ impl TetPairs {
         }
         let mut patch = PairsPatch::default();
         for (slot, list) in lists {
-            let [start, end] = self.rows[slot];
-            let at = if list.len() <= (end - start) as usize {
-                start
-            } else {
-                self.pairs.len() as u32
-            };
-            let stop = at + list.len() as u32;
-            if stop as usize > self.pairs.len() {
-                self.pairs.resize(stop as usize, 0);
-            }
-            self.pairs[at as usize..stop as usize].copy_from_slice(&list);
-            self.rows[slot] = [at, stop];
+            let written = rewrite_row(&mut self.rows[slot], &mut self.pairs, &list);
             patch.slots.push(slot as u32);
-            if stop > at {
-                patch.pairs.push(at..stop);
+            if !written.is_empty() {
+                patch.pairs.push(written);
             }
         }
         patch.pairs.sort_unstable_by_key(|r| r.start);

@@ -12,6 +12,7 @@
 //! ([`crate::physics::linear_tet`]), without storing its 144 entries. The pass and its twin are
 //! `shaders/corotational_tets.wgsl` and [`crate::twin::corotational`].
 
+use super::patch::rewrite_row;
 use crate::model::corner_set;
 use crate::physics::TetElement;
 
@@ -245,21 +246,10 @@ impl TetTable {
         };
         for (n, mut l) in lists {
             l.sort_unstable();
-            let [start, end] = self.rows[n as usize];
-            let at = if l.len() <= (end - start) as usize {
-                start
-            } else {
-                self.incidence.len() as u32
-            };
-            let stop = at + l.len() as u32;
-            if stop as usize > self.incidence.len() {
-                self.incidence.resize(stop as usize, 0);
-            }
-            self.incidence[at as usize..stop as usize].copy_from_slice(&l);
-            self.rows[n as usize] = [at, stop];
+            let written = rewrite_row(&mut self.rows[n as usize], &mut self.incidence, &l);
             patch.nodes.push(n);
-            if stop > at {
-                patch.incidence.push(at..stop);
+            if !written.is_empty() {
+                patch.incidence.push(written);
             }
         }
         patch.incidence.sort_unstable_by_key(|r| r.start);
