@@ -45,8 +45,9 @@ fn engine(model: &PackedModel, config: SimConfig) -> Option<GpuEngine> {
     Some(GpuEngine::with_context(ctx, model, config, options(Accumulation::AtomicFloat)).unwrap())
 }
 
-/// The largest coordinate difference of `a` and `b`, and of `a` and `start`.
-fn apart(a: &[[f64; 3]], b: &[[f64; 3]], start: &[[f64; 3]]) -> (f64, f64) {
+/// The largest coordinate difference of `a` and `b`, and of `a` and `start` (also for the
+/// finite elements' atomic steps, `gpu_implicit_atomic_fem.rs`).
+pub(crate) fn apart(a: &[[f64; 3]], b: &[[f64; 3]], start: &[[f64; 3]]) -> (f64, f64) {
     let most = |p: &[[f64; 3]], q: &[[f64; 3]]| {
         p.iter()
             .zip(q)

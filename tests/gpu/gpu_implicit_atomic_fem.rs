@@ -6,6 +6,7 @@
 //! gather variant and the float64 reference within the springs' bar
 //! (`gpu_implicit_atomic.rs`), and a cut engine steps as a rebuilt one.
 
+use crate::gpu_implicit_atomic::apart;
 use crate::{common, gpu_corotational as corot, gpu_tensor_mass as tensor};
 use lancet::engine::gpu::GpuEngine;
 use lancet::engine::{
@@ -169,17 +170,6 @@ fn the_atomic_corotational_implicit_step_follows_its_twin() {
         iterations.push(s.iterations);
     }
     assert_follows(&mut gpu, &start, &state, &iterations, "corotational");
-}
-
-/// The largest coordinate difference of `a` and `b`, and of `a` and `start`.
-fn apart(a: &[[f64; 3]], b: &[[f64; 3]], start: &[[f64; 3]]) -> (f64, f64) {
-    let most = |p: &[[f64; 3]], q: &[[f64; 3]]| {
-        p.iter()
-            .zip(q)
-            .flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).abs()))
-            .fold(0.0, f64::max)
-    };
-    (most(a, b), most(a, start))
 }
 
 /// Twenty steps at ten times the explicit bound, damped, under gravity, follow the float64
