@@ -879,7 +879,44 @@ fn a_huge_declared_count_fails_cleanly_without_allocating_it() {
     let mut bytes = write_v41(&sample(), Some(8));
     let at = offset_of(&bytes, b"$Nodes\n") + b"$Nodes\n".len();
     bytes[at + 8..at + 16].copy_from_slice(&u64::MAX.to_le_bytes());
-    assert!(load(&bytes).is_err());
+    assert!(parse_error(&bytes).contains("the header declares 18446744073709551615"));
+}
+
+/// A binary block whose count the rest of the file cannot hold is refused at its header, with
+/// the count, instead of reading its records from what follows (which met a misread tag or an
+/// undefined node and hid the cause).
+#[rstest]
+#[case::gmsh41_nodes(b"$Nodes\n", 32 + 12, "node block 1 of 2 declares 1000000 nodes")]
+#[case::gmsh41_elements(b"$Elements\n", 32 + 12, "element block 1 of 4 declares 1000000 elements")]
+fn a_binary_block_larger_than_the_file_names_its_count(
+    #[case] section: &[u8],
+    #[case] count_at: usize,
+    #[case] expected: &str,
+) {
+    let mut bytes = write_v41(&sample(), Some(8));
+    let at = offset_of(&bytes, section) + section.len();
+    bytes[at + count_at..at + count_at + 8].copy_from_slice(&1_000_000u64.to_le_bytes());
+    let msg = parse_error(&bytes);
+    assert!(msg.contains(&format!("byte {}", at + 32)), "{msg}");
+    assert!(msg.contains(expected), "{msg}");
+    assert!(msg.contains("impossible for the file size"), "{msg}");
+}
+
+#[test]
+fn a_gmsh22_binary_element_block_larger_than_the_file_names_its_count() {
+    let mut bytes = write_v22(&sample(), Some(false));
+    let at = offset_of(&bytes, b"$Elements\n53\n") + b"$Elements\n53\n".len();
+    // Both counts large, so that the block is within the section's count but not the file.
+    let count = offset_of(&bytes, b"$Elements\n") + b"$Elements\n".len();
+    bytes.splice(count..at - 1, b"9000000".iter().copied());
+    let at = offset_of(&bytes, b"$Elements\n9000000\n") + b"$Elements\n9000000\n".len();
+    bytes[at + 4..at + 8].copy_from_slice(&9_000_000i32.to_le_bytes());
+    let msg = parse_error(&bytes);
+    assert!(msg.contains(&format!("byte {at}")), "{msg}");
+    assert!(
+        msg.contains("element block declares 9000000 elements"),
+        "{msg}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
