@@ -152,6 +152,8 @@ impl World {
             couplings: Vec::new(),
             #[cfg(feature = "cut")]
             cutting: None,
+            // A unit struct without the `collide` feature.
+            #[allow(clippy::default_constructed_unit_structs)]
             contact: contact::ContactPhase::default(),
             surface_given: false,
         }

@@ -336,7 +336,10 @@ impl Simulation {
         config: SimConfig,
         gpu: GpuOptions,
     ) -> Result<Self> {
-        Self::build(model, kind, config, gpu, HostDevice::default())
+        // A unit struct without the `gpu` feature, a struct with fields with it.
+        #[allow(clippy::default_constructed_unit_structs)]
+        let host = HostDevice::default();
+        Self::build(model, kind, config, gpu, host)
     }
 
     /// [`Simulation::with_gpu`], GPU engines made on the host's device if `host` has one.
