@@ -4,6 +4,7 @@
 //! machine); each module is one behaviour, named as the file it was.
 
 mod features;
+mod gmsh_writers;
 mod io_bombs;
 mod io_duplicates;
 mod io_formats;

@@ -7,6 +7,7 @@
 mod common;
 
 mod cli;
+mod cli_bench;
 mod cli_report_accuracy;
 mod cli_summary;
 mod cut_time_step;
