@@ -15,9 +15,9 @@ pub(crate) struct Sample {
     pub(crate) line: [usize; 2],
 }
 
-pub(crate) const TET_ID0: u64 = 100;
-pub(crate) const TRI_ID0: u64 = 500;
-pub(crate) const LINE_ID: u64 = 900;
+const TET_ID0: u64 = 100;
+const TRI_ID0: u64 = 500;
+const LINE_ID: u64 = 900;
 pub(crate) const TRI_TAG: i32 = 7;
 
 pub(crate) fn sample() -> Sample {
@@ -59,7 +59,7 @@ pub(crate) fn sample() -> Sample {
     }
 }
 
-pub(crate) fn i32_bytes(v: i32, big: bool) -> [u8; 4] {
+fn i32_bytes(v: i32, big: bool) -> [u8; 4] {
     if big {
         v.to_be_bytes()
     } else {
@@ -67,7 +67,7 @@ pub(crate) fn i32_bytes(v: i32, big: bool) -> [u8; 4] {
     }
 }
 
-pub(crate) fn f64_bytes(v: f64, big: bool) -> [u8; 8] {
+fn f64_bytes(v: f64, big: bool) -> [u8; 8] {
     if big {
         v.to_be_bytes()
     } else {
@@ -148,7 +148,7 @@ pub(crate) fn write_v22(s: &Sample, binary: Option<bool>) -> Vec<u8> {
 }
 
 /// Where a Gmsh 4.1 writer puts values: space-separated lines, or binary with a given size_t.
-pub(crate) struct Sink {
+struct Sink {
     out: Vec<u8>,
     /// `None` for ascii; the width of size_t for binary.
     size_t: Option<usize>,

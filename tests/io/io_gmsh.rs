@@ -556,18 +556,29 @@ fn a_huge_declared_count_fails_cleanly_without_allocating_it() {
 /// the count, instead of reading its records from what follows (which met a misread tag or an
 /// undefined node and hid the cause).
 #[rstest]
-#[case::gmsh41_nodes(b"$Nodes\n", 32 + 12, "node block 1 of 2 declares 1000000 nodes")]
-#[case::gmsh41_elements(b"$Elements\n", 32 + 12, "element block 1 of 4 declares 1000000 elements")]
+#[case::gmsh41_nodes(b"$Nodes\n", 32, 12, "node block 1 of 2 declares 1000000 nodes")]
+#[case::gmsh41_elements(
+    b"$Elements\n",
+    32,
+    12,
+    "element block 1 of 4 declares 1000000 elements"
+)]
+#[case::gmsh41_node_blocks(b"$Nodes\n", 0, 0, "$Nodes declares 1000000 entity blocks")]
+#[case::gmsh41_element_blocks(b"$Elements\n", 0, 0, "$Elements declares 1000000 entity blocks")]
 fn a_binary_block_larger_than_the_file_names_its_count(
     #[case] section: &[u8],
-    #[case] count_at: usize,
+    #[case] record: usize,
+    #[case] count_in_record: usize,
     #[case] expected: &str,
 ) {
     let mut bytes = write_v41(&sample(), Some(8));
-    let at = offset_of(&bytes, section) + section.len();
-    bytes[at + count_at..at + count_at + 8].copy_from_slice(&1_000_000u64.to_le_bytes());
+    // The record's offset in the section (the section header is 32 bytes) and the count's in
+    // the record.
+    let at = offset_of(&bytes, section) + section.len() + record;
+    let count = at + count_in_record;
+    bytes[count..count + 8].copy_from_slice(&1_000_000u64.to_le_bytes());
     let msg = parse_error(&bytes);
-    assert!(msg.contains(&format!("byte {}", at + 32)), "{msg}");
+    assert!(msg.contains(&format!("byte {at}")), "{msg}");
     assert!(msg.contains(expected), "{msg}");
     assert!(msg.contains("impossible for the file size"), "{msg}");
 }
@@ -575,9 +586,10 @@ fn a_binary_block_larger_than_the_file_names_its_count(
 #[test]
 fn a_gmsh22_binary_element_block_larger_than_the_file_names_its_count() {
     let mut bytes = write_v22(&sample(), Some(false));
-    let at = offset_of(&bytes, b"$Elements\n53\n") + b"$Elements\n53\n".len();
-    // Both counts large, so that the block is within the section's count but not the file.
+    // The section's count raised too, so that the block passes the check against it (which
+    // names the elements that remain) and meets the one against the file's size.
     let count = offset_of(&bytes, b"$Elements\n") + b"$Elements\n".len();
+    let at = offset_of(&bytes, b"$Elements\n53\n") + b"$Elements\n53\n".len();
     bytes.splice(count..at - 1, b"9000000".iter().copied());
     let at = offset_of(&bytes, b"$Elements\n9000000\n") + b"$Elements\n9000000\n".len();
     bytes[at + 4..at + 8].copy_from_slice(&9_000_000i32.to_le_bytes());
@@ -587,6 +599,7 @@ fn a_gmsh22_binary_element_block_larger_than_the_file_names_its_count() {
         msg.contains("element block declares 9000000 elements"),
         "{msg}"
     );
+    assert!(msg.contains("impossible for the file size"), "{msg}");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -307,10 +307,10 @@ fn capacity(count: u64, bytes_left: usize, item_bytes: usize) -> usize {
 /// Refuse a binary block of `n` records of at least `each` bytes that the bytes left cannot
 /// hold: read on, its records would be taken from whatever follows, and the error they met (a
 /// misread tag or node id) would hide the cause.
-fn check_block(src: &dyn Source, what: std::fmt::Arguments, n: u64, each: usize) -> Result<()> {
+fn check_block(src: &dyn Source, what: std::fmt::Arguments, n: u64, each: u64) -> Result<()> {
     // `what` names the block and its records: "node block 2 of 3 declares {n} nodes".
     let left = src.bytes_left() as u64;
-    if n.saturating_mul(each as u64) <= left {
+    if n.saturating_mul(each) <= left {
         return Ok(());
     }
     Err(src.error(

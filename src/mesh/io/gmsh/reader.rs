@@ -218,14 +218,9 @@ impl<'a> Reader<'a> {
             let etype = src.int32("element type", None)?;
             let follow = src.int("number of elements in the block", None)?;
             let ntags = src.int("number of tags", None)?;
-            if element_type(etype).is_none() {
+            let Some((nodes, _, name)) = element_type(etype) else {
                 return Err(unknown_binary_type(&src, etype));
-            }
-            if let (true, Some((nodes, _, name))) = (ntags >= 0, element_type(etype)) {
-                let what = format_args!("element block declares {follow} elements ({name})");
-                let each = 4 * (1 + ntags as usize + nodes);
-                check_block(&src, what, follow.max(0) as u64, each)?;
-            }
+            };
             if follow <= 0 || ntags < 0 || follow as u64 > count - read {
                 return Err(src.error(
                     None,
@@ -237,6 +232,11 @@ impl<'a> Reader<'a> {
                     "the block header is damaged; export the file again",
                 ));
             }
+            // An int id, the tags and the nodes, four bytes each.
+            let each = 4 * (1 + ntags as u64 + nodes as u64);
+            let what =
+                format_args!("element block declares {follow} elements ({name}) with {ntags} tags");
+            check_block(&src, what, follow as u64, each)?;
             for _ in 0..follow {
                 src.begin(format_args!("element"))?;
                 let id = src.int("element id", None)?;
@@ -301,6 +301,11 @@ impl<'a> Reader<'a> {
         src.size("minimum node tag", None)?;
         src.size("maximum node tag", None)?;
         src.end(None)?;
+        if let Some(w) = src.size_width() {
+            // A block header: dimension, entity and type or flag (ints), and a count (size_t).
+            let what = format_args!("$Nodes declares {blocks} entity blocks");
+            check_block(src, what, blocks, 12 + w as u64)?;
+        }
         self.reserve_points(declared, src.bytes_left());
         let mut total: u64 = 0;
         let mut tags = Vec::new();
@@ -324,7 +329,7 @@ impl<'a> Reader<'a> {
             // Parametric coordinates follow x y z: one per dimension of the entity.
             let extra = if parametric == 1 { dim } else { 0 };
             if let Some(w) = src.size_width() {
-                let each = w + 8 * (3 + extra as usize);
+                let each = (w + 8 * (3 + extra as usize)) as u64;
                 let what = format_args!("node block {} of {blocks} declares {n} nodes", b + 1);
                 check_block(src, what, n, each)?;
             }
@@ -369,6 +374,11 @@ impl<'a> Reader<'a> {
         src.size("minimum element tag", None)?;
         src.size("maximum element tag", None)?;
         src.end(None)?;
+        if let Some(w) = src.size_width() {
+            // A block header: dimension, entity and type or flag (ints), and a count (size_t).
+            let what = format_args!("$Elements declares {blocks} entity blocks");
+            check_block(src, what, blocks, 12 + w as u64)?;
+        }
         let mut total: u64 = 0;
         for b in 0..blocks {
             src.begin(format_args!(
@@ -388,7 +398,7 @@ impl<'a> Reader<'a> {
                     "element block {} of {blocks} declares {n} elements ({name})",
                     b + 1
                 );
-                check_block(src, what, n, w * (1 + nodes))?;
+                check_block(src, what, n, (w * (1 + nodes)) as u64)?;
             }
             // The region is the entity's physical group; without one, the entity itself.
             let region = self.physical.get(&(dim, entity)).copied().unwrap_or(entity);

@@ -10,9 +10,9 @@ use crate::error::{Error, Location, Result};
 /// The cells as read: flat point lists, their starts, and where each cell was.
 #[derive(Default)]
 pub(super) struct Cells {
-    pub(super) conn: Vec<i64>,
+    conn: Vec<i64>,
     pub(super) starts: Vec<usize>,
-    pub(super) locs: Vec<Location>,
+    locs: Vec<Location>,
     pub(super) types: Vec<(i64, Location)>,
 }
 

@@ -144,7 +144,7 @@ impl Data<'_, '_> {
 }
 
 /// A big-endian integer of up to 8 bytes, sign-extended when `signed`.
-pub(super) fn be_int(bytes: &[u8], signed: bool) -> i64 {
+fn be_int(bytes: &[u8], signed: bool) -> i64 {
     let mut v: i64 = if signed && bytes.first().is_some_and(|b| b & 0x80 != 0) {
         -1
     } else {

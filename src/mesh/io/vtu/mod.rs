@@ -11,9 +11,10 @@
 
 mod decode;
 mod piece;
-mod xml;
-use xml::scan;
 mod write;
+mod xml;
+
+use xml::scan;
 
 pub(crate) use write::{is_temp_of, replace_file, write_vtu_synced};
 pub use write::{write_vtu, write_vtu_to, VtuEncoding, VtuOptions};
