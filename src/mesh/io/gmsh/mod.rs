@@ -1,9 +1,9 @@
 //! Reader for Gmsh `.msh` files: version 1 (`$NOD`/`$ELM`), 2.2 and 4.1, ASCII and binary.
 //!
-//! Tetrahedra become [`RawTet`]s with the physical group as region; triangles are kept as tagged
-//! surface elements; lines, points and quadrangles are ignored with one note per kind. Higher
-//! order tets and triangles keep their corner nodes (Gmsh lists corners first). Hexahedra,
-//! prisms and pyramids are refused: lancet simulates tetrahedra only.
+//! Tetrahedra become [`RawTet`](super::RawTet)s with the physical group as region; triangles
+//! are kept as tagged surface elements; lines, points and quadrangles are ignored with one note
+//! per kind. Higher order tets and triangles keep their corner nodes (Gmsh lists corners
+//! first). Hexahedra, prisms and pyramids are refused: lancet simulates tetrahedra only.
 //!
 //! The record layouts of ASCII and binary files are the same sequence of values (binary only
 //! fixes their widths), so the 4.1 sections and the 2.2 nodes are read once through the
