@@ -114,7 +114,7 @@ pub fn multiply_cpu(
 }
 
 /// One implicit step of the float-atomic variant on the blocks, on the CPU as its passes take
-/// it (the records and the adds in record order); `forces` as [`setup_cpu`]. Returns the next
+/// it (the records and the adds in record order); `forces` as `setup_cpu`. Returns the next
 /// displacements and velocities and the final scalars.
 pub fn implicit_step_cpu(
     p: &SolveParams,

@@ -241,7 +241,7 @@ impl CorotationalBlocks {
         Ok(self.last_patch.0)
     }
 
-    /// The bytes the last patch uploaded, and how (see [`CorotationalBlocks::patch`]).
+    /// The bytes the last patch uploaded, and how (see `CorotationalBlocks::patch`).
     pub fn last_patch(&self) -> (u64, PairsUpload) {
         self.last_patch
     }

@@ -14,7 +14,7 @@
 //! adds each record's block product to its ends (`shaders/implicit_atomic.wgsl`, twin
 //! [`crate::twin::implicit_atomic`]; the sums' rounding follows the order of the adds); the
 //! finite elements' solve there adds each record's tensor terms per end
-//! ([`super::implicit_atomic`]). The fixed-point variant is refused (the products shrink by
+//! (`implicit_atomic.rs`). The fixed-point variant is refused (the products shrink by
 //! orders of magnitude within a solve, below any one scale).
 //!
 //! With the tensor-mass force model the system's stiffness and damping are the constant 3x3
@@ -28,7 +28,7 @@
 //! [`super::corotational_implicit`]), bound in group 1 with the tet table's node rows, records
 //! and corner forces: the setup's force is those corner forces gathered
 //! (`shaders/implicit_corotational.wgsl`), the rest unchanged. The engine records the tet and
-//! block passes before the setup ([`ImplicitSolver::step`]'s prelude). Twin:
+//! block passes before the setup (`ImplicitSolver::step`'s prelude). Twin:
 //! [`crate::twin::corotational_implicit`].
 
 use bytemuck::{Pod, Zeroable};

@@ -5,7 +5,7 @@
 //! `SHADER_FLOAT32_ATOMIC`). One invocation per edge record computes its two end forces (a
 //! tensor's are not opposite, unlike a spring's) and adds each to its own end's accumulators;
 //! the node pass that reads, clears and integrates them is the springs' own
-//! ([`AtomicEdgePasses::record_nodes`]), bound to the same accumulators. The diagonal tensor
+//! (`AtomicEdgePasses::record_nodes`), bound to the same accumulators. The diagonal tensor
 //! `K_aa` needs no term: the blocks act on displacement differences
 //! (`crate::layout::tensor_blocks`). Twin: `twin::tensor_atomic`.
 
