@@ -304,23 +304,38 @@ fn capacity(count: u64, bytes_left: usize, item_bytes: usize) -> usize {
     count.min(room as u64) as usize
 }
 
-/// Refuse a binary block of `n` records of at least `each` bytes that the bytes left cannot
-/// hold: read on, its records would be taken from whatever follows, and the error they met (a
-/// misread tag or node id) would hide the cause.
-fn check_block(src: &dyn Source, what: std::fmt::Arguments, n: u64, each: u64) -> Result<()> {
-    // `what` names the block and its records: "node block 2 of 3 declares {n} nodes".
+/// Read a block of `n` records of at least `each` bytes with `read`. Where the bytes left cannot
+/// hold them, the records are read from whatever follows, and the error they meet (a misread
+/// tag or id, or the end of the data, which must come) would hide the cause: the cause is said
+/// first, then where reading on failed. `each` is `None` for ASCII, whose lines say where
+/// records end.
+fn read_block<T>(
+    src: &mut dyn Source,
+    what: std::fmt::Arguments,
+    n: u64,
+    each: Option<u64>,
+    read: impl FnOnce(&mut dyn Source) -> Result<T>,
+) -> Result<T> {
     let left = src.bytes_left() as u64;
-    if n.saturating_mul(each) <= left {
-        return Ok(());
-    }
-    Err(src.error(
-        None,
-        format!(
-            "{what}, impossible for the file size (at least {each} bytes each, \
-             {left} bytes left)"
-        ),
-        "the block's count is wrong or the file is truncated; export the mesh again",
-    ))
+    let impossible = each.filter(|&e| n.saturating_mul(e) > left);
+    read(src).map_err(|e| match (e, impossible) {
+        (Error::Parse(mut p), Some(each)) => {
+            p.message = format!(
+                "{what}, impossible for the file size (at least {each} bytes each, {left} bytes \
+                 left); reading on: {}",
+                p.message
+            );
+            p.hint = "the count is wrong or the file is truncated; export the mesh again".into();
+            Error::Parse(p)
+        }
+        (e, _) => e,
+    })
+}
+
+/// The least bytes of a binary Gmsh 4.1 entity block's header (dimension, entity, and type or
+/// parametric flag as ints, then a `size_t` count); `None` for ASCII.
+fn block_header_bytes(src: &dyn Source) -> Option<u64> {
+    src.size_width().map(|w| 12 + w as u64)
 }
 
 /// What lancet does with a Gmsh element type.

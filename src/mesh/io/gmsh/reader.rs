@@ -8,8 +8,8 @@ use super::super::text::Lines;
 use super::super::{IdMap, RawMesh, RawTet, RawTriangle};
 use super::source::{read_point, unknown_binary_type, Ascii, Binary, Source};
 use super::{
-    capacity, check_block, clip, element_type, end_marker, expect_end, expect_end_binary,
-    read_count, skip_section, Endian, Header, Kind,
+    block_header_bytes, capacity, clip, element_type, end_marker, expect_end, expect_end_binary,
+    read_block, read_count, skip_section, Endian, Header, Kind,
 };
 use crate::error::{Error, Location, Result};
 
@@ -132,37 +132,22 @@ impl<'a> Reader<'a> {
     /// and three doubles per node).
     fn nodes_v2(&mut self, lines: &mut Lines<'a>, name: &'static str) -> Result<()> {
         let count = read_count(lines, name)?;
-        // A binary node is an int and three doubles. Rows of a count the rest of the file
-        // cannot hold are read from whatever follows, and the error they meet (a misread id)
-        // would hide the cause: it is said first.
-        let row = 4 + 3 * 8;
-        let left = lines.bytes().len().saturating_sub(lines.byte_pos()) as u64;
         let binary = matches!(self.header, Header::V2 { binary: Some(_) });
-        let impossible = binary && count.saturating_mul(row) > left;
+        // A binary node is an int and three doubles.
+        let each = binary.then_some(4 + 3 * 8);
         self.with_source(lines, name, |r, src| {
-            r.reserve_points(count, src.bytes_left());
-            for i in 0..count {
-                src.begin(format_args!("node {} of {count}", i + 1))?;
-                let id = src.int("node id", None)?;
-                let p = read_point(src, id)?;
-                src.end(Some(id))?;
-                r.add_point(id, p, src.loc())?;
-            }
-            Ok(())
-        })
-        .map_err(|e| match e {
-            Error::Parse(mut p) if impossible => {
-                p.message = format!(
-                    "{name} declares {count} nodes, impossible for the file size (at least \
-                     {row} bytes each, {left} bytes left); reading on: {}",
-                    p.message
-                );
-                p.hint = "the count line is wrong or the file is truncated; export the mesh \
-                          again"
-                    .into();
-                Error::Parse(p)
-            }
-            e => e,
+            let what = format_args!("{name} declares {count} nodes");
+            read_block(src, what, count, each, |src| {
+                r.reserve_points(count, src.bytes_left());
+                for i in 0..count {
+                    src.begin(format_args!("node {} of {count}", i + 1))?;
+                    let id = src.int("node id", None)?;
+                    let p = read_point(src, id)?;
+                    src.end(Some(id))?;
+                    r.add_point(id, p, src.loc())?;
+                }
+                Ok(())
+            })
         })
     }
 
@@ -236,20 +221,22 @@ impl<'a> Reader<'a> {
             let each = 4 * (1 + ntags as u64 + nodes as u64);
             let what =
                 format_args!("element block declares {follow} elements ({name}) with {ntags} tags");
-            check_block(&src, what, follow as u64, each)?;
-            for _ in 0..follow {
-                src.begin(format_args!("element"))?;
-                let id = src.int("element id", None)?;
-                let mut region = 0;
-                for t in 0..ntags {
-                    let tag = src.int32("tag", Some(id))?;
-                    if t == 0 {
-                        region = tag;
+            read_block(&mut src, what, follow as u64, Some(each), |src| {
+                for _ in 0..follow {
+                    src.begin(format_args!("element"))?;
+                    let id = src.int("element id", None)?;
+                    let mut region = 0;
+                    for t in 0..ntags {
+                        let tag = src.int32("tag", Some(id))?;
+                        if t == 0 {
+                            region = tag;
+                        }
                     }
+                    self.element_nodes(src, etype, id, false)?;
+                    self.push_element(etype, id, region, src.loc())?;
                 }
-                self.element_nodes(&mut src, etype, id, false)?;
-                self.push_element(etype, id, region, src.loc())?;
-            }
+                Ok(())
+            })?;
             read += follow as u64;
         }
         expect_end_binary(lines, src.pos(), "$EndElements")
@@ -301,60 +288,63 @@ impl<'a> Reader<'a> {
         src.size("minimum node tag", None)?;
         src.size("maximum node tag", None)?;
         src.end(None)?;
-        if let Some(w) = src.size_width() {
-            // A block header: dimension, entity and type or flag (ints), and a count (size_t).
-            let what = format_args!("$Nodes declares {blocks} entity blocks");
-            check_block(src, what, blocks, 12 + w as u64)?;
-        }
         self.reserve_points(declared, src.bytes_left());
-        let mut total: u64 = 0;
-        let mut tags = Vec::new();
-        for b in 0..blocks {
-            src.begin(format_args!("header of node block {} of {blocks}", b + 1))?;
-            let dim = src.int32("entity dimension", None)?;
-            src.int32("entity tag", None)?;
-            let parametric = src.int32("parametric flag", None)?;
-            let n = src.size("number of nodes in the block", None)?;
-            src.end(None)?;
-            if !(0..=3).contains(&dim) || !(0..=1).contains(&parametric) {
-                return Err(src.error(
-                    None,
-                    format!(
-                        "node block has entity dimension {dim} and parametric flag \
-                         {parametric}; expected 0..3 and 0 or 1"
-                    ),
-                    "the block header is damaged; export the file again",
-                ));
-            }
-            // Parametric coordinates follow x y z: one per dimension of the entity.
-            let extra = if parametric == 1 { dim } else { 0 };
-            if let Some(w) = src.size_width() {
-                let each = (w + 8 * (3 + extra as usize)) as u64;
-                let what = format_args!("node block {} of {blocks} declares {n} nodes", b + 1);
-                check_block(src, what, n, each)?;
-            }
-            tags.clear();
-            tags.reserve(capacity(n, src.bytes_left(), 2));
-            for i in 0..n {
-                src.begin(format_args!(
-                    "tag of node {} of {n} in block {}",
-                    i + 1,
-                    b + 1
-                ))?;
-                tags.push(src.id("node tag", None)?);
+        let what = format_args!("$Nodes declares {blocks} entity blocks");
+        let header = block_header_bytes(src);
+        let total = read_block(src, what, blocks, header, |src| {
+            let mut total: u64 = 0;
+            let mut tags = Vec::new();
+            for b in 0..blocks {
+                src.begin(format_args!("header of node block {} of {blocks}", b + 1))?;
+                let dim = src.int32("entity dimension", None)?;
+                src.int32("entity tag", None)?;
+                let parametric = src.int32("parametric flag", None)?;
+                let n = src.size("number of nodes in the block", None)?;
                 src.end(None)?;
-            }
-            for &tag in &tags {
-                src.begin(format_args!("coordinates of node {tag}"))?;
-                let p = read_point(src, tag)?;
-                for _ in 0..extra {
-                    src.float("parametric coordinate", Some(tag))?;
+                if !(0..=3).contains(&dim) || !(0..=1).contains(&parametric) {
+                    return Err(src.error(
+                        None,
+                        format!(
+                            "node block has entity dimension {dim} and parametric flag \
+                             {parametric}; expected 0..3 and 0 or 1"
+                        ),
+                        "the block header is damaged; export the file again",
+                    ));
                 }
-                src.end(Some(tag))?;
-                self.add_point(tag, p, src.loc())?;
+                // Parametric coordinates follow x y z: one per dimension of the entity.
+                let extra = if parametric == 1 { dim } else { 0 };
+                // A tag, then the coordinates.
+                let each = src
+                    .size_width()
+                    .map(|w| (w + 8 * (3 + extra as usize)) as u64);
+                let what = format_args!("node block {} of {blocks} declares {n} nodes", b + 1);
+                read_block(src, what, n, each, |src| {
+                    tags.clear();
+                    tags.reserve(capacity(n, src.bytes_left(), 2));
+                    for i in 0..n {
+                        src.begin(format_args!(
+                            "tag of node {} of {n} in block {}",
+                            i + 1,
+                            b + 1
+                        ))?;
+                        tags.push(src.id("node tag", None)?);
+                        src.end(None)?;
+                    }
+                    for &tag in &tags {
+                        src.begin(format_args!("coordinates of node {tag}"))?;
+                        let p = read_point(src, tag)?;
+                        for _ in 0..extra {
+                            src.float("parametric coordinate", Some(tag))?;
+                        }
+                        src.end(Some(tag))?;
+                        self.add_point(tag, p, src.loc())?;
+                    }
+                    Ok(())
+                })?;
+                total = total.saturating_add(n);
             }
-            total = total.saturating_add(n);
-        }
+            Ok(total)
+        })?;
         if total != declared {
             return Err(src.error(
                 None,
@@ -374,43 +364,46 @@ impl<'a> Reader<'a> {
         src.size("minimum element tag", None)?;
         src.size("maximum element tag", None)?;
         src.end(None)?;
-        if let Some(w) = src.size_width() {
-            // A block header: dimension, entity and type or flag (ints), and a count (size_t).
-            let what = format_args!("$Elements declares {blocks} entity blocks");
-            check_block(src, what, blocks, 12 + w as u64)?;
-        }
-        let mut total: u64 = 0;
-        for b in 0..blocks {
-            src.begin(format_args!(
-                "header of element block {} of {blocks}",
-                b + 1
-            ))?;
-            let dim = src.int32("entity dimension", None)?;
-            let entity = src.int32("entity tag", None)?;
-            let etype = src.int32("element type", None)?;
-            let n = src.size("number of elements in the block", None)?;
-            src.end(None)?;
-            if src.left().is_none() && element_type(etype).is_none() {
-                return Err(unknown_binary_type(src, etype));
-            }
-            if let (Some(w), Some((nodes, _, name))) = (src.size_width(), element_type(etype)) {
-                let what = format_args!(
-                    "element block {} of {blocks} declares {n} elements ({name})",
+        let what = format_args!("$Elements declares {blocks} entity blocks");
+        let header = block_header_bytes(src);
+        let total = read_block(src, what, blocks, header, |src| {
+            let mut total: u64 = 0;
+            for b in 0..blocks {
+                src.begin(format_args!(
+                    "header of element block {} of {blocks}",
                     b + 1
-                );
-                check_block(src, what, n, (w * (1 + nodes)) as u64)?;
+                ))?;
+                let dim = src.int32("entity dimension", None)?;
+                let entity = src.int32("entity tag", None)?;
+                let etype = src.int32("element type", None)?;
+                let n = src.size("number of elements in the block", None)?;
+                src.end(None)?;
+                if src.left().is_none() && element_type(etype).is_none() {
+                    return Err(unknown_binary_type(src, etype));
+                }
+                // A tag and the nodes, a `size_t` each.
+                let each = src
+                    .size_width()
+                    .zip(element_type(etype))
+                    .map(|(w, (nodes, _, _))| (w * (1 + nodes)) as u64);
+                let what =
+                    format_args!("element block {} of {blocks} declares {n} elements", b + 1);
+                // The region is the entity's physical group; without one, the entity itself.
+                let region = self.physical.get(&(dim, entity)).copied().unwrap_or(entity);
+                read_block(src, what, n, each, |src| {
+                    for i in 0..n {
+                        src.begin(format_args!("element {} of {n} in block {}", i + 1, b + 1))?;
+                        let id = src.id("element tag", None)?;
+                        self.element_nodes(src, etype, id, true)?;
+                        src.end(Some(id))?;
+                        self.push_element(etype, id, region, src.loc())?;
+                    }
+                    Ok(())
+                })?;
+                total = total.saturating_add(n);
             }
-            // The region is the entity's physical group; without one, the entity itself.
-            let region = self.physical.get(&(dim, entity)).copied().unwrap_or(entity);
-            for i in 0..n {
-                src.begin(format_args!("element {} of {n} in block {}", i + 1, b + 1))?;
-                let id = src.id("element tag", None)?;
-                self.element_nodes(src, etype, id, true)?;
-                src.end(Some(id))?;
-                self.push_element(etype, id, region, src.loc())?;
-            }
-            total = total.saturating_add(n);
-        }
+            Ok(total)
+        })?;
         if total != declared {
             return Err(src.error(
                 None,
