@@ -12,6 +12,7 @@ mod models;
 #[path = "../common/splitmix.rs"]
 mod splitmix;
 
+mod cut_blade_defects;
 mod cut_fem;
 mod cut_implicit;
 mod cut_per_node_models;

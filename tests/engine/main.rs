@@ -25,5 +25,6 @@ mod fast_sliced;
 mod float32_precision;
 mod layout_edges;
 mod layout_patch;
+mod layout_regroup;
 mod layout_valence;
 mod node_order;

@@ -1,5 +1,5 @@
 //! The TetGen, Medit, Vega and legacy VTK readers: real meshes, round trips through small
-//! test-only writers, error messages, and robustness against corrupt input.
+//! test-only writers and error messages (corrupt input: `io_formats_robust.rs`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -7,7 +7,6 @@ use std::path::{Path, PathBuf};
 use lancet::mesh::generate::BoxGrid;
 use lancet::mesh::io::{self, tetgen, LoadedMesh};
 use lancet::{Error, TetMesh};
-use proptest::prelude::*;
 use rstest::rstest;
 
 // ---------------------------------------------------------------------------------------------
@@ -163,7 +162,7 @@ fn arrays(m: &TetMesh) -> Arrays {
     (pts, tets)
 }
 
-fn write_tetgen(m: &TetMesh, base: u32) -> (String, String) {
+pub(crate) fn write_tetgen(m: &TetMesh, base: u32) -> (String, String) {
     let (pts, tets) = arrays(m);
     let mut node = format!("# test mesh\n{} 3 0 0\n", pts.len());
     for (i, p) in pts.iter().enumerate() {
@@ -177,7 +176,7 @@ fn write_tetgen(m: &TetMesh, base: u32) -> (String, String) {
     (node, ele)
 }
 
-fn write_medit(m: &TetMesh) -> String {
+pub(crate) fn write_medit(m: &TetMesh) -> String {
     let (pts, tets) = arrays(m);
     // Counts on the next line, a comment, and skipped sections: all legal.
     let mut s = format!(
@@ -196,7 +195,7 @@ fn write_medit(m: &TetMesh) -> String {
     s + "End\n"
 }
 
-fn write_vega(m: &TetMesh) -> String {
+pub(crate) fn write_vega(m: &TetMesh) -> String {
     let (pts, tets) = arrays(m);
     let mut s = format!("# vega\n*VERTICES\n{} 3 0 0\n", pts.len());
     for (i, p) in pts.iter().enumerate() {
@@ -210,7 +209,7 @@ fn write_vega(m: &TetMesh) -> String {
     s + "\n*MATERIAL soft\nENU, 1100, 5000, 0.4\n\n*SET first\n1, 2,\n3\n\n*REGION\nfirst, soft\n"
 }
 
-fn write_vtk_ascii(m: &TetMesh) -> String {
+pub(crate) fn write_vtk_ascii(m: &TetMesh) -> String {
     let (pts, tets) = arrays(m);
     let mut s = format!(
         "# vtk DataFile Version 4.2\ntest\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
@@ -243,7 +242,7 @@ fn write_vtk_ascii(m: &TetMesh) -> String {
     s
 }
 
-fn write_vtk_binary(m: &TetMesh) -> Vec<u8> {
+pub(crate) fn write_vtk_binary(m: &TetMesh) -> Vec<u8> {
     let (pts, tets) = arrays(m);
     let mut b = format!(
         "# vtk DataFile Version 3.0\ntest\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {} float\n",
@@ -280,7 +279,7 @@ fn write_vtk_binary(m: &TetMesh) -> Vec<u8> {
     b
 }
 
-fn write_vtk51(m: &TetMesh) -> String {
+pub(crate) fn write_vtk51(m: &TetMesh) -> String {
     let (pts, tets) = arrays(m);
     let mut s = format!(
         "# vtk DataFile Version 5.1\ntest\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
@@ -498,7 +497,8 @@ const NODE4: &str = "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n";
 const MEDIT_HEAD: &str =
     "MeshVersionFormatted 1\nDimension 3\nVertices 4\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n";
 const VEGA_HEAD: &str = "*VERTICES\n4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n";
-const VTK_HEAD: &str = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\n";
+pub(crate) const VTK_HEAD: &str =
+    "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\n";
 
 #[rstest]
 #[case::tetgen_truncated_node_file(
@@ -703,123 +703,6 @@ fn truncated_binary_vtk_names_the_byte_where_data_ran_out() {
         shown.contains("binary data ends before coordinate"),
         "{shown}"
     );
-}
-
-// ---------------------------------------------------------------------------------------------
-// Robustness: arbitrary and corrupted input never panics
-
-/// A valid small file of each format, as bytes (`tetgen` as `node|ele`).
-fn valid(format: &str) -> Vec<u8> {
-    let m = BoxGrid::cube_cells([1, 1, 1], 0.5).build().unwrap();
-    match format {
-        "tetgen" => {
-            let (n, e) = write_tetgen(&m, 0);
-            format!("{n}|{e}").into_bytes()
-        }
-        "mesh" => write_medit(&m).into_bytes(),
-        "veg" => write_vega(&m).into_bytes(),
-        "vtk" => write_vtk_ascii(&m).into_bytes(),
-        "vtkbin" => write_vtk_binary(&m),
-        "vtk51" => write_vtk51(&m).into_bytes(),
-        _ => unreachable!(),
-    }
-}
-
-/// Apply byte mutations and a truncation to `bytes`.
-fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8)], cut: usize) -> Vec<u8> {
-    for &(at, b) in edits {
-        if !bytes.is_empty() {
-            let i = at % bytes.len();
-            bytes[i] = b;
-        }
-    }
-    // Half of the cases keep the whole file, so that the edits are seen deep inside it.
-    if cut % 2 == 1 {
-        bytes.truncate(cut / 2 % (bytes.len() + 1));
-    }
-    bytes
-}
-
-/// Run a reader on bytes; any result is fine, a panic is not.
-fn survive(format: &str, bytes: &[u8]) {
-    let (ext, bytes) = match format {
-        "vtkbin" | "vtk51" => ("vtk", bytes.to_vec()),
-        "tetgen" if !bytes.contains(&b'|') => {
-            let _ = tetgen::parse(bytes, bytes, Path::new("f.node"), Path::new("f.ele"));
-            return;
-        }
-        "tetgen" => {
-            let i = bytes.iter().position(|&b| b == b'|').unwrap();
-            let _ = tetgen::parse(
-                &bytes[..i],
-                &bytes[i + 1..],
-                Path::new("f.node"),
-                Path::new("f.ele"),
-            )
-            .and_then(|r| r.finish(Path::new("f.ele")));
-            return;
-        }
-        f => (f, bytes.to_vec()),
-    };
-    let _ = io::read_bytes(&bytes, ext, Path::new("f"));
-}
-
-fn edits() -> impl Strategy<Value = Vec<(usize, u8)>> {
-    // Bias replacement bytes toward characters that change meaning in these formats.
-    let byte = prop_oneof![
-        any::<u8>(),
-        prop::sample::select(b"0123456789-+.eE \n*,#|9".to_vec()),
-    ];
-    prop::collection::vec((any::<usize>(), byte), 0..6)
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
-
-    #[test]
-    fn tetgen_reader_never_panics_on_arbitrary_or_corrupted_input(
-        junk in prop::collection::vec(any::<u8>(), 0..400),
-        e in edits(),
-        cut in any::<usize>(),
-    ) {
-        survive("tetgen", &junk);
-        survive("tetgen", &mutate(valid("tetgen"), &e, cut));
-    }
-
-    #[test]
-    fn medit_reader_never_panics_on_arbitrary_or_corrupted_input(
-        junk in prop::collection::vec(any::<u8>(), 0..400),
-        e in edits(),
-        cut in any::<usize>(),
-    ) {
-        survive("mesh", &junk);
-        survive("mesh", &mutate(valid("mesh"), &e, cut));
-    }
-
-    #[test]
-    fn vega_reader_never_panics_on_arbitrary_or_corrupted_input(
-        junk in prop::collection::vec(any::<u8>(), 0..400),
-        e in edits(),
-        cut in any::<usize>(),
-    ) {
-        survive("veg", &junk);
-        survive("veg", &mutate(valid("veg"), &e, cut));
-    }
-
-    #[test]
-    fn vtk_legacy_reader_never_panics_on_arbitrary_or_corrupted_input(
-        junk in prop::collection::vec(any::<u8>(), 0..400),
-        e in edits(),
-        cut in any::<usize>(),
-    ) {
-        let mut headed = VTK_HEAD.as_bytes().to_vec();
-        headed.extend(&junk);
-        survive("vtk", &junk);
-        survive("vtk", &headed);
-        survive("vtk", &mutate(valid("vtk"), &e, cut));
-        survive("vtkbin", &mutate(valid("vtkbin"), &e, cut));
-        survive("vtk51", &mutate(valid("vtk51"), &e, cut));
-    }
 }
 
 #[rstest]

@@ -8,6 +8,7 @@ mod gmsh_writers;
 mod io_bombs;
 mod io_duplicates;
 mod io_formats;
+mod io_formats_robust;
 mod io_gmsh;
 mod io_messages;
 mod io_vtu;

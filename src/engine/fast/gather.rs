@@ -42,7 +42,14 @@ unsafe fn rows4(rows: &[P], idx: &[u32; LANES]) -> [__m256; 4] {
     let a1 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(1)), row(5));
     let a2 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(2)), row(6));
     let a3 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(3)), row(7));
-    // A 4x4 transpose in each 128-bit half.
+    transpose4([a0, a1, a2, a3])
+}
+
+/// Rows `[r_l | r_{l+4}]` for `l = 0..4` (two rows of four floats a register) as their x, y, z
+/// and w across eight lanes: a 4x4 transpose in each 128-bit half.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn transpose4([a0, a1, a2, a3]: [__m256; 4]) -> [__m256; 4] {
     let t0 = _mm256_unpacklo_ps(a0, a1); // x0 x1 y0 y1 | x4 x5 y4 y5
     let t1 = _mm256_unpackhi_ps(a0, a1); // z0 z1 w0 w1 | z4 z5 w4 w5
     let t2 = _mm256_unpacklo_ps(a2, a3); // x2 x3 y2 y3 | x6 x7 y6 y7
@@ -53,6 +60,19 @@ unsafe fn rows4(rows: &[P], idx: &[u32; LANES]) -> [__m256; 4] {
         _mm256_shuffle_ps::<0x44>(t1, t3),
         _mm256_shuffle_ps::<0xEE>(t1, t3),
     ]
+}
+
+/// [`rows4`] of the eight consecutive rows from `start`, without reading their indices.
+///
+/// # Safety
+/// The CPU has AVX2 and FMA, and `start + 8 <= rows.len()`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows4_at(rows: &[P], start: usize) -> [__m256; 4] {
+    // SAFETY: the caller's; a row is four floats.
+    let row = |l: usize| unsafe { _mm_loadu_ps(rows.as_ptr().add(start + l) as *const f32) };
+    let pair = |l: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4));
+    transpose4([pair(0), pair(1), pair(2), pair(3)])
 }
 
 /// Store the eight lanes of `v` (x, y, z, w) as the rows `out[0..out.len()]` (eight at most:
@@ -71,6 +91,18 @@ fn store_rows(v: [__m256; 4], out: &mut [P]) {
         _mm256_shuffle_ps::<0x44>(t1, t3),
         _mm256_shuffle_ps::<0xEE>(t1, t3),
     ];
+    if out.len() == LANES {
+        // A full slice: straight into `out`.
+        let o = out.as_mut_ptr() as *mut f32;
+        for (l, p) in pairs.into_iter().enumerate() {
+            // SAFETY: `out` holds eight rows of four f32.
+            unsafe {
+                _mm_storeu_ps(o.add(4 * l), _mm256_castps256_ps128(p));
+                _mm_storeu_ps(o.add(4 * (l + 4)), _mm256_extractf128_ps::<1>(p));
+            }
+        }
+        return;
+    }
     let mut rows = [[0.0f32; 4]; LANES];
     for (l, p) in pairs.into_iter().enumerate() {
         // SAFETY: each row is four f32.
@@ -192,25 +224,47 @@ pub(super) unsafe fn block<const DAMPED: bool, const UNIFORM: bool, const VERLET
     for (k, (xo, so)) in xo.chunks_mut(LANES).zip(so.chunks_mut(LANES)).enumerate() {
         let b = start / LANES + k;
         let base = b * LANES;
-        // Lanes past the last node read the last node: their results are never stored.
-        let own: [u32; LANES] = std::array::from_fn(|l| (base + l).min(last) as u32);
-        // SAFETY: `own` is clamped into `x` and `s` (the caller guarantees their lengths).
-        let (xi, si) = unsafe { (rows4(x, &own), rows4(s, &own)) };
+        // A full slice reads its rows, masses and flags as the eight consecutive entries
+        // they are; only the last, partial one gathers them lane by lane.
+        let full = xo.len() == LANES;
+        let (xi, si) = if full {
+            // SAFETY: a full slice's eight rows are within `x` and `s`.
+            unsafe { (rows4_at(x, base), rows4_at(s, base)) }
+        } else {
+            // Lanes past the last node read the last node: their results are never stored.
+            let own: [u32; LANES] = std::array::from_fn(|l| (base + l).min(last) as u32);
+            // SAFETY: `own` is clamped into `x` and `s` (the caller guarantees their lengths).
+            unsafe { (rows4(x, &own), rows4(s, &own)) }
+        };
         let w_scale = if VERLET { p.inv_h } else { 1.0 };
         // SAFETY: as above; slice `b` exists since its nodes are being stepped.
         let f = unsafe { slice_forces::<DAMPED, UNIFORM>(sl, x, s, b, w_scale, &xi, &si) };
-        let mut inv_mass = [0.0f32; LANES];
-        let mut fixed = [0i32; LANES];
-        for l in 0..xo.len() {
-            inv_mass[l] = g.inv_mass[base + l];
-            fixed[l] = -(g.fixed[base + l] as i32);
-        }
-        // SAFETY: eight f32 and eight i32.
-        let (m, fixed) = unsafe {
-            (
-                _mm256_loadu_ps(inv_mass.as_ptr()),
-                _mm256_castsi256_ps(_mm256_loadu_si256(fixed.as_ptr() as *const __m256i)),
-            )
+        let (m, fixed) = if full {
+            let (m, f) = (
+                &g.inv_mass[base..base + LANES],
+                &g.fixed[base..base + LANES],
+            );
+            // SAFETY: eight f32; eight `bool`s (a byte each, 0 or 1) widened to a lane each
+            // and compared with 0 into the all-ones mask of a fixed node.
+            unsafe {
+                let f = _mm256_cvtepu8_epi32(_mm_loadl_epi64(f.as_ptr() as *const __m128i));
+                let f = _mm256_cmpgt_epi32(f, _mm256_setzero_si256());
+                (_mm256_loadu_ps(m.as_ptr()), _mm256_castsi256_ps(f))
+            }
+        } else {
+            let mut inv_mass = [0.0f32; LANES];
+            let mut fixed = [0i32; LANES];
+            for l in 0..xo.len() {
+                inv_mass[l] = g.inv_mass[base + l];
+                fixed[l] = -(g.fixed[base + l] as i32);
+            }
+            // SAFETY: eight f32 and eight i32.
+            unsafe {
+                (
+                    _mm256_loadu_ps(inv_mass.as_ptr()),
+                    _mm256_castsi256_ps(_mm256_loadu_si256(fixed.as_ptr() as *const __m256i)),
+                )
+            }
         };
         // The new second state and the step, axis by axis, in the portable kernels' order.
         let mut s_new = [_mm256_setzero_ps(); 4];
