@@ -134,9 +134,10 @@ impl Cutter {
                 .filter(|(_, w)| !had.contains(w))
                 .map(|(n, _)| n)
                 .collect();
-            // All the family's sub-tets carry its parent's mass per volume: the new ones take
-            // it, so the gone ones' mass passes to them whatever the region's mass model.
-            let density = self.model.mass_density(&self.mesh, &old);
+            // All the family's sub-tets carry its parent's mass and `sum k l^2` per volume: the
+            // new ones take them, so the gone ones' mass and springs pass to them whatever the
+            // region's mass and spring models.
+            let density = self.model.split_density(&self.mesh, &old);
             plans.push(Resubdivision {
                 family: f,
                 kept,
@@ -222,7 +223,7 @@ struct Resubdivision {
     kept: Vec<TetKey>,
     gone: Vec<TetKey>,
     fresh: Vec<[NodeKey; 4]>,
-    density: Option<f64>,
+    density: Option<crate::model::SplitDensity>,
 }
 
 /// The parents a cut subdivides anew, and the families it ends.

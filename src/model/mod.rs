@@ -101,6 +101,22 @@ pub struct TetShare {
     pub mass: [f64; 4],
 }
 
+/// What the tets a cut splits held per unit of their rest volume, which the sub-tets that
+/// replace them take ([`SpringModel::split_density`], [`SpringModel::add_split_tet`]): the
+/// sub-tets of a parent then carry exactly its mass, and exactly its springs' `sum k l^2` (the
+/// energy a uniform stretch stores in them), whatever the region's mass and spring models.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplitDensity {
+    /// Mass per rest volume, kg/m^3: `mass V / 4` to each corner of a sub-tet.
+    pub mass: f64,
+    /// `sum k l^2 / (6 V)` over the parents' edge shares, N/m^2: a sub-tet's edge of rest
+    /// length `l` takes `stiffness V / l^2` where its region gives stiffness per spring
+    /// ([`Stiffness::Spring`]); a material stiffness keeps its own rule, which is this one.
+    pub stiffness: f64,
+    /// The same for damping given per spring ([`SpringDamping::Absolute`]), N s/m^2.
+    pub damping: f64,
+}
+
 /// The mass-spring model of a mesh, keyed by stable identities.
 #[derive(Debug, Clone)]
 pub struct SpringModel {
@@ -240,16 +256,17 @@ impl SpringModel {
     /// hold each of its corners (`at_node`, in corner order) and each of its edges (`at_edge`,
     /// in [`TET_EDGES`] order), counting this one: the "per node" and "per spring" values are
     /// split equally among them. Arrays rather than maps, because adding one tet to a large
-    /// model must not cost a map sized to the model. With `parent_density` (kg/m^3, a tet
-    /// split from a parent of that mass per rest volume), a "per node" region's tet gives
-    /// `parent_density V / 4` to each corner instead, so that splitting conserves mass.
+    /// model must not cost a map sized to the model. With `parent` (a tet split from parents
+    /// of these densities), a "per node" region's tet gives `parent.mass V / 4` to each corner
+    /// and a "per spring" region's tet `parent.stiffness V / l^2` to each edge instead, so that
+    /// splitting conserves mass and `sum k l^2`.
     fn tet_share(
         &mut self,
         mesh: &TetMesh,
         tk: TetKey,
         at_node: [u32; 4],
         at_edge: [u32; 6],
-        parent_density: Option<f64>,
+        parent: Option<SplitDensity>,
     ) -> Result<TetShare> {
         let t = *mesh
             .tet(tk)
@@ -267,15 +284,17 @@ impl SpringModel {
             let key = edge_key(t.nodes[*a], t.nodes[*b]);
             let l = (p[*a] - p[*b]).norm();
             let n_e = at_edge[e].max(1) as f64;
-            let k = match (mat.stiffness, mat.stiffness_constant()) {
-                (Stiffness::Spring(k), _) => k / n_e,
-                (_, Some(c)) => c * volume / (l * l),
+            let k = match (mat.stiffness, mat.stiffness_constant(), parent) {
+                (Stiffness::Spring(_), _, Some(p)) => p.stiffness * volume / (l * l),
+                (Stiffness::Spring(k), _, None) => k / n_e,
+                (_, Some(c), _) => c * volume / (l * l),
                 _ => 0.0,
             };
-            let c = match mat.damping {
-                SpringDamping::None => 0.0,
-                SpringDamping::Absolute(c) => c / n_e,
-                SpringDamping::StiffnessProportional(beta) => beta * k,
+            let c = match (mat.damping, parent) {
+                (SpringDamping::None, _) => 0.0,
+                (SpringDamping::Absolute(_), Some(p)) => p.damping * volume / (l * l),
+                (SpringDamping::Absolute(c), None) => c / n_e,
+                (SpringDamping::StiffnessProportional(beta), _) => beta * k,
             };
             let sk = match self.by_edge.get(&key) {
                 Some(&s) => s,
@@ -286,9 +305,9 @@ impl SpringModel {
             share.damping[e] = c;
         }
         for (i, held) in at_node.iter().enumerate() {
-            share.mass[i] = match (mat.mass, parent_density) {
+            share.mass[i] = match (mat.mass, parent) {
                 (Mass::Density(rho), _) => rho * volume / 4.0,
-                (Mass::PerNode(_), Some(density)) => density * volume / 4.0,
+                (Mass::PerNode(_), Some(p)) => p.mass * volume / 4.0,
                 (Mass::PerNode(m), None) => m / (*held).max(1) as f64,
             };
         }
@@ -451,33 +470,48 @@ impl SpringModel {
     /// depend only on the tet's geometry, so they are exact; the "per spring" and "per node"
     /// parameterisations split their value among the tets holding an edge or node counted now,
     /// this one included (earlier tets keep their shares). A tet split from a parent takes
-    /// [`SpringModel::add_split_tet`] instead, which conserves the parent's mass.
+    /// [`SpringModel::add_split_tet`] instead, which conserves the parent's mass and springs.
     pub fn add_tet(&mut self, mesh: &TetMesh, tk: TetKey) -> Result<()> {
         self.add_tet_with(mesh, tk, None)
     }
 
-    /// Add a tet `tk` that a cut split from parent tets whose mass was `parent_density` per
-    /// rest volume ([`SpringModel::mass_density`] of the tets it replaces). Stiffness and
-    /// damping as [`SpringModel::add_tet`]; the mass as for a density: `parent_density V / 4`
-    /// to each corner, whatever the region's mass model, so that the sub-tets of a parent
-    /// carry exactly the parent's mass. With [`Mass::Density`] that is the region's density,
-    /// and the region's own rule is kept (it is exact already).
-    pub fn add_split_tet(&mut self, mesh: &TetMesh, tk: TetKey, parent_density: f64) -> Result<()> {
-        if !(parent_density.is_finite() && parent_density > 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "a split tet's parent mass density".into(),
-                value: parent_density,
-                requirement: "be finite and positive".into(),
-            });
+    /// Add a tet `tk` that a cut split from parent tets of densities `parent`
+    /// ([`SpringModel::split_density`] of the tets it replaces): `parent.mass V / 4` to each
+    /// corner, and where the region gives stiffness or damping per spring, `parent.stiffness V
+    /// / l^2` and `parent.damping V / l^2` to each edge, so that the sub-tets of a parent carry
+    /// exactly its mass and its springs' `sum k l^2`. Material stiffness and [`Mass::Density`]
+    /// keep their own rules, which are these already.
+    pub fn add_split_tet(
+        &mut self,
+        mesh: &TetMesh,
+        tk: TetKey,
+        parent: SplitDensity,
+    ) -> Result<()> {
+        for (name, value, positive) in [
+            ("mass", parent.mass, true),
+            ("stiffness", parent.stiffness, false),
+            ("damping", parent.damping, false),
+        ] {
+            if !(value.is_finite() && (value > 0.0 || (!positive && value == 0.0))) {
+                return Err(Error::InvalidParameter {
+                    name: format!("a split tet's parent {name} density"),
+                    value,
+                    requirement: if positive {
+                        "be finite and positive".into()
+                    } else {
+                        "be finite and not negative".into()
+                    },
+                });
+            }
         }
-        self.add_tet_with(mesh, tk, Some(parent_density))
+        self.add_tet_with(mesh, tk, Some(parent))
     }
 
     fn add_tet_with(
         &mut self,
         mesh: &TetMesh,
         tk: TetKey,
-        parent_density: Option<f64>,
+        parent: Option<SplitDensity>,
     ) -> Result<()> {
         let t = *mesh
             .tet(tk)
@@ -490,21 +524,32 @@ impl SpringModel {
             let key = edge_key(t.nodes[a], t.nodes[b]);
             self.by_edge.get(&key).map_or(0, |s| self.springs[*s].tets) + 1
         });
-        let share = self.tet_share(mesh, tk, at_node, at_edge, parent_density)?;
+        let share = self.tet_share(mesh, tk, at_node, at_edge, parent)?;
         self.apply_share(mesh, tk, share, 1.0);
         Ok(())
     }
 
-    /// The mass the tets `tets` of `mesh` give their nodes, per unit of their rest volume,
-    /// kg/m^3: what their sub-tets take when a cut splits them
+    /// What the tets `tets` of `mesh` hold per unit of their rest volume: the mass they give
+    /// their nodes, and `sum k l^2 / 6` and `sum c l^2 / 6` over their edge shares (`l` the
+    /// rest length): what their sub-tets take when a cut splits them
     /// ([`SpringModel::add_split_tet`]). `None` when they hold no volume or have no share.
-    pub fn mass_density(&self, mesh: &TetMesh, tets: &[TetKey]) -> Option<f64> {
-        let (mut mass, mut volume) = (0.0, 0.0);
-        for &t in tets {
-            mass += self.shares.get(t)?.mass.iter().sum::<f64>();
-            volume += mesh.tet_volume(t);
+    pub fn split_density(&self, mesh: &TetMesh, tets: &[TetKey]) -> Option<SplitDensity> {
+        let (mut mass, mut kl2, mut cl2, mut volume) = (0.0, 0.0, 0.0, 0.0);
+        for &tk in tets {
+            let share = self.shares.get(tk)?;
+            mass += share.mass.iter().sum::<f64>();
+            for e in 0..6 {
+                let l = self.springs.get(share.springs[e])?.rest_length;
+                kl2 += share.stiffness[e] * l * l;
+                cl2 += share.damping[e] * l * l;
+            }
+            volume += mesh.tet_volume(tk);
         }
-        (volume > 0.0 && mass > 0.0).then(|| mass / volume)
+        (volume > 0.0 && mass > 0.0).then(|| SplitDensity {
+            mass: mass / volume,
+            stiffness: kl2 / (6.0 * volume),
+            damping: cl2 / (6.0 * volume),
+        })
     }
 
     /// Number of tets holding node `n`.
