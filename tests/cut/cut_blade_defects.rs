@@ -2,10 +2,10 @@
 //! incisions: a blade pulled out along its axis carving with rounding-level sides, and
 //! subdividing a repeated sweep at a floor pulling nodes onto the cut.
 
+use crate::incisions::{blade_push, small_box};
 use crate::models::Rng;
 use lancet::collide::ToolShape;
 use lancet::cut::{CutMethod, Cutter, Sweep};
-use lancet::mesh::generate::{BoxGrid, TetSplit};
 use lancet::model::{Material, ModelConfig, SpringModel};
 use lancet::TetMesh;
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -14,30 +14,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 /// axis, from outside, to a random depth inside it: the poses before and after.
 fn incision(seed: u64) -> (TetMesh, ToolShape, Isometry3<f64>, Isometry3<f64>) {
     let mut rng = Rng(seed);
-    let split = if rng.next() < 0.5 {
-        TetSplit::Five
-    } else {
-        TetSplit::Six
-    };
-    let mesh = BoxGrid {
-        cells: [3, 3, 3],
-        size: [0.03; 3],
-        origin: [0.0; 3],
-        split,
-    }
-    .build()
-    .unwrap();
-    let axis = Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5);
-    let rotation = axis.normalize() * (rng.next() * 3.0);
-    let centre = Vector3::new(rng.next(), rng.next(), rng.next()) * 0.03;
-    let z = Isometry3::new(Vector3::zeros(), rotation) * Vector3::z();
-    let blade = ToolShape::Blade {
-        width: 0.02,
-        length: 0.2,
-        thickness: 1e-4,
-    };
-    let from = Isometry3::new(centre + z * 0.06, rotation);
-    let to = Isometry3::new(centre - z * 0.06 * (rng.next() - 0.5), rotation);
+    let mesh = small_box(&mut rng);
+    let (blade, from, to) = blade_push(&mut rng);
     (mesh, blade, from, to)
 }
 

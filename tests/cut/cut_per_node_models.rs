@@ -21,6 +21,7 @@
 //! when the sub-tet was added: one subdividing cut through the 64-node box below left 88 of
 //! 371 springs stiffer than `k`, the stiffest 2.45 `k`, and raised `sum k l^2` by 41%.)
 
+use crate::incisions::{blade_push, small_box};
 use crate::models;
 use std::collections::HashMap;
 
@@ -138,38 +139,15 @@ impl Uncut {
 
 /// A 3 cm box of 1 cm cells (a random tet split) on a model of springs `K` and nodes `M`.
 fn per_node_box(rng: &mut Rng) -> (TetMesh, SpringModel) {
-    let split = if rng.next() < 0.5 {
-        TetSplit::Five
-    } else {
-        TetSplit::Six
-    };
-    let mesh = BoxGrid {
-        cells: [3, 3, 3],
-        size: [0.03; 3],
-        origin: [0.0; 3],
-        split,
-    }
-    .build()
-    .unwrap();
+    let mesh = small_box(rng);
     let material = Material::springs(K, M).with_damping(SpringDamping::Absolute(C));
     let model = SpringModel::build(&mesh, &ModelConfig::new(material)).unwrap();
     (mesh, model)
 }
 
-/// A blade 2 cm wide, turned at random, pushed along its own axis from outside the box to a
-/// random depth around a random point of it.
+/// [`blade_push`]'s sweep.
 fn stroke(rng: &mut Rng) -> Sweep {
-    let blade = ToolShape::Blade {
-        width: 0.02,
-        length: 0.2,
-        thickness: 1e-4,
-    };
-    let axis = Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5);
-    let rotation = axis.normalize() * (rng.next() * 3.0);
-    let centre = Vector3::new(rng.next(), rng.next(), rng.next()) * 0.03;
-    let z = Isometry3::new(Vector3::zeros(), rotation) * Vector3::z();
-    let from = Isometry3::new(centre + z * 0.06, rotation);
-    let to = Isometry3::new(centre - z * 0.06 * (rng.next() - 0.5), rotation);
+    let (blade, from, to) = blade_push(rng);
     Sweep::of_blade(&blade, &from, &to).unwrap()
 }
 

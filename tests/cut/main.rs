@@ -24,3 +24,4 @@ mod cut_snap;
 mod cut_state;
 mod cut_surface;
 mod cut_topology_errors;
+mod incisions;
