@@ -173,17 +173,29 @@ impl SelfContactProblem {
                 surface.len()
             )));
         }
-        let mut contact_nodes: Vec<u32> = pairs
+        // Each node once, marked as met: the pairs name each node many times (4,144 pairs of
+        // 468 nodes in the drop fixture), which sorting the list with its repeats paid for.
+        let limit = mass.len().min(fixed.len());
+        let mut in_contact = vec![false; limit];
+        let mut contact_nodes: Vec<u32> = Vec::new();
+        for &n in pairs
             .iter()
-            .flat_map(|p| p.iter().flat_map(|&t| surface[t as usize]))
-            .collect();
+            .flat_map(|p| p.iter().flat_map(|&t| &surface[t as usize]))
+        {
+            let Some(seen) = in_contact.get_mut(n as usize) else {
+                return Err(crate::engine::bad_node(n, mass.len()));
+            };
+            if !*seen {
+                *seen = true;
+                contact_nodes.push(n);
+            }
+        }
         contact_nodes.sort_unstable();
-        contact_nodes.dedup();
         // The triangles around the contact nodes, for their normals.
         let around: Vec<usize> = surface
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.iter().any(|n| contact_nodes.binary_search(n).is_ok()))
+            .filter(|(_, t)| t.iter().any(|&n| in_contact.get(n as usize) == Some(&true)))
             .map(|(i, _)| i)
             .collect();
         let mut nodes: Vec<u32> = around.iter().flat_map(|&i| surface[i]).collect();
@@ -223,8 +235,17 @@ impl SelfContactProblem {
         // Primitives of the pairs whose surfaces face each other, in slots.
         let faces = |a: V, b: V| a.dot(&b) < -FACING;
         let unit = |v: V| v.try_normalize(0.0).unwrap_or_else(V::zeros);
-        let mut vf: Vec<(usize, [usize; 3])> = Vec::new();
-        let mut ee: Vec<([usize; 2], [usize; 2])> = Vec::new();
+        // Each primitive pair as one integer, its slots the digits in base `slots`, so that
+        // the keys sort as the pairs do: a pair of triangles repeats a node or edge pair that another pair of
+        // triangles has (an edge pair up to four times), and sorting these keys to drop the
+        // repeats costs far less than sorting the tuples.
+        let slots = nodes.len() as u128;
+        let vf_key = |s: usize, t: [usize; 3]| {
+            ((s as u128 * slots + t[0] as u128) * slots + t[1] as u128) * slots + t[2] as u128
+        };
+        let edge_key = |e: [usize; 2]| e[0] as u128 * slots + e[1] as u128;
+        let mut vf_keys: Vec<u128> = Vec::new();
+        let mut ee_keys: Vec<u128> = Vec::new();
         let edges = |t: [usize; 3]| {
             [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]].map(|[a, b]| [a.min(b), a.max(b)])
         };
@@ -233,26 +254,36 @@ impl SelfContactProblem {
             for (nodes_of, tri) in [(a, b), (b, a)] {
                 let p = &positions;
                 let n = unit((p[tri[1]] - p[tri[0]]).cross(&(p[tri[2]] - p[tri[0]])));
-                vf.extend(
+                vf_keys.extend(
                     nodes_of
                         .iter()
                         .filter(|&&s| faces(normals[s], n))
-                        .map(|&s| (s, tri)),
+                        .map(|&s| vf_key(s, tri)),
                 );
             }
             for ea in edges(a) {
                 let na = unit(normals[ea[0]] + normals[ea[1]]);
                 for eb in edges(b) {
                     if faces(na, unit(normals[eb[0]] + normals[eb[1]])) {
-                        ee.push(if ea < eb { (ea, eb) } else { (eb, ea) });
+                        let (ka, kb) = (edge_key(ea), edge_key(eb));
+                        ee_keys.push(ka.min(kb) * slots * slots + ka.max(kb));
                     }
                 }
             }
         }
-        vf.sort_unstable();
-        vf.dedup();
-        ee.sort_unstable();
-        ee.dedup();
+        vf_keys.sort_unstable();
+        vf_keys.dedup();
+        ee_keys.sort_unstable();
+        ee_keys.dedup();
+        let digit = |k: u128, place: u32| (k / slots.pow(place) % slots) as usize;
+        let vf: Vec<(usize, [usize; 3])> = vf_keys
+            .iter()
+            .map(|&k| (digit(k, 3), [digit(k, 2), digit(k, 1), digit(k, 0)]))
+            .collect();
+        let ee: Vec<([usize; 2], [usize; 2])> = ee_keys
+            .iter()
+            .map(|&k| ([digit(k, 3), digit(k, 2)], [digit(k, 1), digit(k, 0)]))
+            .collect();
         let node_mass: Vec<f64> = nodes.iter().map(|&n| mass[n as usize]).collect();
         let inv_mass = nodes
             .iter()
