@@ -7,16 +7,17 @@ use crate::models::Rng;
 use lancet::collide::ToolShape;
 use lancet::cut::{CutMethod, Cutter, Sweep};
 use lancet::model::{Material, ModelConfig, SpringModel};
-use lancet::TetMesh;
 use nalgebra::{Isometry3, Point3, Vector3};
 
-/// A 3 cm box of 1 cm cells (a random tet split) and a blade 2 cm wide pushed along its own
-/// axis, from outside, to a random depth inside it: the poses before and after.
-fn incision(seed: u64) -> (TetMesh, ToolShape, Isometry3<f64>, Isometry3<f64>) {
+/// A 3 cm box of 1 cm cells (a random tet split) cut by `method`, and a blade 2 cm wide pushed
+/// along its own axis, from outside, to a random depth inside it: the poses before and after.
+fn incision(seed: u64, method: CutMethod) -> (Cutter, ToolShape, Isometry3<f64>, Isometry3<f64>) {
     let mut rng = Rng(seed);
     let mesh = small_box(&mut rng);
     let (blade, from, to) = blade_push(&mut rng);
-    (mesh, blade, from, to)
+    let model =
+        SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
+    (Cutter::new(mesh, model, method).unwrap(), blade, from, to)
 }
 
 fn rest_positions(cutter: &Cutter) -> Vec<[f64; 3]> {
@@ -39,10 +40,7 @@ fn rest_positions(cutter: &Cutter) -> Vec<[f64; 3]> {
 fn a_blade_pulled_straight_out_carves_nothing() {
     let mut carved = Vec::new();
     for seed in 1..=50 {
-        let (mesh, blade, from, to) = incision(seed);
-        let model =
-            SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
-        let mut cutter = Cutter::new(mesh, model, CutMethod::Remove).unwrap();
+        let (mut cutter, blade, from, to) = incision(seed, CutMethod::Remove);
         let rest = rest_positions(&cutter);
         cutter
             .cut(&Sweep::of_blade(&blade, &from, &to).unwrap(), &rest)
@@ -80,10 +78,7 @@ fn a_blade_pulled_straight_out_carves_nothing() {
 fn subdividing_the_same_sweep_again_at_the_default_floor_cuts_nothing_new() {
     let mut again = Vec::new();
     for seed in 1..=100 {
-        let (mesh, blade, from, to) = incision(seed);
-        let model =
-            SpringModel::build(&mesh, &ModelConfig::new(Material::elastic(3e3, 0.3, 1e3))).unwrap();
-        let mut cutter = Cutter::new(mesh, model, CutMethod::Subdivide).unwrap();
+        let (mut cutter, blade, from, to) = incision(seed, CutMethod::Subdivide);
         // The edge's band alone (no side triangles, see the test above).
         let (q0, q1) = (
             blade.blade_quad(&from).unwrap(),
