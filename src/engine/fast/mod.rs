@@ -32,6 +32,7 @@ mod gather;
 mod health;
 mod implicit;
 mod kernels;
+mod pages;
 use kernels::*;
 mod patch;
 mod sliced;
@@ -128,13 +129,13 @@ pub struct FastEngine {
     /// next to the displacements instead of gathering `rest` node by node.
     rest_inner: Vec<P>,
     /// Current displacements from rest.
-    x: Vec<P>,
+    x: pages::PageVec<P>,
     /// Verlet: last steps `u - u_prev`. Symplectic Euler: velocities. The `w` lanes of both
     /// arrays hold the rounding `physics::Compensation` carries to the next step.
-    second: Vec<P>,
+    second: pages::PageVec<P>,
     /// Output buffers of the next step.
-    x_next: Vec<P>,
-    second_next: Vec<P>,
+    x_next: pages::PageVec<P>,
+    second_next: pages::PageVec<P>,
     /// A box whose nodes the next step finds after its last iteration
     /// ([`Engine::prefetch_near`]).
     near_ahead: Option<([f64; 3], [f64; 3])>,
@@ -190,7 +191,7 @@ impl FastEngine {
         };
         // Node arrays keep room for cuts' new nodes (see `model::room::spare`).
         let zeros = || {
-            let mut v: Vec<P> = Vec::with_capacity(n + spare(n));
+            let mut v: pages::PageVec<P> = pages::with_capacity(n + spare(n));
             v.resize(n, [0.0; 4]);
             v
         };

@@ -28,8 +28,8 @@ enum RowEdit {
 impl FastEngine {
     /// (capacity, length, bytes per entry) of every array a patch can grow.
     fn capacities(&self) -> Vec<(usize, usize, usize)> {
-        fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
-            (v.capacity(), v.len(), std::mem::size_of::<T>())
+        fn of(v: &impl super::pages::Room) -> (usize, usize, usize) {
+            v.room()
         }
         let g = &self.graph;
         let mut out = g.springs.capacities().to_vec();

@@ -28,6 +28,7 @@
 //! them, nothing allocated) when they reach a quarter of the groups or before an appended
 //! slice would outgrow the room kept.
 
+use super::pages::{self, PageVec};
 use super::{Entry, P};
 
 /// Nodes per slice: one AVX2 vector of f32.
@@ -115,12 +116,12 @@ pub(super) type Row = Vec<(Entry, f32)>;
 pub(super) struct Sliced {
     /// Each slice's groups, as (start, end): `groups[start..end]`.
     pub slices: Vec<[u32; 2]>,
-    pub groups: Vec<Group>,
+    pub groups: PageVec<Group>,
     /// Rest length and stiffness of each lane's spring (empty when [`Sliced::uniform`]).
-    pub material: Vec<Material>,
+    pub material: PageVec<Material>,
     /// Damping of each lane's spring, N s/m (empty when no spring is damped or when
     /// [`Sliced::uniform`]).
-    pub damping: Vec<[f32; LANES]>,
+    pub damping: PageVec<[f32; LANES]>,
     /// The springs' one material, when they have one: the step reads it instead of
     /// `material` and `damping` (fixed for the layout's life, as `damped` is).
     pub uniform: Option<Uniform>,
@@ -162,9 +163,9 @@ impl Sliced {
         let room = |kept: bool| if kept { total + spare(total) } else { 0 };
         let mut s = Sliced {
             slices: Vec::with_capacity(count + spare(count)),
-            groups: Vec::with_capacity(total + spare(total)),
-            material: Vec::with_capacity(room(uniform.is_none())),
-            damping: Vec::with_capacity(room(damped && uniform.is_none())),
+            groups: pages::with_capacity(total + spare(total)),
+            material: pages::with_capacity(room(uniform.is_none())),
+            damping: pages::with_capacity(room(damped && uniform.is_none())),
             uniform,
             lens: Vec::with_capacity(n + spare(n)),
             live: 0,
@@ -429,8 +430,8 @@ impl Sliced {
 
     /// (capacity, length, bytes per item) of each array, for a patch's growth report.
     pub fn capacities(&self) -> [(usize, usize, usize); 6] {
-        fn of<T>(v: &Vec<T>) -> (usize, usize, usize) {
-            (v.capacity(), v.len(), std::mem::size_of::<T>())
+        fn of(v: &impl super::pages::Room) -> (usize, usize, usize) {
+            v.room()
         }
         [
             of(&self.slices),
