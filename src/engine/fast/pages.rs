@@ -4,15 +4,19 @@
 //! Why: with 4 KiB pages an explicit step at 100k nodes walks about 7,000 pages of spring
 //! groups and state, and every first touch of a page whose translation is not cached costs a
 //! page-table walk, which under a hypervisor's nested paging reads up to 24 entries. Backing
-//! the same arrays with 2 MiB pages made the peers' 100k-node box step 7-14% faster on the
-//! 2-core test machine (docs/measurements.md, twelfth slice).
+//! the same arrays with 2 MiB pages made the peers' 100k-node box step 1-7% faster damped and
+//! 10-13% undamped on the 2-core test machine (docs/measurements.md, twelfth slice).
 //!
 //! How: arrays of at least [`LARGE`] bytes are mapped on their own, aligned to and rounded up
 //! to 2 MiB, and advised `MADV_HUGEPAGE` before their first touch, so that Linux's
 //! transparent huge pages back them whether the system's mode is `always` or `madvise` (the
 //! common default, where nothing else asks for them). Smaller arrays, and every array on
 //! other systems, come from the global allocator as any `Vec`'s. The advice is a request:
-//! where the kernel has no free 2 MiB page the array is backed by 4 KiB pages as before.
+//! where the kernel has no free 2 MiB page the array is backed by 4 KiB pages as before,
+//! though a kernel set to defragment for advised memory (`defrag` `madvise`, the usual
+//! default) may first spend time compacting. That happens where a large array is first
+//! written: when the engine is built, and when a patch outgrows an array's spare room (which
+//! copies the array anyway; growing a small array still reallocates in place where it can).
 //!
 //! The arrays are `allocator_api2`'s `Vec` with this allocator: the standard `Vec`'s API on
 //! stable Rust, so the engine's code that grows and patches them is unchanged.
@@ -62,6 +66,7 @@ fn is_large(layout: Layout) -> bool {
 }
 
 /// `layout`'s size rounded up to whole huge pages.
+#[cfg(target_os = "linux")]
 fn mapped_len(layout: Layout) -> usize {
     layout.size().div_ceil(HUGE) * HUGE
 }
@@ -82,6 +87,47 @@ unsafe impl Allocator for Pages {
         }
         #[cfg(not(target_os = "linux"))]
         unreachable!("only Linux maps large arrays on their own")
+    }
+
+    unsafe fn grow(
+        &self,
+        ptr: NonNull<u8>,
+        old: Layout,
+        new: Layout,
+    ) -> Result<NonNull<[u8]>, AllocError> {
+        if !is_large(old) && !is_large(new) {
+            // SAFETY: the caller's; both blocks are the global allocator's.
+            return unsafe { Global.grow(ptr, old, new) };
+        }
+        // A new block (mapped, or the global allocator's), the entries copied, the old freed:
+        // the trait's own `grow`, which calls this allocator's `allocate` and `deallocate`.
+        let block = self.allocate(new)?;
+        // SAFETY: the caller's: `ptr` holds `old.size()` bytes, `new` is at least as large,
+        // and the new block is distinct from the old.
+        unsafe {
+            std::ptr::copy_nonoverlapping(ptr.as_ptr(), block.cast::<u8>().as_ptr(), old.size());
+            self.deallocate(ptr, old);
+        }
+        Ok(block)
+    }
+
+    unsafe fn shrink(
+        &self,
+        ptr: NonNull<u8>,
+        old: Layout,
+        new: Layout,
+    ) -> Result<NonNull<[u8]>, AllocError> {
+        if !is_large(old) && !is_large(new) {
+            // SAFETY: the caller's; both blocks are the global allocator's.
+            return unsafe { Global.shrink(ptr, old, new) };
+        }
+        let block = self.allocate(new)?;
+        // SAFETY: the caller's: `ptr` holds at least `new.size()` bytes; the blocks differ.
+        unsafe {
+            std::ptr::copy_nonoverlapping(ptr.as_ptr(), block.cast::<u8>().as_ptr(), new.size());
+            self.deallocate(ptr, old);
+        }
+        Ok(block)
     }
 
     unsafe fn deallocate(&self, ptr: NonNull<u8>, layout: Layout) {
@@ -118,8 +164,9 @@ fn map_aligned(len: usize) -> Option<NonNull<u8>> {
     if base == MAP_FAILED {
         return None;
     }
-    let start = (base as usize).next_multiple_of(HUGE);
-    let (head, tail) = (start - base as usize, span - (start - base as usize) - len);
+    let head = (base as usize).next_multiple_of(HUGE) - base as usize;
+    let tail = span - head - len;
+    let start = base.cast::<u8>().wrapping_add(head);
     // SAFETY: both ranges lie within the mapping just made, outside the part kept; the advice
     // only asks for larger pages (a kernel without transparent huge pages refuses it, and the
     // memory stays usable).
@@ -128,46 +175,112 @@ fn map_aligned(len: usize) -> Option<NonNull<u8>> {
             libc::munmap(base, head);
         }
         if tail > 0 {
-            libc::munmap((start + len) as *mut c_void, tail);
+            libc::munmap(start.wrapping_add(len).cast::<c_void>(), tail);
         }
-        libc::madvise(start as *mut c_void, len, libc::MADV_HUGEPAGE);
+        libc::madvise(start.cast::<c_void>(), len, libc::MADV_HUGEPAGE);
     }
-    NonNull::new(start as *mut u8)
+    NonNull::new(start)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// The mappings of this process that overlap `range`, as (start, end, flags); `None`
+    /// where `/proc/self/smaps` cannot be read.
+    #[cfg(target_os = "linux")]
+    fn mappings_over(range: std::ops::Range<usize>) -> Option<Vec<(usize, usize, Vec<String>)>> {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
+        let mut out = Vec::new();
+        let mut current: Option<(usize, usize)> = None;
+        for line in smaps.lines() {
+            // A mapping's header: `lo-hi perms ...`, hex addresses.
+            let header = line.split_once(' ').and_then(|(r, _)| r.split_once('-'));
+            if let Some((lo, hi)) = header {
+                if let (Ok(lo), Ok(hi)) =
+                    (usize::from_str_radix(lo, 16), usize::from_str_radix(hi, 16))
+                {
+                    current = (lo < range.end && range.start < hi).then_some((lo, hi));
+                    continue;
+                }
+            }
+            if let (Some((lo, hi)), Some(f)) = (current, line.strip_prefix("VmFlags:")) {
+                out.push((lo, hi, f.split_whitespace().map(str::to_owned).collect()));
+            }
+        }
+        Some(out)
+    }
+
+    /// The tests that map and unmap large arrays, one at a time: `cargo test` runs tests on
+    /// threads of one process, and one test's new mapping could land where another's was.
+    static MAPPING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
     #[test]
-    fn small_arrays_come_from_the_global_allocator_and_large_ones_are_aligned() {
-        let small: PageVec<u64> = with_capacity(16);
-        assert!(!is_large(Layout::array::<u64>(small.capacity()).unwrap()));
-        let mut large: PageVec<[f32; 4]> = with_capacity(LARGE / 16 + 1);
+    fn arrays_keep_their_entries_across_the_small_and_large_allocations() {
+        let _one = MAPPING.lock();
+        // From the global allocator to a mapping of its own and back, through growth and
+        // shrinking in each: the entries stay.
+        let mut v: PageVec<[f32; 4]> = with_capacity(16);
+        v.extend((0..16).map(|i| [i as f32; 4]));
+        v.reserve(LARGE / 16);
+        assert!(is_large(Layout::array::<[f32; 4]>(v.capacity()).unwrap()));
         if cfg!(target_os = "linux") {
             assert_eq!(
-                large.as_ptr() as usize % HUGE,
+                v.as_ptr() as usize % HUGE,
                 0,
                 "a large array starts a huge page"
             );
         }
-        // Filled, grown past its room (a new mapping and a copy), shrunk: the entries stay.
-        let n = large.capacity();
-        large.extend((0..n).map(|i| [i as f32; 4]));
-        large.push([-1.0; 4]);
-        assert!(large.capacity() > n);
-        large.truncate(LARGE / 64);
-        large.shrink_to_fit();
-        assert!(large.capacity() < LARGE / 16);
-        assert!(large.iter().enumerate().all(|(i, r)| r[0] == i as f32));
-        let copy = large.clone();
-        assert_eq!(&copy[..], &large[..]);
+        let n = v.capacity();
+        v.extend((16..n).map(|i| [i as f32; 4]));
+        v.push([n as f32; 4]);
+        assert!(v.capacity() > n, "grown from one mapping to another");
+        v.truncate(LARGE / 16 + 10);
+        v.shrink_to_fit();
+        assert!(is_large(Layout::array::<[f32; 4]>(v.capacity()).unwrap()));
+        v.truncate(100);
+        v.shrink_to_fit();
+        assert!(!is_large(Layout::array::<[f32; 4]>(v.capacity()).unwrap()));
+        assert!(v.iter().enumerate().all(|(i, r)| *r == [i as f32; 4]));
+        let copy = v.clone();
+        assert_eq!(&copy[..], &v[..]);
+        // Exactly `LARGE` bytes is large.
+        let edge: PageVec<u8> = with_capacity(LARGE);
+        if cfg!(target_os = "linux") {
+            assert_eq!(edge.as_ptr() as usize % HUGE, 0);
+        }
+    }
+
+    /// A dropped large array gives its whole mapping back (no part of it left mapped).
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn a_dropped_large_array_is_unmapped() {
+        let _one = MAPPING.lock();
+        let v: PageVec<u8> = with_capacity(3 * HUGE + 1);
+        let range = v.as_ptr() as usize..v.as_ptr() as usize + 4 * HUGE;
+        let Some(before) = mappings_over(range.clone()) else {
+            eprintln!("skipped: /proc/self/smaps cannot be read here");
+            return;
+        };
+        assert!(before
+            .iter()
+            .any(|(lo, hi, _)| *lo <= range.start && range.end <= *hi));
+        drop(v);
+        // Nothing advised for huge pages left over the range (the global allocator's memory,
+        // which other threads may map there since, is not advised).
+        let after = mappings_over(range).unwrap();
+        assert!(
+            !after.iter().any(|(_, _, f)| f.iter().any(|f| f == "hg")),
+            "{after:?}"
+        );
     }
 
     /// The engine's step arrays come from [`Pages`]: a mesh whose spring groups pass
-    /// [`LARGE`] has them on a huge-page boundary, and a cut that grows them keeps them there.
+    /// [`LARGE`] has them on a huge-page boundary, and growing them (as a patch that appends
+    /// slices past their room does) keeps them there.
     #[test]
     fn the_fast_engines_spring_groups_start_a_huge_page() {
+        let _one = MAPPING.lock();
         use crate::engine::fast::FastEngine;
         use crate::engine::{Engine, SimConfig};
         use crate::mesh::generate::BoxGrid;
@@ -202,6 +315,7 @@ mod tests {
     #[test]
     #[cfg(target_os = "linux")]
     fn large_arrays_are_advised_huge_pages() {
+        let _one = MAPPING.lock();
         let mode = std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled");
         if mode.as_deref().map_or(true, |m| m.contains("[never]")) {
             eprintln!("skipped: this kernel has no transparent huge pages ({mode:?})");
@@ -210,28 +324,11 @@ mod tests {
         let mut v: PageVec<u8> = with_capacity(4 * HUGE);
         v.resize(4 * HUGE, 1);
         let at = v.as_ptr() as usize;
-        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
-        // The mapping holding `at`: its header line is `lo-hi perms ...`, hex addresses.
-        let mut inside = false;
-        let mut flags = None;
-        for line in smaps.lines() {
-            if let Some((range, _)) = line.split_once(' ') {
-                if let Some((lo, hi)) = range.split_once('-') {
-                    if let (Ok(lo), Ok(hi)) =
-                        (usize::from_str_radix(lo, 16), usize::from_str_radix(hi, 16))
-                    {
-                        inside = (lo..hi).contains(&at);
-                        continue;
-                    }
-                }
-            }
-            if inside {
-                if let Some(f) = line.strip_prefix("VmFlags:") {
-                    flags = Some(f.split_whitespace().map(str::to_owned).collect::<Vec<_>>());
-                }
-            }
-        }
-        let flags = flags.expect("the array's mapping is listed");
+        let Some(maps) = mappings_over(at..at + 1) else {
+            eprintln!("skipped: /proc/self/smaps cannot be read here");
+            return;
+        };
+        let (_, _, flags) = maps.first().expect("the array's mapping is listed");
         assert!(flags.iter().any(|f| f == "hg"), "{flags:?}");
     }
 }
