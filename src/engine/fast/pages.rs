@@ -99,16 +99,8 @@ unsafe impl Allocator for Pages {
             // SAFETY: the caller's; both blocks are the global allocator's.
             return unsafe { Global.grow(ptr, old, new) };
         }
-        // A new block (mapped, or the global allocator's), the entries copied, the old freed:
-        // the trait's own `grow`, which calls this allocator's `allocate` and `deallocate`.
-        let block = self.allocate(new)?;
-        // SAFETY: the caller's: `ptr` holds `old.size()` bytes, `new` is at least as large,
-        // and the new block is distinct from the old.
-        unsafe {
-            std::ptr::copy_nonoverlapping(ptr.as_ptr(), block.cast::<u8>().as_ptr(), old.size());
-            self.deallocate(ptr, old);
-        }
-        Ok(block)
+        // SAFETY: the caller's: `ptr` holds `old.size()` bytes, no more than `new` takes.
+        unsafe { self.moved(ptr, old, new, old.size()) }
     }
 
     unsafe fn shrink(
@@ -121,13 +113,8 @@ unsafe impl Allocator for Pages {
             // SAFETY: the caller's; both blocks are the global allocator's.
             return unsafe { Global.shrink(ptr, old, new) };
         }
-        let block = self.allocate(new)?;
-        // SAFETY: the caller's: `ptr` holds at least `new.size()` bytes; the blocks differ.
-        unsafe {
-            std::ptr::copy_nonoverlapping(ptr.as_ptr(), block.cast::<u8>().as_ptr(), new.size());
-            self.deallocate(ptr, old);
-        }
-        Ok(block)
+        // SAFETY: the caller's: `ptr` holds at least the `new.size()` bytes kept.
+        unsafe { self.moved(ptr, old, new, new.size()) }
     }
 
     unsafe fn deallocate(&self, ptr: NonNull<u8>, layout: Layout) {
@@ -140,6 +127,31 @@ unsafe impl Allocator for Pages {
         unsafe {
             libc::munmap(ptr.as_ptr().cast(), mapped_len(layout));
         }
+    }
+}
+
+impl Pages {
+    /// The block `ptr` of layout `old` moved to a new block of layout `new` (mapped, or the
+    /// global allocator's), its first `bytes` copied and the old block freed: the trait's own
+    /// `grow` and `shrink`, for a move to or from a mapping of its own.
+    ///
+    /// # Safety
+    /// `ptr` is a block of this allocator with layout `old`, holding at least `bytes`, and
+    /// `bytes` is at most `new.size()`.
+    unsafe fn moved(
+        &self,
+        ptr: NonNull<u8>,
+        old: Layout,
+        new: Layout,
+        bytes: usize,
+    ) -> Result<NonNull<[u8]>, AllocError> {
+        let block = self.allocate(new)?;
+        // SAFETY: the caller's; the new block is distinct from the old.
+        unsafe {
+            std::ptr::copy_nonoverlapping(ptr.as_ptr(), block.cast::<u8>().as_ptr(), bytes);
+            self.deallocate(ptr, old);
+        }
+        Ok(block)
     }
 }
 
