@@ -28,22 +28,20 @@ enum RowEdit {
 impl FastEngine {
     /// (capacity, length, bytes per entry) of every array a patch can grow.
     fn capacities(&self) -> Vec<(usize, usize, usize)> {
-        fn of(v: &impl super::pages::Room) -> (usize, usize, usize) {
-            v.room()
-        }
+        use super::pages::Room;
         let g = &self.graph;
         let mut out = g.springs.capacities().to_vec();
         out.extend([
-            of(&g.inv_mass),
-            of(&g.fixed),
-            of(&self.order),
-            of(&self.rank),
-            of(&self.rest),
-            of(&self.rest_inner),
-            of(&self.x),
-            of(&self.second),
-            of(&self.x_next),
-            of(&self.second_next),
+            g.inv_mass.room(),
+            g.fixed.room(),
+            self.order.room(),
+            self.rank.room(),
+            self.rest.room(),
+            self.rest_inner.room(),
+            self.x.room(),
+            self.second.room(),
+            self.x_next.room(),
+            self.second_next.room(),
         ]);
         out
     }

@@ -430,16 +430,14 @@ impl Sliced {
 
     /// (capacity, length, bytes per item) of each array, for a patch's growth report.
     pub fn capacities(&self) -> [(usize, usize, usize); 6] {
-        fn of(v: &impl super::pages::Room) -> (usize, usize, usize) {
-            v.room()
-        }
+        use super::pages::Room;
         [
-            of(&self.slices),
-            of(&self.groups),
-            of(&self.material),
-            of(&self.damping),
-            of(&self.lens),
-            of(&self.bounds),
+            self.slices.room(),
+            self.groups.room(),
+            self.material.room(),
+            self.damping.room(),
+            self.lens.room(),
+            self.bounds.room(),
         ]
     }
 
