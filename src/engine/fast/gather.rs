@@ -16,21 +16,30 @@ use super::sliced::{Sliced, Uniform, LANES};
 use super::{Graph, Params, P};
 use std::arch::x86_64::*;
 
-/// The rows `idx[l]` of `rows`, transposed: their x, y and z as three vectors of eight lanes.
+/// The rows of a group's other ends (`at`, [`super::sliced::Group::at`]: twice each row's
+/// index) in `rows`, transposed: their x, y and z as three vectors of eight lanes. Each row's
+/// address is `base + at * 8`, one x86 addressing mode, so no lane's index is shifted first.
 ///
 /// # Safety
-/// The CPU has AVX2 and FMA, and every `idx[l]` is below `rows.len()`.
+/// The CPU has AVX2 and FMA, and every `at[l] / 2` is below `rows.len()`.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn rows_of(rows: &[P], idx: &[u32; LANES]) -> [__m256; 3] {
-    let [x, y, z, _] = unsafe { rows4(rows, idx) };
+unsafe fn rows_at(rows: &[P], at: &[u32; LANES]) -> [__m256; 3] {
+    // Half rows: 8 bytes, the largest scale an x86 address takes.
+    let base = rows.as_ptr() as *const [f32; 2];
+    // SAFETY: the caller guarantees each `at[l] / 2` is a row within `rows`, whose rows are
+    // two half rows each.
+    let row = |l: usize| unsafe { _mm_loadu_ps(base.add(at[l] as usize) as *const f32) };
+    let pair = |l: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4));
+    let [x, y, z, _] = transpose4([pair(0), pair(1), pair(2), pair(3)]);
     [x, y, z]
 }
 
-/// [`rows_of`] with the fourth lane of each row (`w`, the compensation) as a fourth vector.
+/// The rows `idx[l]` of `rows`, transposed: their x, y, z and `w` (the compensation) as four
+/// vectors of eight lanes.
 ///
 /// # Safety
-/// As [`rows_of`].
+/// The CPU has AVX2 and FMA, and every `idx[l]` is below `rows.len()`.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn rows4(rows: &[P], idx: &[u32; LANES]) -> [__m256; 4] {
@@ -177,7 +186,7 @@ unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
             }
         }
         // SAFETY: the groups' neighbours are below `sl.nodes()`, the length of `x` and `w`.
-        let uj = unsafe { rows_of(x, &g.other) };
+        let uj = unsafe { rows_at(x, &g.at) };
         let e: [__m256; 3] = std::array::from_fn(|a| load(&g.edge[a]));
         let d: [__m256; 3] =
             std::array::from_fn(|a| _mm256_add_ps(e[a], _mm256_sub_ps(uj[a], ui[a])));
@@ -206,7 +215,7 @@ unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
             (s, inv, inv)
         };
         if DAMPED {
-            let wj = unsafe { rows_of(w, &g.other) };
+            let wj = unsafe { rows_at(w, &g.at) };
             let dw: [__m256; 3] = std::array::from_fn(|a| _mm256_sub_ps(wj[a], wi[a]));
             let along = _mm256_fmadd_ps(
                 dw[2],

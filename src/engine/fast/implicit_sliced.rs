@@ -98,7 +98,7 @@ pub(super) fn product_slices(
         for (grp, blk) in sl.groups[range.clone()].iter().zip(&lanes[range]) {
             let mut q = [[0.0f32; LANES]; 3];
             for l in 0..LANES {
-                let pj = p[grp.other[l] as usize];
+                let pj = p[grp.node(l)];
                 for a in 0..3 {
                     q[a][l] = pj[a];
                 }

@@ -36,6 +36,7 @@ mod pages;
 use kernels::*;
 mod patch;
 mod sliced;
+pub(crate) use sliced::check_size;
 mod threads;
 pub use threads::on_threads;
 

@@ -127,6 +127,10 @@ impl FastEngine {
             return None;
         }
         let n0 = self.order.len();
+        // Past the layout's reach, the rebuild reports it (`check_size`).
+        if n0 + diff.added_nodes.len() >= super::sliced::MAX_NODES {
+            return None;
+        }
         // What the arrays hold now, to report any that must grow (a copy into a new
         // allocation: the pause the room they keep is there to avoid).
         let before = self.capacities();

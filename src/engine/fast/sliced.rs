@@ -7,7 +7,8 @@
 //! finite elements' rows) reads its row out of its lane ([`Sliced::row`]); no row-wise copy
 //! of the springs is kept.
 //!
-//! Per spring end a group stores 16 bytes: the neighbour (u32) and the rest edge vector (f32).
+//! Per spring end a group stores 16 bytes: the neighbour (u32, stored as twice its index: see
+//! [`Group::at`]) and the rest edge vector (f32).
 //! Where the springs' materials are one ([`Uniform`]: one stiffness, one damping coefficient,
 //! and every rest length the length of its rest edge, as in the peer benchmark and any scene
 //! of one spring material at rest), that is all: the stiffness and damping are two constants
@@ -38,10 +39,50 @@ pub(super) const LANES: usize = 8;
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(32))]
 pub(super) struct Group {
-    /// The other end of each lane's spring, internal index (the lane's own node for padding).
-    pub other: [u32; LANES],
+    /// The other end of each lane's spring (the lane's own node for padding) as twice its
+    /// internal index: the place of its row, in 8-byte units, in a node array of 16-byte rows
+    /// ([`P`]). The step's gather then addresses a row as `base + at * 8`, which x86 encodes in
+    /// the load itself, instead of shifting each index first: 12% of an undamped step and 6%
+    /// of a damped one (measurements.md, thirteenth slice). Read it with [`Group::node`].
+    pub at: [u32; LANES],
     /// Rest vector from the lane's node to the other end, per axis, m.
     pub edge: [[f32; LANES]; 3],
+}
+
+/// Nodes a layout can index: [`Group::at`] holds twice an index in a `u32`.
+pub(super) const MAX_NODES: usize = 1 << 31;
+
+/// An error unless the fast engine can lay out `model`'s nodes: its spring layout indexes at
+/// most [`MAX_NODES`] (2^31, far past any memory that holds their state).
+pub(crate) fn check_size(model: &crate::model::PackedModel) -> crate::Result<()> {
+    check_nodes(model.node_count())
+}
+
+/// [`check_size`] of a model of `n` nodes.
+fn check_nodes(n: usize) -> crate::Result<()> {
+    if n < MAX_NODES {
+        return Ok(());
+    }
+    Err(crate::Error::Unsupported(format!(
+        "the fast CPU engine indexes fewer than {} nodes and the model has {n}: split the \
+         mesh, or run the float64 reference engine",
+        MAX_NODES
+    )))
+}
+
+impl Group {
+    /// Lane `l`'s other end, internal index.
+    #[inline(always)]
+    pub fn node(&self, l: usize) -> usize {
+        (self.at[l] / 2) as usize
+    }
+
+    /// Make node `j` lane `l`'s other end.
+    #[inline(always)]
+    fn set_node(&mut self, l: usize, j: u32) {
+        debug_assert!((j as usize) < MAX_NODES, "node {j} past the layout's reach");
+        self.at[l] = 2 * j;
+    }
 }
 
 /// The constants of a group's springs where they are stored per end (not [`Uniform`]).
@@ -99,7 +140,7 @@ pub(super) fn rest_of(edge: [f32; 3]) -> f32 {
 }
 
 const BLANK: Group = Group {
-    other: [0; LANES],
+    at: [0; LANES],
     edge: [[0.0; LANES]; 3],
 };
 
@@ -236,7 +277,7 @@ impl Sliced {
                 }
             };
             let e = Entry {
-                other: g.other[l],
+                other: g.node(l) as u32,
                 edge,
                 rest,
                 k: stiffness,
@@ -394,8 +435,7 @@ impl Sliced {
                 let c = s.damping.get(k).copied().unwrap_or([0.0; LANES]);
                 let m = s.material.get(k).copied().unwrap_or(NO_MATERIAL);
                 let floats = g.edge.iter().chain([&m.rest, &m.k, &c]).flatten();
-                g.other
-                    .into_iter()
+                g.at.into_iter()
                     .chain(floats.map(|f| f.to_bits()))
                     .collect::<Vec<_>>()
             }))
@@ -470,7 +510,7 @@ impl Sliced {
                 let own = (b * LANES + if l < lanes.len() { l } else { 0 }) as u32;
                 match lanes.get(l).and_then(|r| r.get(k)) {
                     Some((e, d)) => {
-                        grp.other[l] = e.other;
+                        grp.set_node(l, e.other);
                         for a in 0..3 {
                             grp.edge[a][l] = e.edge[a];
                         }
@@ -479,7 +519,7 @@ impl Sliced {
                         *cl = *d;
                     }
                     None => {
-                        grp.other[l] = own;
+                        grp.set_node(l, own);
                         for a in 0..3 {
                             grp.edge[a][l] = 0.0;
                         }
@@ -548,7 +588,7 @@ pub(super) fn group_force<const DAMPED: bool, const UNIFORM: bool>(
     let mut d = [[0.0f32; LANES]; 3];
     let mut dw = [[0.0f32; LANES]; 3];
     for l in 0..LANES {
-        let j = grp.other[l] as usize;
+        let j = grp.node(l);
         let uj = x[j];
         for a in 0..3 {
             d[a][l] = grp.edge[a][l] + (uj[a] - ui[a][l]);
@@ -582,5 +622,38 @@ pub(super) fn group_force<const DAMPED: bool, const UNIFORM: bool>(
         for a in 0..3 {
             acc[a][l] += s * d[a][l];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_group_keeps_each_lanes_node_as_twice_its_index() {
+        let mut g = BLANK;
+        let nodes = [0, 1, 7, 1 << 20, 123_456_789, (MAX_NODES - 1) as u32, 5, 2];
+        for (l, &j) in nodes.iter().enumerate() {
+            g.set_node(l, j);
+        }
+        for (l, &j) in nodes.iter().enumerate() {
+            assert_eq!(g.node(l), j as usize, "lane {l}");
+            assert_eq!(
+                g.at[l] as u64,
+                2 * j as u64,
+                "lane {l}: the gather's address"
+            );
+        }
+    }
+
+    #[test]
+    fn models_past_the_layouts_reach_are_refused_with_the_count() {
+        assert!(check_nodes(MAX_NODES - 1).is_ok());
+        let e = check_nodes(MAX_NODES).unwrap_err().to_string();
+        assert!(e.contains(&MAX_NODES.to_string()), "{e}");
+        assert!(
+            e.contains("reference engine"),
+            "says what to do instead: {e}"
+        );
     }
 }

@@ -96,6 +96,7 @@ fn make_engine(
         ));
     }
     let fast = || -> Result<Box<dyn Engine>> {
+        fast::check_size(model)?;
         Ok(Box::new(
             fast::FastEngine::new(model, config).with_force_model(model, config.force_model)?,
         ))
@@ -127,7 +128,10 @@ fn make_engine(
         EngineKind::Auto => match gpu_engine(model, config, gpu, host) {
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
-                Box::new(fast::FastEngine::new(model, config)),
+                {
+                    fast::check_size(model)?;
+                    Box::new(fast::FastEngine::new(model, config))
+                },
                 EngineKind::Fast,
                 Some(format!("no usable GPU ({e}); running the fast CPU engine")),
             ),
