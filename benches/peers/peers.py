@@ -83,16 +83,26 @@ def springs_and_csr(pos, tets):
     return edges, row, both[:, 1].astype(np.int32), both_rest.astype(np.float32)
 
 
+# Steps per timed chunk, as `lancet bench` times them (its `chunk`).
+CHUNK = 20
+
+
 def time_steps(step, sync, steps, repeats):
-    """Median seconds per step over `repeats` timed runs of `steps` steps, after a warm-up."""
+    """Seconds per step: the median chunk of `CHUNK` steps over `repeats` runs of `steps` steps,
+    after a warm-up. The statistic `lancet bench` reports for lancet's rows (the median of its
+    chunks of 20 steps), so that a stall of the shared machine is left out of both sides alike."""
     step(10)
     sync()
     times = []
     for _ in range(repeats):
-        t = time.perf_counter()
-        step(steps)
-        sync()
-        times.append((time.perf_counter() - t) / steps)
+        done = 0
+        while done < steps:
+            n = min(CHUNK, steps - done)
+            t = time.perf_counter()
+            step(n)
+            sync()
+            times.append((time.perf_counter() - t) / n)
+            done += n
     return sorted(times)[len(times) // 2]
 
 
@@ -237,7 +247,9 @@ def main():
     ap.add_argument("--threads", type=int, default=os.cpu_count(),
                     help="Taichi's CPU threads (lancet's fast engine uses every core)")
     ap.add_argument("--steps", type=int, default=200, help="steps per timed run")
-    ap.add_argument("--repeats", type=int, default=5, help="timed runs (the median is shown)")
+    ap.add_argument("--repeats", type=int, default=5,
+                    help="timed runs of --steps steps each (the median chunk of 20 steps over "
+                         "all of them is shown; lancet's rows time one run)")
     ap.add_argument("--rounds", type=int, default=1,
                     help="rounds of every engine in turn (a shared machine's speed drifts by "
                          "a quarter from one minute to the next: with several rounds each "

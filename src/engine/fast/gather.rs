@@ -21,14 +21,15 @@ use std::arch::x86_64::*;
 /// address is `base + at * 8`, one x86 addressing mode, so no lane's index is shifted first.
 ///
 /// # Safety
-/// The CPU has AVX2 and FMA, and every `at[l] / 2` is below `rows.len()`.
+/// The CPU has AVX2 and FMA, and every `at[l]` is even with `at[l] / 2` below `rows.len()`
+/// (an odd one would read half a row past its row).
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn rows_at(rows: &[P], at: &[u32; LANES]) -> [__m256; 3] {
     // Half rows: 8 bytes, the largest scale an x86 address takes.
     let base = rows.as_ptr() as *const [f32; 2];
-    // SAFETY: the caller guarantees each `at[l] / 2` is a row within `rows`, whose rows are
-    // two half rows each.
+    // SAFETY: the caller guarantees each `at[l]` is even and `at[l] / 2` a row within
+    // `rows`: half row `at[l]` starts that row, which is two half rows long.
     let row = |l: usize| unsafe { _mm_loadu_ps(base.add(at[l] as usize) as *const f32) };
     let pair = |l: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4));
     let [x, y, z, _] = transpose4([pair(0), pair(1), pair(2), pair(3)]);
@@ -77,7 +78,7 @@ fn transpose4([a0, a1, a2, a3]: [__m256; 4]) -> [__m256; 4] {
 /// The CPU has AVX2 and FMA, and `start + 8 <= rows.len()`.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn rows4_at(rows: &[P], start: usize) -> [__m256; 4] {
+unsafe fn rows4_from(rows: &[P], start: usize) -> [__m256; 4] {
     // SAFETY: the caller's; a row is four floats.
     let row = |l: usize| unsafe { _mm_loadu_ps(rows.as_ptr().add(start + l) as *const f32) };
     let pair = |l: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4));
@@ -150,8 +151,8 @@ fn prefetch<T>(v: &[T], at: usize) {
 ///
 /// # Safety
 /// The CPU has AVX2 and FMA; `x` and `w` hold the `sl.nodes()` nodes the layout indexes
-/// (every neighbour index in a group is below it, as [`Sliced`] keeps them), and slice `b`
-/// exists.
+/// (every group's [`Group::at`](super::sliced::Group::at) holds `2 j` with `j` below it, as
+/// `Group::set_node` writes them), and slice `b` exists.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
@@ -185,8 +186,9 @@ unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
                 prefetch(&sl.damping, start + k);
             }
         }
-        // SAFETY: the groups' neighbours are below `sl.nodes()`, the length of `x` and `w`.
-        let uj = unsafe { rows_at(x, &g.at) };
+        // SAFETY: each `g.at()` entry is `2 j` with `j` below `sl.nodes()`, the length of `x`
+        // and `w` (`Group::set_node`).
+        let uj = unsafe { rows_at(x, g.at()) };
         let e: [__m256; 3] = std::array::from_fn(|a| load(&g.edge[a]));
         let d: [__m256; 3] =
             std::array::from_fn(|a| _mm256_add_ps(e[a], _mm256_sub_ps(uj[a], ui[a])));
@@ -215,7 +217,7 @@ unsafe fn slice_forces<const DAMPED: bool, const UNIFORM: bool>(
             (s, inv, inv)
         };
         if DAMPED {
-            let wj = unsafe { rows_at(w, &g.at) };
+            let wj = unsafe { rows_at(w, g.at()) };
             let dw: [__m256; 3] = std::array::from_fn(|a| _mm256_sub_ps(wj[a], wi[a]));
             let along = _mm256_fmadd_ps(
                 dw[2],
@@ -269,7 +271,7 @@ pub(super) unsafe fn block<const DAMPED: bool, const UNIFORM: bool, const VERLET
         let full = xo.len() == LANES;
         let (xi, si) = if full {
             // SAFETY: a full slice's eight rows are within `x` and `s`.
-            unsafe { (rows4_at(x, base), rows4_at(s, base)) }
+            unsafe { (rows4_from(x, base), rows4_from(s, base)) }
         } else {
             // Lanes past the last node read the last node: their results are never stored.
             let own: [u32; LANES] = std::array::from_fn(|l| (base + l).min(last) as u32);

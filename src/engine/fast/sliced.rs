@@ -43,8 +43,10 @@ pub(super) struct Group {
     /// internal index: the place of its row, in 8-byte units, in a node array of 16-byte rows
     /// ([`P`]). The step's gather then addresses a row as `base + at * 8`, which x86 encodes in
     /// the load itself, instead of shifting each index first: 12% of an undamped step and 6%
-    /// of a damped one (measurements.md, thirteenth slice). Read it with [`Group::node`].
-    pub at: [u32; LANES],
+    /// of a damped one on the 18k peer box, 11% undamped at 100k (measurements.md, thirteenth
+    /// slice). Written only by [`Group::set_node`], so every entry is even; read it with
+    /// [`Group::node`], or [`Group::at`] for the gather.
+    at: [u32; LANES],
     /// Rest vector from the lane's node to the other end, per axis, m.
     pub edge: [[f32; LANES]; 3],
 }
@@ -65,7 +67,8 @@ fn check_nodes(n: usize) -> crate::Result<()> {
     }
     Err(crate::Error::Unsupported(format!(
         "the fast CPU engine indexes fewer than {} nodes and the model has {n}: split the \
-         mesh, or run the float64 reference engine",
+         mesh, or run the float64 reference engine (`--engine reference`, \
+         `EngineKind::Reference`)",
         MAX_NODES
     )))
 }
@@ -77,10 +80,22 @@ impl Group {
         (self.at[l] / 2) as usize
     }
 
-    /// Make node `j` lane `l`'s other end.
+    /// Every lane's other end as twice its internal index (each even, below `2 * nodes`),
+    /// the form the AVX2 gather takes (`gather.rs`, `rows_at`).
+    #[inline(always)]
+    pub fn at(&self) -> &[u32; LANES] {
+        &self.at
+    }
+
+    /// Make node `j` lane `l`'s other end. Models past [`MAX_NODES`] never reach a layout
+    /// ([`check_size`] refuses them first); a wrapped index would read the wrong rows, so
+    /// this is checked in every build, once per spring end when a layout is written.
     #[inline(always)]
     fn set_node(&mut self, l: usize, j: u32) {
-        debug_assert!((j as usize) < MAX_NODES, "node {j} past the layout's reach");
+        assert!(
+            (j as usize) < MAX_NODES,
+            "node {j} past the fast layout's reach"
+        );
         self.at[l] = 2 * j;
     }
 }

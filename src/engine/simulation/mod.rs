@@ -129,7 +129,12 @@ fn make_engine(
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
                 {
-                    fast::check_size(model)?;
+                    fast::check_size(model).map_err(|fast| match fast {
+                        Error::Unsupported(why) => {
+                            Error::Unsupported(format!("no usable GPU ({e}), and {why}"))
+                        }
+                        other => other,
+                    })?;
                     Box::new(fast::FastEngine::new(model, config))
                 },
                 EngineKind::Fast,
