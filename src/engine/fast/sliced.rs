@@ -54,23 +54,23 @@ pub(super) struct Group {
 /// Nodes a layout can index: [`Group::at`] holds twice an index in a `u32`.
 pub(super) const MAX_NODES: usize = 1 << 31;
 
-/// An error unless the fast engine can lay out `model`'s nodes: its spring layout indexes at
-/// most [`MAX_NODES`] (2^31, far past any memory that holds their state).
-pub(crate) fn check_size(model: &crate::model::PackedModel) -> crate::Result<()> {
+/// Why the fast engine cannot lay out `model`'s nodes, if it cannot: its spring layout indexes
+/// fewer than [`MAX_NODES`] (2^31, far past any memory that holds their state). The caller
+/// makes it an [`Error::Unsupported`](crate::Error::Unsupported), with its own context.
+pub(crate) fn check_size(model: &crate::model::PackedModel) -> Result<(), String> {
     check_nodes(model.node_count())
 }
 
 /// [`check_size`] of a model of `n` nodes.
-fn check_nodes(n: usize) -> crate::Result<()> {
+fn check_nodes(n: usize) -> Result<(), String> {
     if n < MAX_NODES {
         return Ok(());
     }
-    Err(crate::Error::Unsupported(format!(
-        "the fast CPU engine indexes fewer than {} nodes and the model has {n}: split the \
-         mesh, or run the float64 reference engine (`--engine reference`, \
-         `EngineKind::Reference`)",
-        MAX_NODES
-    )))
+    Err(format!(
+        "the fast CPU engine indexes fewer than {MAX_NODES} nodes and the model has {n}: split \
+         the mesh, or run the float64 reference engine (`--engine reference`, \
+         `EngineKind::Reference`)"
+    ))
 }
 
 impl Group {
@@ -664,7 +664,7 @@ mod tests {
     #[test]
     fn models_past_the_layouts_reach_are_refused_with_the_count() {
         assert!(check_nodes(MAX_NODES - 1).is_ok());
-        let e = check_nodes(MAX_NODES).unwrap_err().to_string();
+        let e = check_nodes(MAX_NODES).unwrap_err();
         assert!(e.contains(&MAX_NODES.to_string()), "{e}");
         assert!(
             e.contains("reference engine"),

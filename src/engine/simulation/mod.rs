@@ -96,7 +96,7 @@ fn make_engine(
         ));
     }
     let fast = || -> Result<Box<dyn Engine>> {
-        fast::check_size(model)?;
+        fast::check_size(model).map_err(Error::Unsupported)?;
         Ok(Box::new(
             fast::FastEngine::new(model, config).with_force_model(model, config.force_model)?,
         ))
@@ -129,11 +129,8 @@ fn make_engine(
             Ok(e) => (e, EngineKind::Gpu, None),
             Err(e) => (
                 {
-                    fast::check_size(model).map_err(|fast| match fast {
-                        Error::Unsupported(why) => {
-                            Error::Unsupported(format!("no usable GPU ({e}), and {why}"))
-                        }
-                        other => other,
+                    fast::check_size(model).map_err(|why| {
+                        Error::Unsupported(format!("no usable GPU ({e}), and {why}"))
                     })?;
                     Box::new(fast::FastEngine::new(model, config))
                 },
