@@ -11,6 +11,12 @@ Each peer runs the fastest plain kernel of its kind: Taichi gathers each node's 
 CSR adjacency (one parallel loop over nodes, on the threads given), Warp does the same in one
 kernel (Warp's CPU backend runs a launch on one thread). Both then integrate in a second
 kernel. Run through `run.sh`, which installs the peers in a virtual environment.
+
+Two ways to time them. By default (`--rounds`), each engine runs in its own process in turn,
+lancet's through `lancet bench --preset`, and ratios are taken round by round. With
+`--paired N`, lancet's fast engine steps in this process through its Python package
+(`lancet.World.preset`, stepped unchecked as `lancet bench` steps it), every engine in turn N
+times, and ratios are taken chunk by chunk.
 """
 
 import argparse
@@ -106,7 +112,8 @@ def time_steps(step, sync, steps, repeats):
     return sorted(times)[len(times) // 2]
 
 
-def run_taichi(pos, row, col, rest, damping, threads, steps, repeats):
+def setup_taichi(pos, row, col, rest, damping, threads):
+    """Taichi's node gather on `threads` CPU threads: (step(k), sync(), positions(), close())."""
     import taichi as ti
 
     ti.init(arch=ti.cpu, cpu_max_num_threads=threads, default_fp=ti.f32, log_level=ti.ERROR)
@@ -149,13 +156,19 @@ def run_taichi(pos, row, col, rest, damping, threads, steps, repeats):
             forces()
             integrate()
 
-    s = time_steps(step, ti.sync, steps, repeats)
-    out = x.to_numpy()
-    ti.reset()
+    return step, ti.sync, x.to_numpy, ti.reset
+
+
+def run_taichi(pos, row, col, rest, damping, threads, steps, repeats):
+    step, sync, positions, close = setup_taichi(pos, row, col, rest, damping, threads)
+    s = time_steps(step, sync, steps, repeats)
+    out = positions()
+    close()
     return s, out
 
 
-def run_warp(pos, row, col, rest, damping, steps, repeats):
+def setup_warp(pos, row, col, rest, damping):
+    """Warp's node gather on its CPU device (one thread): (step(k), sync(), positions(), close())."""
     import warp as wp
 
     wp.config.quiet = True
@@ -202,8 +215,13 @@ def run_warp(pos, row, col, rest, damping, steps, repeats):
                                              float(damping)], device=dev)
             wp.launch(integrate, dim=n, inputs=[x, v, v_next], device=dev)
 
-    s = time_steps(step, wp.synchronize, steps, repeats)
-    return s, x.numpy()
+    return step, wp.synchronize, x.numpy, lambda: None
+
+
+def run_warp(pos, row, col, rest, damping, steps, repeats):
+    step, sync, positions, _ = setup_warp(pos, row, col, rest, damping)
+    s = time_steps(step, sync, steps, repeats)
+    return s, positions()
 
 
 def run_lancet(binary, preset, steps, split):
@@ -234,6 +252,73 @@ def one_round(args, grids, sizes, peers, damping):
     return out
 
 
+def quantile(xs, q):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))]
+
+
+def paired(args, grids, sizes, peers, damping):
+    """Every engine in this one process, lancet's through its Python package, stepped
+    `CHUNK` steps at a time in turn (the order rotated each pair), `args.paired` times: each
+    ratio compares chunks taken within a fraction of a second of each other, so the shared
+    machine's drift from minute to minute leaves it alone."""
+    try:
+        import lancet
+    except ImportError as e:
+        sys.exit(f"--paired steps lancet through its Python package, which did not import "
+                 f"({e}): run through benches/peers/run.sh, which builds it")
+    preset = "damped" if damping else "undamped"
+    for size in sizes:
+        pos, row, col, rest, n, m = grids[size]
+        engines, closers = {}, []
+        # lancet's fast engine only: the float64 engine runs on one thread, and a core left
+        # idle meanwhile is handed elsewhere by the host, which slows whatever runs next.
+        world = lancet.World.preset(preset, size, "five", "fast")
+        if world.node_count != n:
+            sys.exit(f"lancet's {size} box has {world.node_count} nodes, the peers' {n}")
+        engines["lancet fast"] = (lambda k: world.run(k, check=False), lambda: None)
+        if "taichi" in peers:
+            step, sync, _, close = setup_taichi(pos, row, col, rest, damping, args.threads)
+            engines[f"taichi node gather, {args.threads} threads"] = (step, sync)
+            closers.append(close)
+        if "warp" in peers:
+            step, sync, _, close = setup_warp(pos, row, col, rest, damping)
+            engines["warp cpu node gather (one thread)"] = (step, sync)
+            closers.append(close)
+        names = list(engines)
+        for step, sync in engines.values():
+            step(10)
+            sync()
+        times = {k: [] for k in names}
+        for p in range(args.paired):
+            for k in names[p % len(names):] + names[:p % len(names)]:
+                step, sync = engines[k]
+                # Untimed first: the engine before left its own data in the caches, and its
+                # thread pool spinning on the cores for a while before it sleeps. A simulator
+                # steps one engine on and on, which is what the timed chunk then sees.
+                step(CHUNK)
+                sync()
+                t = time.perf_counter()
+                step(CHUNK)
+                sync()
+                times[k].append((time.perf_counter() - t) / CHUNK)
+        for close in closers:
+            close()
+        print(f"# {size}: {n} nodes, {m} springs, {preset}; {args.paired} chunks of {CHUNK} "
+              f"steps each, engines in turn")
+        print(f"{'engine':<40} {'steps/s':>9} {'ms/step':>8}  steps/s p10-p90")
+        for k in names:
+            s = median(times[k])
+            print(f"{k:<40} {1.0 / s:>9.0f} {s * 1e3:>8.3f}  "
+                  f"{1.0 / quantile(times[k], 0.9):.0f}-{1.0 / quantile(times[k], 0.1):.0f}")
+        fast = times["lancet fast"]
+        for k in names[1:]:
+            r = [b / a for a, b in zip(fast, times[k])]
+            print(f"# {size}: lancet fast against {k}: {median(r):.2f}x, chunk by chunk "
+                  f"(p10 {quantile(r, 0.1):.2f}, p25 {quantile(r, 0.25):.2f}, "
+                  f"p75 {quantile(r, 0.75):.2f}, p90 {quantile(r, 0.9):.2f})")
+
+
 def median(xs):
     xs = sorted(xs)
     return xs[len(xs) // 2] if len(xs) % 2 else 0.5 * (xs[len(xs) // 2 - 1] + xs[len(xs) // 2])
@@ -256,6 +341,10 @@ def main():
                          "row shows the median round and the range, and lancet's fast engine "
                          "is compared with each peer round by round)")
     ap.add_argument("--peers", default="taichi,warp")
+    ap.add_argument("--paired", type=int, default=0, metavar="N",
+                    help="instead of rounds: N chunks of 20 steps of every engine in turn, all "
+                         "in this process (lancet's through its Python package), and each "
+                         "ratio taken chunk by chunk")
     args = ap.parse_args()
     damping = DAMPING if args.preset == "damped" else 0.0
     sizes = [s for s in args.sizes.split(",") if s]
@@ -267,6 +356,9 @@ def main():
         grids[size] = (pos, row, col, rest, len(pos), len(edges))
         print(f"# {size}: {GRIDS[size]} cells, {len(pos)} nodes, {len(edges)} springs",
               file=sys.stderr)
+    if args.paired:
+        paired(args, grids, sizes, peers, damping)
+        return
     rounds = [one_round(args, grids, sizes, peers, damping) for _ in range(args.rounds)]
     keys = sorted(rounds[0], key=lambda k: (k[0] != "small", median([r[k] for r in rounds])))
     several = args.rounds > 1

@@ -12,7 +12,7 @@ use pyo3::types::PyDict;
 use lancet::collide::ToolShape;
 use lancet::cut::CutMethod;
 use lancet::engine::{EngineKind, Integrator, SimConfig};
-use lancet::mesh::generate::BoxGrid;
+use lancet::mesh::generate::{BoxGrid, TetSplit};
 use lancet::mesh::TetMesh;
 use lancet::model::{FixedSelector, Material, ModelConfig};
 use lancet::scene::RunOptions;
@@ -176,6 +176,67 @@ impl World {
             bound_fraction,
         }
         .build(mesh)
+    }
+
+    /// The mass-spring benchmark of `lancet bench --preset` (the one `benches/peers/` runs in
+    /// Taichi and Warp): a box of `cells` cells of 5 cm (`"small"`: 40x20x20, `"large"`:
+    /// 72x36x36, or three counts) split into five tets (`split="six"`: six), springs of 5e4
+    /// N/m on the tet edges with 5 N s/m along each (`preset="undamped"`: none), 0.125 kg a
+    /// node, the face x = 0 fixed, gravity, 2e-4 s steps of symplectic Euler. `cells`
+    /// defaults to `"large"`.
+    #[staticmethod]
+    #[pyo3(signature = (preset="damped", cells=None, split="five", engine="fast"))]
+    fn preset(
+        preset: &str,
+        cells: Option<&Bound<'_, PyAny>>,
+        split: &str,
+        engine: &str,
+    ) -> PyResult<World> {
+        use lancet::report::bench::Preset;
+        let preset = match preset {
+            "damped" => Preset::Damped,
+            "undamped" => Preset::Undamped,
+            _ => {
+                return Err(value_err(format!(
+                    "preset `{preset}`: choose damped or undamped"
+                )))
+            }
+        };
+        let cells: [usize; 3] = match cells {
+            None => Preset::GRIDS[1],
+            Some(c) => match c.extract::<String>() {
+                Ok(name) => match name.as_str() {
+                    "small" => Preset::GRIDS[0],
+                    "large" => Preset::GRIDS[1],
+                    _ => {
+                        return Err(value_err(format!(
+                            "cells `{name}`: choose small, large or three cell counts"
+                        )))
+                    }
+                },
+                Err(_) => c.extract().map_err(|_| {
+                    value_err("cells: \"small\", \"large\" or three cell counts, such as (8, 4, 4)")
+                })?,
+            },
+        };
+        let split = match split {
+            "five" => TetSplit::Five,
+            "six" => TetSplit::Six,
+            _ => return Err(value_err(format!("split `{split}`: choose five or six"))),
+        };
+        let mesh = BoxGrid {
+            split,
+            ..BoxGrid::cube_cells(cells, Preset::CELL)
+        }
+        .build()
+        .map_err(py_err)?;
+        let model = preset.model_config(&mesh);
+        let world = WorldBuilder::new(mesh, &model, Preset::sim_config())
+            .map_err(py_err)?
+            .engine(engine_kind(engine)?)
+            .build()
+            .map_err(py_err)?;
+        Ok(World { world })
     }
 
     /// A world of a tetrahedral mesh file, with the arguments of `World.box`.
@@ -379,9 +440,29 @@ impl World {
     }
 
     /// Take `steps` steps with the tools where they are (the GIL released meanwhile).
-    fn run(&mut self, py: Python<'_>, steps: u64) -> PyResult<()> {
+    /// `check=False` leaves out the divergence and inversion checks, as `lancet bench` times
+    /// the engines: for timing a world without tools or self-contact against other codes.
+    #[pyo3(signature = (steps, check=true))]
+    fn run(&mut self, py: Python<'_>, steps: u64, check: bool) -> PyResult<()> {
         let world = &mut self.world;
-        py.detach(|| world.run_with(steps, |_| {})).map_err(py_err)
+        if check {
+            return py.detach(|| world.run_with(steps, |_| {})).map_err(py_err);
+        }
+        if world.has_contacts() {
+            return Err(value_err(
+                "run(check=False) times the simulation alone, and this world has tools or \
+                 self-contact: run it checked",
+            ));
+        }
+        py.detach(|| {
+            let mut left = steps;
+            while left > 0 {
+                let chunk = left.min(u32::MAX as u64) as u32;
+                world.sim_mut().step_unchecked(chunk);
+                left -= chunk as u64;
+            }
+        });
+        Ok(())
     }
 
     /// Node positions now, an (n, 3) float64 array in the mesh's node order (cuts add nodes

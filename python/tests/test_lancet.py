@@ -111,3 +111,37 @@ def test_read_mesh_gives_arrays(tmp_path):
     mesh = lancet.read_mesh(path)
     assert mesh.nodes.shape == (4, 3) and mesh.tets.shape == (1, 4)
     assert math.isclose(mesh.volume, 1 / 6)
+
+
+def test_the_peers_benchmark_world_is_their_model():
+    # The box of `lancet bench --preset` (5 cm cells, five tets each, the face x = 0 held,
+    # 2e-4 s steps of symplectic Euler). The held face is first felt by the layer of nodes k
+    # cells from it at step k + 1 (an explicit step carries news one spring a step, and a
+    # cell's springs join neighbouring layers only), so after n steps the layers from n on
+    # have fallen freely:
+    # symplectic Euler from rest puts it at -g h^2 n (n + 1) / 2 (Verlet would give n^2 / 2).
+    w = lancet.World.preset("undamped", (12, 2, 2), engine="fast")
+    assert (w.node_count, w.tet_count, w.dt) == (13 * 3 * 3, 12 * 2 * 2 * 5, 2e-4)
+    n = 10
+    w.run(n, check=False)
+    rest, x = w.rest_positions, w.positions
+    far = rest[:, 0] > 0.05 * n - 1e-9
+    assert far.sum() == 3 * 3 * 3
+    fall = 9.81 * 2e-4**2 * n * (n + 1) / 2
+    np.testing.assert_allclose(x[far, 2] - rest[far, 2], -fall, rtol=1e-4)
+    np.testing.assert_allclose(x[far, :2], rest[far, :2], atol=1e-9)
+    held = rest[:, 0] < 1e-9
+    np.testing.assert_array_equal(x[held], rest[held])
+
+
+def test_the_peers_benchmark_world_refuses_what_it_does_not_have():
+    with pytest.raises(ValueError, match="preset `stiff`"):
+        lancet.World.preset("stiff")
+    with pytest.raises(ValueError, match="cells `medium`"):
+        lancet.World.preset("damped", "medium")
+    with pytest.raises(ValueError, match="split `seven`"):
+        lancet.World.preset("damped", (2, 1, 1), split="seven")
+    w = block()
+    w.add_tool("probe", "sphere", [0.01, 0.01, 0.05], radius=0.003)
+    with pytest.raises(ValueError, match="check=False"):
+        w.run(1, check=False)

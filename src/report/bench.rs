@@ -161,8 +161,14 @@ impl Preset {
             .collect()
     }
 
-    /// The preset's model on `mesh`.
+    /// The preset's model on `mesh`, packed as every engine of `lancet bench` runs it.
     pub fn model(self, mesh: &TetMesh) -> Result<PackedModel> {
+        crate::model::SpringModel::build(mesh, &self.model_config(mesh))?.pack(mesh)
+    }
+
+    /// The preset's model settings on `mesh` (its face of least x is fixed), for a
+    /// [`WorldBuilder`](crate::world::WorldBuilder) or a [`crate::model::SpringModel`].
+    pub fn model_config(self, mesh: &TetMesh) -> ModelConfig {
         let xmin = mesh.bounds().map_or(0.0, |(lo, _)| lo.x);
         let damping = match self {
             Preset::Damped => SpringDamping::Absolute(Self::DAMPING),
@@ -176,7 +182,14 @@ impl Preset {
             normal: [1.0, 0.0, 0.0],
             tolerance: 1e-9,
         });
-        crate::model::SpringModel::build(mesh, &config)?.pack(mesh)
+        config
+    }
+
+    /// The preset's time stepping: [`Preset::DT`], symplectic Euler.
+    pub fn sim_config() -> SimConfig {
+        let mut config = SimConfig::new(Self::DT);
+        config.integrator = Integrator::SymplecticEuler;
+        config
     }
 }
 
