@@ -159,10 +159,10 @@ pub fn glb_bytes(meshes: &[GlbMesh]) -> Result<Vec<u8>> {
 
 /// Pack the JSON and binary chunks into the GLB container.
 fn container(mut text: Vec<u8>, mut bin: Vec<u8>) -> Vec<u8> {
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
@@ -312,7 +312,7 @@ pub fn read_glb(bytes: &[u8]) -> io::Result<(json::Root, Vec<u8>)> {
         return Err(bad("header length differs from the file's"));
     }
     let json_len = word(12)? as usize;
-    if word(16)? != CHUNK_JSON || json_len % 4 != 0 {
+    if word(16)? != CHUNK_JSON || !json_len.is_multiple_of(4) {
         return Err(bad("first chunk is not a padded JSON chunk"));
     }
     let text = bytes

@@ -1,6 +1,7 @@
-//! The fast engine's AVX2/FMA kernels (used where the CPU has them) step like its baseline
-//! kernels: the same physics, differing only by fused-multiply-add rounding, with the springs'
-//! constants per end and with one material kept once.
+//! The fast engine's AVX2/FMA kernels, and those with AVX-512 (used where the CPU has them),
+//! step like its baseline kernels: the same physics, differing only by fused-multiply-add
+//! rounding (and, with AVX-512, each spring's `1 / l` from an estimate and a Newton step), with
+//! the springs' constants per end and with one material kept once.
 
 use crate::models;
 use lancet::engine::fast::FastEngine;
@@ -15,6 +16,7 @@ fn wide_and_baseline_kernels_agree(
     #[values(Integrator::Verlet, Integrator::SymplecticEuler)] integrator: Integrator,
     #[values(false, true)] damped: bool,
     #[values(false, true)] one: bool,
+    #[values(false, true)] avx512: bool,
 ) {
     let model = if one {
         one_material(random_model(71, damped))
@@ -27,21 +29,30 @@ fn wide_and_baseline_kernels_agree(
     let run = |wide: bool| {
         let mut e = FastEngine::new(&model, config);
         let used = e.set_wide_simd(wide);
+        let used_512 = e.set_avx512(avx512);
         assert_eq!(e.uniform_springs().is_some(), one);
         e.set_state(&x, &v);
         e.step(300);
-        (used, e.positions())
+        (used, used_512, e.positions())
     };
-    let (wide_used, wide) = run(true);
-    let (baseline_used, baseline) = run(false);
-    assert!(!baseline_used);
+    let (wide_used, wide_512, wide) = run(true);
+    let (baseline_used, baseline_512, baseline) = run(false);
+    assert!(!baseline_used && !baseline_512);
     if !wide_used {
         eprintln!("skipped: this CPU has no AVX2/FMA, only the baseline kernels run");
         return;
     }
+    assert!(avx512 || !wide_512);
+    if avx512 && !wide_512 {
+        eprintln!("skipped: this CPU has no AVX-512F/VL, the AVX2 kernels are checked alone");
+        return;
+    }
     let e = relative_l2(&model.rest, &wide, &baseline);
     // Rounding only (measured ~1e-7); a wrong lane or missed spring gives 1e-2 and more.
-    assert!(e < 1e-5, "AVX2 kernels off the baseline by {e:.2e}");
+    assert!(
+        e < 1e-5,
+        "AVX2 kernels (AVX-512: {avx512}) off the baseline by {e:.2e}"
+    );
 }
 
 /// Backward Euler's product, read lane by lane, is compiled a second time for AVX2 and FMA

@@ -499,7 +499,7 @@ fn a_table_with_many_overflow_rows_repacks_by_size_class() {
     assert!(patch.repacked);
     assert_eq!(c.overflow_rows(), 0);
     assert!(
-        c.capacity > widest.max(4) && c.capacity % 4 == 0,
+        c.capacity > widest.max(4) && c.capacity.is_multiple_of(4),
         "{}",
         c.capacity
     );

@@ -63,7 +63,7 @@ fn a_cube_crushed_by_its_weight_is_reported_with_the_step_and_a_tet() {
         let at = msg.split("the check at step ").nth(1).unwrap();
         let found_at: u64 = at.split(' ').next().unwrap().parse().unwrap();
         assert!(
-            found_at >= s.steps && found_at % INVERSION_CHECK_EVERY == 0,
+            found_at >= s.steps && found_at.is_multiple_of(INVERSION_CHECK_EVERY),
             "{msg}"
         );
     }

@@ -18,7 +18,7 @@
 //! wait until every range has made its first step, and are then stepped a second time in a
 //! pass of their own, while the ones just swept are still in cache.
 
-use super::kernels::step_block;
+use super::kernels::{step_block, Simd};
 use super::sliced::{Sliced, LANES};
 use super::{FastEngine, Graph, Params, P};
 
@@ -61,7 +61,7 @@ struct Kernel<'a> {
     p: Params,
     damped: bool,
     uniform: bool,
-    wide: bool,
+    simd: Simd,
 }
 
 impl Kernel<'_> {
@@ -69,7 +69,7 @@ impl Kernel<'_> {
     /// from `A` into `B` (`first`) or from `B` into `A`.
     ///
     /// # Safety
-    /// `wide` only where the CPU has AVX2 and FMA; no other thread reads the nodes written or
+    /// `simd` at most what the CPU has; no other thread reads the nodes written or
     /// writes any node within `reach` of them (the nodes read) while this runs.
     unsafe fn run<const VERLET: bool>(&self, st: State, first: bool, start: usize, end: usize) {
         if start >= end {
@@ -90,8 +90,8 @@ impl Kernel<'_> {
                 std::slice::from_raw_parts_mut(dst.1.add(start), end - start),
             )
         };
-        let (g, sl, p, w) = (self.g, self.sl, self.p, self.wide);
-        // SAFETY: the caller's (`wide`).
+        let (g, sl, p, w) = (self.g, self.sl, self.p, self.simd);
+        // SAFETY: the caller's (`simd`).
         unsafe {
             match (self.damped, self.uniform) {
                 (true, true) => step_block::<true, true, VERLET>(w, g, sl, p, x, s, start, xo, so),
@@ -251,7 +251,7 @@ impl FastEngine {
             p: self.params,
             damped: self.damped,
             uniform: sl.uniform.is_some(),
-            wide: self.wide,
+            simd: self.simd,
         };
         let st = State {
             x: self.x.as_mut_ptr(),
@@ -261,7 +261,7 @@ impl FastEngine {
             n,
         };
         let reach = sl.reach;
-        // SAFETY: `wide` only where the CPU has AVX2 and FMA (`set_wide_simd`, `new`); the
+        // SAFETY: `simd` at most what the CPU has (`Simd::best`, `set_wide_simd`); the
         // ranges are disjoint, a sweep writes `A` only for nodes whose readers are all its
         // own and done, and `finish` runs after every sweep (see the module's rule).
         let sweep = |r: &Range| unsafe { r.sweep::<VERLET>(&k, st, reach) };

@@ -325,7 +325,7 @@ impl FastEngine {
             unreachable!("an engine built for backward Euler has its solver scratch");
         };
         imp.fit(&self.graph);
-        imp.wide = self.wide;
+        imp.wide = self.simd.wide();
         let (g, params) = (&self.graph, self.params);
         let settings = imp.settings;
         let mut fem = self.elements.as_mut();

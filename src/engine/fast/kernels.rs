@@ -1,74 +1,118 @@
 //! The fast engine's inner loops: the spring forces of a slice of nodes (`sliced.rs`), the
-//! Verlet and symplectic Euler updates of a block of nodes (AVX2/FMA where the processor has them, chosen
-//! at run time), and the parallel iteration over blocks.
+//! Verlet and symplectic Euler updates of a block of nodes (AVX2/FMA, or those and AVX-512,
+//! where the processor has them, chosen at run time), and the parallel iteration over blocks.
 
 use super::sliced::{group_force, Material, Sliced, LANES as SLICE, V3};
 use super::*;
 
-/// Whether the kernels may use AVX2 and FMA on this CPU.
-pub(super) fn wide_simd() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+/// The instructions the explicit step's kernels use, from the fewest.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) enum Simd {
+    /// Plain Rust, vectorised by the compiler as it can.
+    Portable,
+    /// AVX2 and FMA (`gather.rs`), each spring's scale from a division and a square root.
+    Avx2,
+    /// The AVX2 kernels with AVX-512F and VL besides: each spring's scale from the 14-bit
+    /// reciprocal square root estimate and a Newton step (`gather::short_scale`), and 32
+    /// vector registers.
+    Avx512,
+}
+
+impl Simd {
+    /// The most this CPU has.
+    pub(super) fn best() -> Simd {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if !(has!("avx2") && has!("fma")) {
+                return Simd::Portable;
+            }
+            if has!("avx512f") && has!("avx512vl") {
+                return Simd::Avx512;
+            }
+            Simd::Avx2
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            Simd::Portable
+        }
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+
+    /// Whether the AVX2 and FMA kernels run (the explicit step's, and the others').
+    pub(super) fn wide(self) -> bool {
+        self >= Simd::Avx2
     }
 }
 
-/// The block kernels for AVX2 and FMA: written with their intrinsics (`gather.rs`), the same
-/// physics as the portable kernels below.
+/// The block kernels for AVX2 and FMA, and for those with AVX-512F and VL: one code
+/// (`gather::block`) compiled inside each with its target features.
 #[cfg(target_arch = "x86_64")]
 pub(super) mod wide {
     use super::{Graph, Params, Sliced, P};
 
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    pub(in crate::engine::fast) fn verlet_block<const DAMPED: bool, const UNIFORM: bool>(
-        g: &Graph,
-        sl: &Sliced,
-        p: Params,
-        x: &[P],
-        d: &[P],
-        start: usize,
-        xo: &mut [P],
-        dout: &mut [P],
-    ) {
-        // SAFETY: this function's own features; the step checks the state's length.
-        unsafe {
-            super::super::gather::block::<DAMPED, UNIFORM, true>(g, sl, p, x, d, start, xo, dout)
-        }
+    /// The block kernels of one set of target features.
+    macro_rules! blocks {
+        ($features:literal, $short:literal, $verlet:ident, $euler:ident) => {
+            #[target_feature(enable = $features)]
+            #[allow(clippy::too_many_arguments)]
+            pub(in crate::engine::fast) fn $verlet<const DAMPED: bool, const UNIFORM: bool>(
+                g: &Graph,
+                sl: &Sliced,
+                p: Params,
+                x: &[P],
+                d: &[P],
+                start: usize,
+                xo: &mut [P],
+                dout: &mut [P],
+            ) {
+                // SAFETY: this function's own features; the step checks the state's length.
+                unsafe {
+                    super::super::gather::block::<DAMPED, UNIFORM, true, $short>(
+                        g, sl, p, x, d, start, xo, dout,
+                    )
+                }
+            }
+
+            #[target_feature(enable = $features)]
+            #[allow(clippy::too_many_arguments)]
+            pub(in crate::engine::fast) fn $euler<const DAMPED: bool, const UNIFORM: bool>(
+                g: &Graph,
+                sl: &Sliced,
+                p: Params,
+                x: &[P],
+                v: &[P],
+                start: usize,
+                xo: &mut [P],
+                vo: &mut [P],
+            ) {
+                // SAFETY: as above.
+                unsafe {
+                    super::super::gather::block::<DAMPED, UNIFORM, false, $short>(
+                        g, sl, p, x, v, start, xo, vo,
+                    )
+                }
+            }
+        };
     }
 
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    pub(in crate::engine::fast) fn euler_block<const DAMPED: bool, const UNIFORM: bool>(
-        g: &Graph,
-        sl: &Sliced,
-        p: Params,
-        x: &[P],
-        v: &[P],
-        start: usize,
-        xo: &mut [P],
-        vo: &mut [P],
-    ) {
-        // SAFETY: as above.
-        unsafe {
-            super::super::gather::block::<DAMPED, UNIFORM, false>(g, sl, p, x, v, start, xo, vo)
-        }
-    }
+    blocks!("avx2,fma", false, verlet_block, euler_block);
+    blocks!(
+        "avx2,fma,avx512f,avx512vl",
+        true,
+        verlet_block_512,
+        euler_block_512
+    );
 }
 
-/// Step the block from `start` with the AVX2 kernel where `wide`, else the portable one:
-/// Verlet's where `VERLET`, symplectic Euler's otherwise.
+/// Step the block from `start` with the kernels of `simd`: Verlet's where `VERLET`, symplectic
+/// Euler's otherwise.
 ///
 /// # Safety
-/// `wide` only where the CPU has AVX2 and FMA ([`wide_simd`]).
+/// `simd` at most what the CPU has ([`Simd::best`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) unsafe fn step_block<const DAMPED: bool, const UNIFORM: bool, const VERLET: bool>(
-    wide: bool,
+    simd: Simd,
     g: &Graph,
     sl: &Sliced,
     p: Params,
@@ -79,18 +123,27 @@ pub(super) unsafe fn step_block<const DAMPED: bool, const UNIFORM: bool, const V
     so: &mut [P],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if wide {
+    {
         // SAFETY: the caller's.
         unsafe {
-            if VERLET {
-                wide::verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
-            } else {
-                wide::euler_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+            match (simd, VERLET) {
+                (Simd::Avx512, true) => {
+                    return wide::verlet_block_512::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+                }
+                (Simd::Avx512, false) => {
+                    return wide::euler_block_512::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+                }
+                (Simd::Avx2, true) => {
+                    return wide::verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+                }
+                (Simd::Avx2, false) => {
+                    return wide::euler_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+                }
+                (Simd::Portable, _) => {}
             }
         }
-        return;
     }
-    let _ = wide;
+    let _ = simd;
     if VERLET {
         verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
     } else {

@@ -51,7 +51,7 @@ type P = [f32; 4];
 /// (about 14 springs per node in a tet mesh), small enough to balance two to a few dozen cores;
 /// a whole number of slices of the sliced layout (`sliced.rs`).
 const BLOCK: usize = 1024;
-const _: () = assert!(BLOCK % sliced::LANES == 0 && BLOCK % SIGMA == 0);
+const _: () = assert!(BLOCK.is_multiple_of(sliced::LANES) && BLOCK.is_multiple_of(SIGMA));
 
 /// Nodes per window of the valence sort that follows the locality order ([`sigma_sort`]):
 /// eight slices, so that a node moves at most 63 places from where reverse Cuthill–McKee put
@@ -117,9 +117,10 @@ pub struct FastEngine {
     integrator: Integrator,
     /// Whether any spring has damping: the undamped kernel skips the neighbours' velocities.
     damped: bool,
-    /// Whether the CPU has AVX2 and FMA (detected at run time): the kernels are compiled a
-    /// second time for them, which steps about 1.5x faster than the baseline x86-64 build.
-    wide: bool,
+    /// The instructions the kernels use, the most the CPU has (detected at run time): the
+    /// kernels are compiled again for AVX2 and FMA, which step about 1.5x faster than the
+    /// baseline x86-64 build, and for those with AVX-512F and VL besides.
+    simd: Simd,
     /// `order[internal] = model index`.
     order: Vec<u32>,
     /// `rank[model index] = internal`.
@@ -200,7 +201,7 @@ impl FastEngine {
         let second = zeros();
         let mut engine = FastEngine {
             damped: model.springs().iter().any(|s| s.damping != 0.0),
-            wide: wide_simd(),
+            simd: Simd::best(),
             graph,
             params,
             integrator: config.integrator,
@@ -265,8 +266,20 @@ impl FastEngine {
     /// Use the AVX2/FMA kernels or not (for comparing them with the baseline ones); they are
     /// only used where the CPU has those features. Returns whether they are now in use.
     pub fn set_wide_simd(&mut self, on: bool) -> bool {
-        self.wide = on && wide_simd();
-        self.wide
+        self.simd = if on { Simd::best() } else { Simd::Portable };
+        self.simd.wide()
+    }
+
+    /// Let the explicit step use AVX-512F and VL where the CPU has them (the default) or
+    /// keep to AVX2 and FMA (for comparing the two kernels): the AVX-512 kernel takes each
+    /// spring's `1 / l` from an estimate and a Newton step instead of a division and a square
+    /// root, a float32 rounding or two apart. Only with the wide kernels on
+    /// ([`FastEngine::set_wide_simd`]); returns whether it is now in use.
+    pub fn set_avx512(&mut self, on: bool) -> bool {
+        if self.simd.wide() {
+            self.simd = if on { Simd::best() } else { Simd::Avx2 };
+        }
+        self.simd == Simd::Avx512
     }
 
     /// Make explicit steps two in one sweep where the threads' ranges allow, or always one at
@@ -300,22 +313,22 @@ impl FastEngine {
         // The AVX2 kernel reads neighbours unchecked: the layout's indices are below its node
         // count, so the state must hold that many nodes.
         assert!(sl.nodes() == x.len() && s.len() == x.len());
-        let (damped, uniform, wide) = (self.damped, sl.uniform.is_some(), self.wide);
+        let (damped, uniform, simd) = (self.damped, sl.uniform.is_some(), self.simd);
         for_block_pairs(&mut self.x_next, &mut self.second_next, |start, xo, so| {
-            // SAFETY: `wide` is true only when the CPU reported AVX2 and FMA.
+            // SAFETY: `simd` is at most what the CPU reported (`Simd::best`).
             unsafe {
                 match (damped, uniform) {
                     (true, true) => {
-                        step_block::<true, true, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                        step_block::<true, true, VERLET>(simd, g, sl, p, x, s, start, xo, so)
                     }
                     (true, false) => {
-                        step_block::<true, false, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                        step_block::<true, false, VERLET>(simd, g, sl, p, x, s, start, xo, so)
                     }
                     (false, true) => {
-                        step_block::<false, true, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                        step_block::<false, true, VERLET>(simd, g, sl, p, x, s, start, xo, so)
                     }
                     (false, false) => {
-                        step_block::<false, false, VERLET>(wide, g, sl, p, x, s, start, xo, so)
+                        step_block::<false, false, VERLET>(simd, g, sl, p, x, s, start, xo, so)
                     }
                 }
             }

@@ -43,8 +43,8 @@ impl Upload {
     /// Write `data` into `dst` at `offset` when recorded. Both must be multiples of four bytes
     /// (what a buffer copy allows); every array the engine uploads is made of 4-byte words.
     pub fn write(&mut self, dst: &wgpu::Buffer, offset: u64, data: &[u8]) {
-        debug_assert!(offset % wgpu::COPY_BUFFER_ALIGNMENT == 0);
-        debug_assert!(data.len() as u64 % wgpu::COPY_BUFFER_ALIGNMENT == 0);
+        debug_assert!(offset.is_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT));
+        debug_assert!((data.len() as u64).is_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT));
         if data.is_empty() {
             return;
         }

@@ -91,7 +91,7 @@ impl<'a> Doc<'a> {
                 "the base64 data is truncated or corrupted; export the file again",
             )
         };
-        if clean.len() % 4 != 0 {
+        if !clean.len().is_multiple_of(4) {
             return Err(bad(format!(
                 "base64 data of array {name:?} has {} characters, not a multiple of 4",
                 clean.len()
@@ -259,7 +259,7 @@ impl<'a> Doc<'a> {
     /// Convert a binary payload to values of the array's type.
     fn values(&self, desc: &ArrayDesc, payload: &[u8], loc: Location) -> Result<Decoded> {
         let size = desc.scalar.size();
-        if payload.len() % size != 0 {
+        if !payload.len().is_multiple_of(size) {
             return Err(self.err(
                 loc,
                 None,
