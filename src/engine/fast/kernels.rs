@@ -50,58 +50,38 @@ impl Simd {
 pub(super) mod wide {
     use super::{Graph, Params, Sliced, P};
 
-    /// The block kernels of one set of target features.
-    macro_rules! blocks {
-        ($features:literal, $short:literal, $verlet:ident, $euler:ident) => {
+    /// The block kernel of one set of target features: Verlet's where `VERLET`, symplectic
+    /// Euler's otherwise (`s` the last steps or the velocities).
+    macro_rules! block {
+        ($features:literal, $short:literal, $name:ident) => {
             #[target_feature(enable = $features)]
             #[allow(clippy::too_many_arguments)]
-            pub(in crate::engine::fast) fn $verlet<const DAMPED: bool, const UNIFORM: bool>(
+            pub(in crate::engine::fast) fn $name<
+                const DAMPED: bool,
+                const UNIFORM: bool,
+                const VERLET: bool,
+            >(
                 g: &Graph,
                 sl: &Sliced,
                 p: Params,
                 x: &[P],
-                d: &[P],
+                s: &[P],
                 start: usize,
                 xo: &mut [P],
-                dout: &mut [P],
+                so: &mut [P],
             ) {
                 // SAFETY: this function's own features; the step checks the state's length.
                 unsafe {
-                    super::super::gather::block::<DAMPED, UNIFORM, true, $short>(
-                        g, sl, p, x, d, start, xo, dout,
-                    )
-                }
-            }
-
-            #[target_feature(enable = $features)]
-            #[allow(clippy::too_many_arguments)]
-            pub(in crate::engine::fast) fn $euler<const DAMPED: bool, const UNIFORM: bool>(
-                g: &Graph,
-                sl: &Sliced,
-                p: Params,
-                x: &[P],
-                v: &[P],
-                start: usize,
-                xo: &mut [P],
-                vo: &mut [P],
-            ) {
-                // SAFETY: as above.
-                unsafe {
-                    super::super::gather::block::<DAMPED, UNIFORM, false, $short>(
-                        g, sl, p, x, v, start, xo, vo,
+                    super::super::gather::block::<DAMPED, UNIFORM, VERLET, $short>(
+                        g, sl, p, x, s, start, xo, so,
                     )
                 }
             }
         };
     }
 
-    blocks!("avx2,fma", false, verlet_block, euler_block);
-    blocks!(
-        "avx2,fma,avx512f,avx512vl",
-        true,
-        verlet_block_512,
-        euler_block_512
-    );
+    block!("avx2,fma", false, block_avx2);
+    block!("avx2,fma,avx512f,avx512vl", true, block_avx512);
 }
 
 /// Step the block from `start` with the kernels of `simd`: Verlet's where `VERLET`, symplectic
@@ -126,20 +106,18 @@ pub(super) unsafe fn step_block<const DAMPED: bool, const UNIFORM: bool, const V
     {
         // SAFETY: the caller's.
         unsafe {
-            match (simd, VERLET) {
-                (Simd::Avx512, true) => {
-                    return wide::verlet_block_512::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+            match simd {
+                Simd::Avx512 => {
+                    return wide::block_avx512::<DAMPED, UNIFORM, VERLET>(
+                        g, sl, p, x, s, start, xo, so,
+                    )
                 }
-                (Simd::Avx512, false) => {
-                    return wide::euler_block_512::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
+                Simd::Avx2 => {
+                    return wide::block_avx2::<DAMPED, UNIFORM, VERLET>(
+                        g, sl, p, x, s, start, xo, so,
+                    )
                 }
-                (Simd::Avx2, true) => {
-                    return wide::verlet_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
-                }
-                (Simd::Avx2, false) => {
-                    return wide::euler_block::<DAMPED, UNIFORM>(g, sl, p, x, s, start, xo, so)
-                }
-                (Simd::Portable, _) => {}
+                Simd::Portable => {}
             }
         }
     }
