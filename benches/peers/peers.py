@@ -253,8 +253,9 @@ def one_round(args, grids, sizes, peers, damping):
 
 
 def quantile(xs, q):
+    """The `q` quantile of `xs`, the nearest rank."""
     xs = sorted(xs)
-    return xs[min(len(xs) - 1, int(q * len(xs)))]
+    return xs[round(q * (len(xs) - 1))]
 
 
 def paired(args, grids, sizes, peers, damping):
@@ -343,8 +344,9 @@ def main():
     ap.add_argument("--peers", default="taichi,warp")
     ap.add_argument("--paired", type=int, default=0, metavar="N",
                     help="instead of rounds: N chunks of 20 steps of every engine in turn, all "
-                         "in this process (lancet's through its Python package), and each "
-                         "ratio taken chunk by chunk")
+                         "in this process (lancet's fast engine through its Python package), "
+                         "and each ratio taken chunk by chunk (--rounds, --steps, --repeats "
+                         "and --lancet are then unused)")
     args = ap.parse_args()
     damping = DAMPING if args.preset == "damped" else 0.0
     sizes = [s for s in args.sizes.split(",") if s]

@@ -15,6 +15,9 @@ cargo build --release --quiet -p lancet-cli -p lancet-python
 stage=target/peers-python
 rm -rf "$stage" && mkdir -p "$stage"
 cp -r python/lancet "$stage/"
-cp target/release/lib_lancet.so "$stage/lancet/_lancet.abi3.so"
+# The extension as Python names it: lib_lancet.so on Linux, lib_lancet.dylib on macOS.
+for lib in target/release/lib_lancet.so target/release/lib_lancet.dylib; do
+    if [ -f "$lib" ]; then cp "$lib" "$stage/lancet/_lancet.abi3.so"; fi
+done
 PYTHONPATH="$stage${PYTHONPATH:+:$PYTHONPATH}" \
     exec "$venv/bin/python" "$here/peers.py" --lancet target/release/lancet "$@"

@@ -183,7 +183,8 @@ impl World {
     /// 72x36x36, or three counts) split into five tets (`split="six"`: six), springs of 5e4
     /// N/m on the tet edges with 5 N s/m along each (`preset="undamped"`: none), 0.125 kg a
     /// node, the face x = 0 fixed, gravity, 2e-4 s steps of symplectic Euler. `cells`
-    /// defaults to `"large"`.
+    /// defaults to `"large"`; `engine` is `"fast"` (the default), `"reference"`, `"gpu"` or
+    /// `"auto"`. Names are read in any case.
     #[staticmethod]
     #[pyo3(signature = (preset="damped", cells=None, split="five", engine="fast"))]
     fn preset(
@@ -193,7 +194,7 @@ impl World {
         engine: &str,
     ) -> PyResult<World> {
         use lancet::report::bench::Preset;
-        let preset = match preset {
+        let preset = match preset.to_ascii_lowercase().as_str() {
             "damped" => Preset::Damped,
             "undamped" => Preset::Undamped,
             _ => {
@@ -205,7 +206,7 @@ impl World {
         let cells: [usize; 3] = match cells {
             None => Preset::GRIDS[1],
             Some(c) => match c.extract::<String>() {
-                Ok(name) => match name.as_str() {
+                Ok(name) => match name.to_ascii_lowercase().as_str() {
                     "small" => Preset::GRIDS[0],
                     "large" => Preset::GRIDS[1],
                     _ => {
@@ -219,7 +220,7 @@ impl World {
                 })?,
             },
         };
-        let split = match split {
+        let split = match split.to_ascii_lowercase().as_str() {
             "five" => TetSplit::Five,
             "six" => TetSplit::Six,
             _ => return Err(value_err(format!("split `{split}`: choose five or six"))),
@@ -441,7 +442,8 @@ impl World {
 
     /// Take `steps` steps with the tools where they are (the GIL released meanwhile).
     /// `check=False` leaves out the divergence and inversion checks, as `lancet bench` times
-    /// the engines: for timing a world without tools or self-contact against other codes.
+    /// the engines: for timing a world without tools or self-contact against other codes. A
+    /// run that blew up meanwhile is then only reported by the next checked `run` or `step`.
     #[pyo3(signature = (steps, check=true))]
     fn run(&mut self, py: Python<'_>, steps: u64, check: bool) -> PyResult<()> {
         let world = &mut self.world;

@@ -87,3 +87,49 @@ fn backward_euler_wide_and_baseline_products_give_the_same_bits() {
         "the AVX2 product's steps differ"
     );
 }
+
+/// A spring whose two ends meet has no direction and pushes nothing, in every kernel: the
+/// AVX-512 estimate of `1 / l` is infinite there and its NaN must be masked out, the division
+/// of the others masked alike. Its ends' neighbours then step as in the baseline kernels.
+#[rstest]
+fn a_spring_of_zero_length_pushes_nothing_in_every_kernel(
+    #[values(false, true)] damped: bool,
+    #[values(false, true)] one: bool,
+    #[values(false, true)] avx512: bool,
+) {
+    let model = if one {
+        one_material(random_model(73, damped))
+    } else {
+        random_model(73, damped)
+    };
+    let config = SimConfig::new(0.5 * stable_time_step(&model).dt);
+    let (mut x, v) = random_state(&model, 73);
+    let s = model
+        .springs()
+        .iter()
+        .find(|s| s.nodes.iter().all(|&n| !model.fixed[n as usize]))
+        .expect("a spring between free nodes");
+    let [i, j] = s.nodes.map(|n| n as usize);
+    x[j] = x[i];
+    let run = |wide: bool| {
+        let mut e = FastEngine::new(&model, config);
+        let used = e.set_wide_simd(wide);
+        let used_512 = e.set_avx512(avx512);
+        e.set_state(&x, &v);
+        e.step(1);
+        (used, used_512, e.positions())
+    };
+    let (_, _, baseline) = run(false);
+    assert!(baseline.iter().flatten().all(|c| c.is_finite()));
+    let (wide_used, wide_512, wide) = run(true);
+    if !wide_used || (avx512 && !wide_512) {
+        eprintln!("skipped: this CPU lacks the kernel asked for");
+        return;
+    }
+    assert!(
+        wide.iter().flatten().all(|c| c.is_finite()),
+        "a zero-length spring made the wide kernels' step not finite (AVX-512: {avx512})"
+    );
+    let e = relative_l2(&model.rest, &wide, &baseline);
+    assert!(e < 1e-5, "off the baseline by {e:.2e} (AVX-512: {avx512})");
+}

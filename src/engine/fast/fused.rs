@@ -261,7 +261,8 @@ impl FastEngine {
             n,
         };
         let reach = sl.reach;
-        // SAFETY: `simd` at most what the CPU has (`Simd::best`, `set_wide_simd`); the
+        // SAFETY: `simd` at most what the CPU has (`Simd::best`, which `set_wide_simd` and
+        // `set_avx512` never exceed); the
         // ranges are disjoint, a sweep writes `A` only for nodes whose readers are all its
         // own and done, and `finish` runs after every sweep (see the module's rule).
         let sweep = |r: &Range| unsafe { r.sweep::<VERLET>(&k, st, reach) };

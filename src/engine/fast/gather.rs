@@ -5,7 +5,7 @@
 //! (position or velocity, padded to four floats) and transposed in registers into one vector
 //! per axis, instead of 24 scalar loads inserted lane by lane. The arithmetic is the portable
 //! kernel's ([`super::sliced::group_force`]) with fused multiply-adds, so it differs from it
-//! only by their rounding.
+//! only by their rounding (and, in the AVX-512 copy, by the estimate of `1 / l`: see below).
 //!
 //! The update: the portable kernels' (`kernels.rs`: `verlet_block`, `euler_block`, `advance`
 //! and `physics::Compensation`) operation for operation, unfused, on the eight lanes at once,
@@ -14,7 +14,10 @@
 //!
 //! One code, compiled twice (`kernels::wide`): for AVX2 and FMA, and for those with AVX-512F
 //! and VL, where each spring's `1 / l` comes from an estimate and a Newton step instead of the
-//! divider ([`short_scale`]). Its functions are `#[inline(always)]` without target features of
+//! divider ([`short_scale`]; a uniform layout's rest length, `sqrt(|e|^2)`, still takes a
+//! square root, off the chain). The two give different bits, a float32 rounding or two
+//! apart, and so may CPUs of different makers with AVX-512: the estimate is bounded to
+//! 2^-14, not specified to the bit. Its functions are `#[inline(always)]` without target features of
 //! their own, so that each copy is compiled whole with its wrapper's.
 
 use super::sliced::{Sliced, Uniform, LANES};

@@ -117,7 +117,8 @@ pub struct FastEngine {
     integrator: Integrator,
     /// Whether any spring has damping: the undamped kernel skips the neighbours' velocities.
     damped: bool,
-    /// The instructions the kernels use, the most the CPU has (detected at run time): the
+    /// The instructions the kernels use: at most what the CPU has (detected at run time; less
+    /// through `set_wide_simd` and `set_avx512`). The
     /// kernels are compiled again for AVX2 and FMA, which step about 1.5x faster than the
     /// baseline x86-64 build, and for those with AVX-512F and VL besides.
     simd: Simd,
@@ -263,8 +264,10 @@ impl FastEngine {
             .map_or("springs", |e| e.reference().name())
     }
 
-    /// Use the AVX2/FMA kernels or not (for comparing them with the baseline ones); they are
-    /// only used where the CPU has those features. Returns whether they are now in use.
+    /// Use the wide kernels or not (for comparing them with the baseline ones): on, the best
+    /// the CPU has (AVX2 and FMA, and AVX-512 where it has that too, whatever
+    /// [`FastEngine::set_avx512`] said before); off, the baseline kernels. Returns whether
+    /// the AVX2/FMA kernels are now in use.
     pub fn set_wide_simd(&mut self, on: bool) -> bool {
         self.simd = if on { Simd::best() } else { Simd::Portable };
         self.simd.wide()
