@@ -6,10 +6,37 @@
 use crate::models;
 use lancet::engine::fast::FastEngine;
 use lancet::engine::{Engine, Integrator, SimConfig};
-use lancet::model::stable_time_step;
+use lancet::model::{stable_time_step, PackedModel};
 use lancet::report::bench::relative_l2;
 use models::{one_material, random_model, random_state};
 use rstest::rstest;
+
+/// The random model of `seed`, with one spring material where `one`.
+fn model_of(seed: u64, damped: bool, one: bool) -> PackedModel {
+    let model = random_model(seed, damped);
+    if one {
+        one_material(model)
+    } else {
+        model
+    }
+}
+
+/// `steps` steps of a fast engine from `(x, v)` with the wide kernels (`wide`) and AVX-512
+/// (`avx512`) asked for: whether each is in use, and the positions.
+fn step_with(
+    model: &PackedModel,
+    config: SimConfig,
+    (x, v): (&[[f64; 3]], &[[f64; 3]]),
+    (wide, avx512): (bool, bool),
+    steps: u32,
+) -> (bool, bool, Vec<[f64; 3]>) {
+    let mut e = FastEngine::new(model, config);
+    let used = e.set_wide_simd(wide);
+    let used_512 = e.set_avx512(avx512);
+    e.set_state(x, v);
+    e.step(steps);
+    (used, used_512, e.positions())
+}
 
 #[rstest]
 fn wide_and_baseline_kernels_agree(
@@ -18,23 +45,15 @@ fn wide_and_baseline_kernels_agree(
     #[values(false, true)] one: bool,
     #[values(false, true)] avx512: bool,
 ) {
-    let model = if one {
-        one_material(random_model(71, damped))
-    } else {
-        random_model(71, damped)
-    };
+    let model = model_of(71, damped, one);
     let mut config = SimConfig::new(0.5 * stable_time_step(&model).dt);
     config.integrator = integrator;
+    assert_eq!(
+        FastEngine::new(&model, config).uniform_springs().is_some(),
+        one
+    );
     let (x, v) = random_state(&model, 71);
-    let run = |wide: bool| {
-        let mut e = FastEngine::new(&model, config);
-        let used = e.set_wide_simd(wide);
-        let used_512 = e.set_avx512(avx512);
-        assert_eq!(e.uniform_springs().is_some(), one);
-        e.set_state(&x, &v);
-        e.step(300);
-        (used, used_512, e.positions())
-    };
+    let run = |wide: bool| step_with(&model, config, (&x, &v), (wide, avx512), 300);
     let (wide_used, wide_512, wide) = run(true);
     let (baseline_used, baseline_512, baseline) = run(false);
     assert!(!baseline_used && !baseline_512);
@@ -97,11 +116,7 @@ fn a_spring_of_zero_length_pushes_nothing_in_every_kernel(
     #[values(false, true)] one: bool,
     #[values(false, true)] avx512: bool,
 ) {
-    let model = if one {
-        one_material(random_model(73, damped))
-    } else {
-        random_model(73, damped)
-    };
+    let model = model_of(73, damped, one);
     let config = SimConfig::new(0.5 * stable_time_step(&model).dt);
     let (mut x, v) = random_state(&model, 73);
     let s = model
@@ -111,14 +126,7 @@ fn a_spring_of_zero_length_pushes_nothing_in_every_kernel(
         .expect("a spring between free nodes");
     let [i, j] = s.nodes.map(|n| n as usize);
     x[j] = x[i];
-    let run = |wide: bool| {
-        let mut e = FastEngine::new(&model, config);
-        let used = e.set_wide_simd(wide);
-        let used_512 = e.set_avx512(avx512);
-        e.set_state(&x, &v);
-        e.step(1);
-        (used, used_512, e.positions())
-    };
+    let run = |wide: bool| step_with(&model, config, (&x, &v), (wide, avx512), 1);
     let (_, _, baseline) = run(false);
     assert!(baseline.iter().flatten().all(|c| c.is_finite()));
     let (wide_used, wide_512, wide) = run(true);
